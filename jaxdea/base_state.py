@@ -1,0 +1,234 @@
+"""Static (biasing) deformation and field of the tube (theory.md §1; paper Eqs. 5–8, 15–17 corrected).
+
+All lengths are in units of R_i and stresses in units of μ. Quadrature is composite Gauss–Legendre
+(differentiable, no adaptive control flow). The reference gauge is P_o = 0, P_i = ΔP̂.
+"""
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .moduli import energy_derivatives
+from .params import Tube, as_float, require_x64, validate_tube
+from .scalar import Status, implicit_root, newton_bracketed
+
+GAUSS_ORDER = 8
+PANELS = 16
+
+
+class Geometry(NamedTuple):
+    """Deformed radii r̂_i, r̂_o and thickness ĥ = r̂_o − r̂_i."""
+
+    r_inner: jax.Array
+    r_outer: jax.Array
+    thickness: jax.Array
+
+
+def geometry(tube: Tube) -> Geometry:
+    """r̂_i = λ_i, r̂_o = sqrt(λ_i² + (η⁻² − 1)/λ_z) (paper Eqs. 5–6)."""
+    li, lz, eta = as_float(tube.lambda_i), as_float(tube.lambda_z), as_float(tube.eta)
+    ro = jnp.sqrt(li**2 + (eta**-2 - 1.0) / lz)
+    return Geometry(li, ro, ro - li)
+
+
+def stretch(tube: Tube, r):
+    """Circumferential stretch λ(r̂) = r̂ / sqrt(λ_z(r̂² − r̂_i²) + 1) (paper Eq. 5)."""
+    li, lz = as_float(tube.lambda_i), as_float(tube.lambda_z)
+    return r / jnp.sqrt(lz * (r**2 - li**2) + 1.0)
+
+
+def electric_displacement(tube: Tube, r):
+    """D̂_r(r̂) = V̂ / (r̂ ln(r̂_o/r̂_i)) (paper Eq. 8, ideal dielectric)."""
+    geo = geometry(tube)
+    return as_float(tube.voltage) / (r * jnp.log(geo.r_outer / geo.r_inner))
+
+
+def _w1(tube: Tube, r):
+    lam, lz = stretch(tube, r), as_float(tube.lambda_z)
+    i1 = (lam * lz) ** -2 + lam**2 + lz**2
+    w1, _ = jax.vmap(energy_derivatives, (0, None, None))(
+        jnp.ravel(i1), as_float(tube.gent), tube.material
+    )
+    return jnp.reshape(w1, jnp.shape(r)), lam
+
+
+def _elastic_integrand(tube: Tube, r):
+    """2W_1(λ² − λ_r²)/r̂, the elastic part of the radial equilibrium integrand (theory.md 1.1)."""
+    w1, lam = _w1(tube, r)
+    lam_r = 1.0 / (lam * as_float(tube.lambda_z))
+    return 2.0 * w1 * (lam**2 - lam_r**2) / r
+
+
+def _elastic_integral(tube: Tube, r_end, panels=PANELS):
+    """∫_{r̂_i}^{r_end} 2W_1(λ² − λ_r²) dr̂/r̂ by composite Gauss–Legendre (vectorised in r_end)."""
+    x, w = np.polynomial.legendre.leggauss(GAUSS_ORDER)
+    r0 = geometry(tube).r_inner
+    r_end = jnp.asarray(r_end)
+    edges = r0 + (r_end[..., None] - r0) * jnp.linspace(0.0, 1.0, panels + 1)
+    left, right = edges[..., :-1, None], edges[..., 1:, None]
+    nodes = 0.5 * (left + right) + 0.5 * (right - left) * x
+    vals = _elastic_integrand(tube, nodes)
+    return jnp.sum(0.5 * (right - left) * w * vals, axis=(-2, -1))
+
+
+def _electric_integral(tube: Tube, r_end):
+    """∫_{r̂_i}^{r_end} D̂_r² dr̂/r̂ = V̂²(1/r̂_i² − 1/r_end²)/(2 ln²(r̂_o/r̂_i)) (closed form)."""
+    geo = geometry(tube)
+    log_ratio = jnp.log(geo.r_outer / geo.r_inner)
+    v = as_float(tube.voltage)
+    return v**2 * (geo.r_inner**-2 - r_end**-2) / (2.0 * log_ratio**2)
+
+
+def pressure_difference_unchecked(tube: Tube):
+    """ΔP̂ = P̂_i − P̂_o holding the tube at (λ_i, λ_z, V̂) (theory.md Eq. 1.1; corrected paper Eq. 15)."""
+    ro = geometry(tube).r_outer
+    return _elastic_integral(tube, ro) - _electric_integral(tube, ro)
+
+
+def pressure_difference(tube: Tube):
+    """Static pressure difference ΔP̂ = (P_i − P_o)/μ that holds the tube at (λ_i, λ_z, V̂).
+
+    Equation (1.1) of theory.md (the paper's Eq. 15 corrected, erratum E4):
+    ΔP̂ = ∫ 2W_1(λ² − λ_r²) dr̂/r̂ − V̂²(1 − r̂_i²/r̂_o²)/(2 r̂_i² ln²(r̂_o/r̂_i)).
+
+    Example:
+        >>> float(pressure_difference(Tube(lambda_i=1.2 ** -0.5, lambda_z=1.2)))  # homogeneous
+        0.0
+    """
+    require_x64()
+    validate_tube(tube)
+    return pressure_difference_unchecked(tube)
+
+
+class BaseState(NamedTuple):
+    """Base state sampled at radii r̂: λ, D̂_r, p̂ (gauge P̂_o = 0, P̂_i = ΔP̂)."""
+
+    r: jax.Array
+    stretch: jax.Array
+    displacement: jax.Array
+    pressure: jax.Array
+
+
+def base_state(tube: Tube, r) -> BaseState:
+    """λ(r̂), D̂_r(r̂) and the Lagrange multiplier p̂(r̂) of theory.md Eqs. (1.2)–(1.3).
+
+    p̂ = 2W_1λ_r² + D̂_r² − τ̂_rr, τ̂_rr(r̂) = −ΔP̂ + ∫_{r̂_i}^{r̂} [2W_1(λ² − λ_r²) − D̂_r²] dr̂/r̂.
+    """
+    r = jnp.asarray(r, jnp.float64)
+    w1, lam = _w1(tube, r)
+    lam_r = 1.0 / (lam * as_float(tube.lambda_z))
+    d = electric_displacement(tube, r)
+    tau_rr = (
+        -pressure_difference_unchecked(tube)
+        + _elastic_integral(tube, r)
+        - _electric_integral(tube, r)
+    )
+    return BaseState(r, lam, d, 2.0 * w1 * lam_r**2 + d**2 - tau_rr)
+
+
+def thickness_ratio(tube: Tube):
+    """h/R_i = r̂_o − r̂_i, the deformed wall thickness over the undeformed inner radius."""
+    require_x64()
+    validate_tube(tube)
+    return geometry(tube).thickness
+
+
+def with_thickness_ratio(tube: Tube, h_over_Ri) -> Tube:
+    """The tube whose η gives the deformed thickness h/R_i at its λ_i, λ_z (differentiable).
+
+    From (λ_i + h)² = λ_i² + (η⁻² − 1)/λ_z: η = [1 + λ_z h (2λ_i + h)]^(−1/2).
+    """
+    require_x64()
+    h = as_float(h_over_Ri)
+    if not isinstance(h_over_Ri, jax.core.Tracer) and not np.all(np.asarray(h) > 0):
+        raise ValueError(f"h_over_Ri must be > 0, got {h_over_Ri!r}")
+    li, lz = as_float(tube.lambda_i), as_float(tube.lambda_z)
+    return tube.replace(eta=1.0 / jnp.sqrt(1.0 + lz * h * (2.0 * li + h)))
+
+
+# ----------------------------------------------------------------------------- static response
+
+
+def _voltage_factor(tube: Tube):
+    """E(λ_i) with ΔP̂ = ΔP̂_el(λ_i) − V̂² E(λ_i): E = (1 − r̂_i²/r̂_o²)/(2 r̂_i² ln²(r̂_o/r̂_i))."""
+    geo = geometry(tube)
+    return (1.0 - (geo.r_inner / geo.r_outer) ** 2) / (
+        2.0 * geo.r_inner**2 * jnp.log(geo.r_outer / geo.r_inner) ** 2
+    )
+
+
+def _squared_voltage(tube: Tube, lambda_i, delta_p):
+    """V̂²(λ_i) = (ΔP̂_el(λ_i) − ΔP̂)/E(λ_i) on the static response at fixed ΔP̂."""
+    t = tube.replace(lambda_i=lambda_i, voltage=0.0)
+    return (_elastic_integral(t, geometry(t).r_outer) - delta_p) / _voltage_factor(t)
+
+
+def _stretch_grid(lower=0.05, upper=20.0, points=400):
+    return jnp.asarray(np.geomspace(lower, upper, points))
+
+
+def inner_stretch(tube: Tube, delta_p=0.0):
+    """λ_i of the stable static state at pressure difference ΔP̂, voltage V̂ and stretch λ_z.
+
+    Solves ΔP̂_el(λ_i) − V̂²E(λ_i) = ΔP̂ (theory.md Eq. 1.1) on the branch connected to the
+    unpressurised small-λ_i states: the first sign change of V̂²E + ΔP̂ − ΔP̂_el on a geometric λ_i grid
+    (0.05 … 20), refined by safeguarded Newton. Beyond pull-in (no such state) the result is NaN with
+    status NO_ROOT. Derivatives with respect to ΔP̂ and every tube leaf are implicit.
+
+    Returns:
+        (lambda_i, status). ``tube.lambda_i`` is ignored.
+    """
+    require_x64()
+    validate_tube(tube.replace(lambda_i=1.0))
+    delta_p = as_float(delta_p)
+    v2 = as_float(tube.voltage) ** 2
+
+    def residual(li):
+        t = tube.replace(lambda_i=li, voltage=0.0)
+        return v2 * _voltage_factor(t) + delta_p - _elastic_integral(t, geometry(t).r_outer)
+
+    def solve():
+        grid = _stretch_grid()
+        vals = jax.vmap(residual)(grid)
+        ok = jnp.isfinite(vals)
+        down = ok[:-1] & ok[1:] & (vals[:-1] > 0) & (vals[1:] <= 0)
+        j = jnp.argmax(down)
+        root, status = newton_bracketed(residual, grid[j], grid[j + 1], vals[j], vals[j + 1])
+        return jnp.where(jnp.any(down), root, jnp.nan), jnp.where(
+            jnp.any(down), status, Status.NO_ROOT
+        )
+
+    return implicit_root(residual, solve, jnp.asarray(1.0))
+
+
+def pull_in(tube: Tube, delta_p=0.0):
+    """Pull-in point of the static response at fixed ΔP̂: the first maximum of V̂(λ_i).
+
+    V̂²(λ_i) = (ΔP̂_el(λ_i) − ΔP̂)/E(λ_i) (theory.md Eq. 1.1 solved for V̂²); the pull-in point is its
+    first local maximum beyond the unpressurised state, where d(V̂²)/dλ_i = 0 (refined by
+    safeguarded Newton with the autodiff second derivative). Differentiable by implicit derivatives.
+
+    Returns:
+        (lambda_i, voltage, status). ``tube.lambda_i`` and ``tube.voltage`` are ignored.
+    """
+    require_x64()
+    validate_tube(tube.replace(lambda_i=1.0))
+    delta_p = as_float(delta_p)
+    v2 = lambda li: _squared_voltage(tube, li, delta_p)  # noqa: E731
+    slope = jax.grad(v2)
+
+    def solve():
+        grid = _stretch_grid()
+        vals = jax.vmap(v2)(grid)
+        slopes = jax.vmap(slope)(grid)
+        ok = jnp.isfinite(slopes[:-1]) & jnp.isfinite(slopes[1:]) & (vals[:-1] > 0)
+        peak = ok & (slopes[:-1] > 0) & (slopes[1:] <= 0)
+        j = jnp.argmax(peak)
+        root, status = newton_bracketed(slope, grid[j], grid[j + 1], slopes[j], slopes[j + 1])
+        found = jnp.any(peak)
+        return jnp.where(found, root, jnp.nan), jnp.where(found, status, Status.NO_ROOT)
+
+    li, status = implicit_root(slope, solve, jnp.asarray(1.0))
+    return li, jnp.sqrt(v2(li)), status

@@ -1,0 +1,112 @@
+"""Incremental electro-elastic moduli from the energy by automatic differentiation (theory.md §2–3).
+
+The total energy per unit reference volume is Ω(F, D_L) = W(I_1) + I_5/2 with I_1 = tr(FᵀF) and
+I_5 = D_L·(FᵀF D_L) (dimensionless, μ = ε = 1). Its second derivatives pushed forward give
+
+    A0_piqj = F_pα F_qβ ∂²Ω/∂F_iα∂F_jβ,  Γ0_piq = F_pα F⁻¹_βq ∂²Ω/∂F_iα∂D_Lβ,
+    K0_ij = F⁻¹_αi F⁻¹_βj ∂²Ω/∂D_Lα∂D_Lβ                         (paper Eqs. 20–22, 31),
+
+evaluated at F = diag(λ_r, λ, λ_z) (order r, θ, z) and D = (D_r, 0, 0). Their combinations a, b, c,
+d, g, q (theory.md §3, corrected Eqs. 32–33) feed the state matrix.
+"""
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from .materials import ENERGIES
+
+R, T, Z = 0, 1, 2
+
+
+class Moduli(NamedTuple):
+    """Push-forward moduli at one point: A0 (3,3,3,3), Γ0 (3,3,3), K0 (3,3)."""
+
+    A: jax.Array
+    Gamma: jax.Array
+    K: jax.Array
+
+
+class Coefficients(NamedTuple):
+    """State-matrix coefficients at one radius (theory.md §3); each a scalar (or batch) array.
+
+    a = A_zrzr, b = (A_rrrr + A_zzzz − 2A_rrzz)/2, c = A_rzrz, d = Γ_rzz = D_r/ε,
+    g = 2A_rrzz − 2A_θθzz + A_θθθθ − A_rrrr, q = A_rrrr − A_rrzz + A_θθzz − A_rrθθ, eps = 1/K_rr,
+    p = Lagrange multiplier of the base state.
+    """
+
+    a: jax.Array
+    b: jax.Array
+    c: jax.Array
+    d: jax.Array
+    g: jax.Array
+    q: jax.Array
+    eps: jax.Array
+    p: jax.Array
+
+
+def energy_derivatives(i1, gent_constant, material="gent"):
+    """W_1 = ∂W/∂I_1 and W_11 = ∂²W/∂I_1² by autodiff; NaN where W_1 ≤ 0 (past Gent locking)."""
+    w1 = jax.grad(ENERGIES[material])
+    admissible = w1(i1, gent_constant) > 0
+    nan = jnp.nan * jnp.ones_like(i1)
+    return (
+        jnp.where(admissible, w1(i1, gent_constant), nan),
+        jnp.where(admissible, jax.grad(w1)(i1, gent_constant), nan),
+    )
+
+
+def electroelastic_energy(F, DL, gent_constant, material="gent"):
+    """Ω(F, D_L) = W(I_1) + I_5/2 (paper Eq. 9, dimensionless)."""
+    C = F.T @ F
+    return ENERGIES[material](jnp.trace(C), gent_constant) + 0.5 * DL @ (C @ DL)
+
+
+def push_forward_moduli(lam_r, lam, lam_z, D_r, gent_constant, material="gent") -> Moduli:
+    """A0, Γ0, K0 at F = diag(λ_r, λ, λ_z), D = D_r e_r, from the energy by autodiff (theory.md §2)."""
+    F = jnp.diag(jnp.stack([lam_r, lam, lam_z]))
+    Finv = jnp.diag(1.0 / jnp.stack([lam_r, lam, lam_z]))
+    DL = Finv @ jnp.stack([D_r, jnp.zeros_like(D_r), jnp.zeros_like(D_r)])
+    energy = lambda F, DL: electroelastic_energy(F, DL, gent_constant, material)  # noqa: E731
+    (hFF, hFD), (_, hDD) = jax.hessian(energy, argnums=(0, 1))(F, DL)
+    w1, _ = energy_derivatives(jnp.trace(F.T @ F), gent_constant, material)
+    A = jnp.einsum("pa,qb,iajb->piqj", F, F, hFF) * jnp.where(jnp.isnan(w1), jnp.nan, 1.0)
+    Gamma = jnp.einsum("pa,bq,iab->piq", F, Finv, hFD)
+    K = jnp.einsum("ai,bj,ab->ij", Finv, Finv, hDD)
+    return Moduli(A, Gamma, K)
+
+
+def coefficients(moduli: Moduli, p) -> Coefficients:
+    """a, b, c, d, g, q, ε of theory.md §3 (corrected paper Eq. 32) from the tensor moduli."""
+    A, Gamma, K = moduli
+    return Coefficients(
+        a=A[Z, R, Z, R],
+        b=0.5 * (A[R, R, R, R] + A[Z, Z, Z, Z] - 2.0 * A[R, R, Z, Z]),
+        c=A[R, Z, R, Z],
+        d=Gamma[R, Z, Z],
+        g=2.0 * A[R, R, Z, Z] - 2.0 * A[T, T, Z, Z] + A[T, T, T, T] - A[R, R, R, R],
+        q=A[R, R, R, R] - A[R, R, Z, Z] + A[T, T, Z, Z] - A[R, R, T, T],
+        eps=1.0 / K[R, R],
+        p=p,
+    )
+
+
+def closed_form_coefficients(lam, lam_z, D_r, p, gent_constant, material="gent") -> Coefficients:
+    """The closed forms of theory.md §3 (corrected Eq. 33), used to check :func:`coefficients`."""
+    lam_r = 1.0 / (lam * lam_z)
+    w1, w11 = energy_derivatives(lam_r**2 + lam**2 + lam_z**2, gent_constant, material)
+    dD = D_r * D_r
+    s = 1.0 - lam**4 * lam_z**2
+    return Coefficients(
+        a=2 * w1 * lam_z**2,
+        b=0.5 * (4 * w11 * (lam_z**2 - lam_r**2) ** 2 + 2 * w1 * (lam_z**2 + lam_r**2) + dD),
+        c=2 * w1 * lam_r**2 + dD,
+        d=D_r,
+        g=4 * w11 * lam_r**4 * s * (2 * lam**2 * lam_z**4 - lam**4 * lam_z**2 - 1)
+        - 2 * w1 * lam_r**2 * s
+        - dD,
+        q=4 * w11 * lam_r**4 * (1 - lam**2 * lam_z**4) * s + 2 * w1 * lam_r**2 + dD,
+        eps=jnp.ones_like(lam),
+        p=p,
+    )

@@ -1,0 +1,195 @@
+"""Parameters of the tube and of the fluid (pytrees) and validation of concrete inputs.
+
+Every float field is a pytree leaf (differentiable and vmappable); discrete choices are static
+metadata. Leaves are kept exactly as given (so that ``Tube(voltage=0, lambda_i=None, ...)`` works as
+a ``jax.vmap`` ``in_axes`` spec); conversion to float64 happens in :func:`as_float`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+COUPLINGS = ("acoustic", "paper")
+MATERIALS = ("gent", "neo_hookean")
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Tube:
+    """A pre-stretched dielectric elastomer tube (all quantities dimensionless, theory.md §0).
+
+    Attributes:
+        voltage: V̂ = sqrt(ε/μ) V / R_i.
+        lambda_i: inner circumferential stretch λ_i = r_i / R_i.
+        lambda_z: axial stretch λ_z = l / L.
+        eta: undeformed radius ratio η = R_i / R_o, in (0, 1).
+        gent: Gent constant G > 0 (``jnp.inf`` gives the neo-Hookean limit).
+        length_ratio: L / R_o (the paper uses 10); enters only :func:`jaxdea.axial_wavenumber`.
+        material: static name of the elastic energy W(I_1) (``"gent"`` or ``"neo_hookean"``).
+    """
+
+    voltage: float = 0.0
+    lambda_i: float = 1.0
+    lambda_z: float = 1.0
+    eta: float = 0.85
+    gent: float = 97.2
+    length_ratio: float = 10.0
+    material: str = dataclasses.field(default="gent", metadata=dict(static=True))
+
+    def replace(self, **changes) -> Tube:
+        """A copy with some fields changed."""
+        return dataclasses.replace(self, **changes)
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Fluid:
+    """An inviscid compressible fluid filling the tube.
+
+    Attributes:
+        density_ratio: ρ̂_f = ρ_f / ρ_s > 0.
+        speed_ratio: ĉ_f = c_f / c_s > 0.
+        coupling: static, ``"acoustic"`` (consistent, theory.md §4(c)) or ``"paper"`` (the paper's
+            Eq. 45 follower-pressure model, theory.md §4(b)).
+        bessel_order: static int ν ≥ 0 of the paper's coupling function (``"paper"`` only);
+            ``None`` means ν = n, the axial mode number, inferred from a concrete α̂.
+    """
+
+    density_ratio: float = 0.13
+    speed_ratio: float = 0.27
+    coupling: str = dataclasses.field(default="acoustic", metadata=dict(static=True))
+    bessel_order: int | None = dataclasses.field(default=None, metadata=dict(static=True))
+
+    def replace(self, **changes) -> Fluid:
+        """A copy with some fields changed."""
+        return dataclasses.replace(self, **changes)
+
+
+def require_x64() -> None:
+    """Raise unless 64-bit floats are enabled: jaxdea never computes silently in float32."""
+    if not jax.config.jax_enable_x64:
+        raise RuntimeError(
+            "jaxdea needs 64-bit floats: call jax.config.update('jax_enable_x64', True) "
+            "before using it (the characteristic determinant is meaningless in float32)."
+        )
+
+
+def as_float(x) -> jax.Array:
+    """A float64 array (a tracer stays a tracer)."""
+    return jnp.asarray(x, dtype=jnp.float64)
+
+
+def _concrete(x):
+    """The value of x as a numpy array, or None when it is traced."""
+    if isinstance(x, jax.core.Tracer):
+        return None
+    try:
+        return np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"expected a real number, got {x!r}") from exc
+
+
+def _check(name, x, allowed, ok, allow_inf=False):
+    """Raise ValueError naming the parameter when a concrete value is outside its range."""
+    v = _concrete(x)
+    if v is None:
+        return None
+    finite = np.isfinite(v) | (allow_inf & (v == np.inf))
+    if not np.all(finite):
+        raise ValueError(f"{name} must be finite ({allowed}), got {x!r}")
+    if not np.all(ok(v)):
+        bad = v[~ok(v)] if v.ndim else v
+        raise ValueError(f"{name} must be {allowed}, got {np.ravel(bad)[0]!r}")
+    return v
+
+
+def gent_limit_excess(lambda_i, lambda_z, eta):
+    """max over the wall of I_1 − 3 (attained at a face; I_1 is convex in λ², theory.md §1)."""
+    ro = np.sqrt(lambda_i**2 + (eta**-2 - 1.0) / lambda_z)
+    lam_o = ro * eta  # r_o / R_o
+    i1 = [lam**2 + 1.0 / (lam * lambda_z) ** 2 + lambda_z**2 for lam in (lambda_i, lam_o)]
+    return np.maximum(i1[0], i1[1]) - 3.0
+
+
+def validate_tube(tube: Tube) -> None:
+    """Validate the concrete leaves of a tube (traced leaves are skipped).
+
+    Raises:
+        ValueError: naming the parameter and its allowed range.
+    """
+    if not isinstance(tube, Tube):
+        raise ValueError(f"tube must be a jaxdea.Tube, got {type(tube).__name__}")
+    if tube.material not in MATERIALS:
+        raise ValueError(f"material must be one of {MATERIALS}, got {tube.material!r}")
+    _check("voltage", tube.voltage, "a finite real number", lambda v: np.isreal(v))
+    li = _check("lambda_i", tube.lambda_i, "> 0", lambda v: v > 0)
+    lz = _check("lambda_z", tube.lambda_z, "> 0", lambda v: v > 0)
+    eta = _check("eta", tube.eta, "in the open interval (0, 1)", lambda v: (v > 0) & (v < 1))
+    g = _check("gent", tube.gent, "> 0 (inf for neo-Hookean)", lambda v: v > 0, allow_inf=True)
+    _check("length_ratio", tube.length_ratio, "> 0", lambda v: v > 0)
+    if li is None or lz is None or eta is None or g is None or tube.material != "gent":
+        return
+    excess = gent_limit_excess(li, lz, eta)
+    if np.any(excess >= g):
+        worst = float(np.max(excess))
+        raise ValueError(
+            "lambda_i, lambda_z beyond the Gent locking limit: I_1 - 3 must stay below "
+            f"gent = {float(np.min(g))!r} everywhere in the wall, but reaches {worst:.6g}"
+        )
+
+
+def validate_fluid(fluid: Fluid | None) -> None:
+    """Validate a fluid (``None`` is the empty tube).
+
+    Raises:
+        ValueError: naming the parameter and its allowed range.
+    """
+    if fluid is None:
+        return
+    if not isinstance(fluid, Fluid):
+        raise ValueError(f"fluid must be a jaxdea.Fluid or None, got {type(fluid).__name__}")
+    if fluid.coupling not in COUPLINGS:
+        raise ValueError(f"coupling must be one of {COUPLINGS}, got {fluid.coupling!r}")
+    order = fluid.bessel_order
+    if order is not None and (not isinstance(order, (int, np.integer)) or order < 0):
+        raise ValueError(f"bessel_order must be None or an integer >= 0, got {order!r}")
+    _check("density_ratio", fluid.density_ratio, "> 0", lambda v: v > 0)
+    _check("speed_ratio", fluid.speed_ratio, "> 0", lambda v: v > 0)
+
+
+def validate_positive(name: str, x, allowed: str = "> 0") -> None:
+    """Validate a concrete positive scalar argument such as α̂ or a guess."""
+    _check(name, x, allowed, lambda v: v > 0)
+
+
+def validate_layers(n_layers) -> None:
+    """n_layers is a static integer >= 1."""
+    if not isinstance(n_layers, (int, np.integer)) or isinstance(n_layers, bool) or n_layers < 1:
+        raise ValueError(f"n_layers must be an integer >= 1, got {n_layers!r}")
+
+
+def mode_number(tube: Tube, alpha) -> int:
+    """The axial mode number n with α̂ = 2nπη/(length_ratio λ_z), from concrete values.
+
+    Raises:
+        ValueError: if α̂ is traced or is not an integer mode of the tube.
+    """
+    vals = [_concrete(x) for x in (alpha, tube.eta, tube.length_ratio, tube.lambda_z)]
+    if any(v is None for v in vals) or any(v.ndim for v in vals):
+        raise ValueError(
+            "bessel_order=None needs concrete scalar alpha and tube: pass Fluid(bessel_order=...) "
+            "explicitly when alpha or the tube is traced or batched"
+        )
+    alpha, eta, lr, lz = (float(v) for v in vals)
+    n = alpha * lr * lz / (2.0 * math.pi * eta)
+    if abs(n - round(n)) > 1e-9 * max(1.0, n) or round(n) < 1:
+        raise ValueError(
+            f"alpha = {alpha!r} is no integer axial mode of the tube (n = {n:.6g}); "
+            "pass Fluid(bessel_order=...) explicitly"
+        )
+    return int(round(n))

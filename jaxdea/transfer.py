@@ -1,0 +1,118 @@
+"""Laminate discretisation of the wall and propagation across it (theory.md §3, paper Eqs. 42–44).
+
+The wall is cut into N equal sublayers; sublayer k carries the base state and moduli of its
+mid-radius r̂_k, and T_k = expm[(ĥ/N) M(r̂_k)] (``jax.scipy.linalg.expm``). Two propagators:
+
+* :func:`transfer_matrix`, the reference: the full product A = T_N ⋯ T_1 (``lax.scan``).
+* :func:`propagate_basis`, the stable one used by the characteristic function: a 6×3 basis Y is
+  carried across the sublayers and re-orthonormalised after each (Gram–Schmidt, applied twice),
+  Y_k = Q_k R_k with R_k upper triangular with positive diagonal. Then A Y_0 = Q_N R_N ⋯ R_0, so
+  det(B A Y_0) = det(B Q_N) ∏ det R_k with ∏ det R_k > 0: det(B Q_N) has the same zeros and sign as
+  the raw determinant, and stays in [−1, 1] however much the product grows (like e^{α̂ĥ}).
+"""
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from .base_state import base_state, geometry, pressure_difference_unchecked
+from .moduli import Coefficients, coefficients, push_forward_moduli
+from .params import Tube, as_float
+from .state_matrix import state_matrix
+
+
+class Wall(NamedTuple):
+    """The discretised wall: Ω-independent data shared by every evaluation at one tube.
+
+    Attributes:
+        r_inner, r_outer: deformed radii r̂_i, r̂_o.
+        radii: (N,) mid-radii of the sublayers.
+        step: sublayer thickness ĥ/N.
+        coef: :class:`Coefficients` with (N,) arrays.
+        pressure_inner: P̂_i = ΔP̂ (gauge P̂_o = 0).
+    """
+
+    r_inner: jax.Array
+    r_outer: jax.Array
+    radii: jax.Array
+    step: jax.Array
+    coef: Coefficients
+    pressure_inner: jax.Array
+
+
+def layer_coefficients(tube: Tube, r) -> Coefficients:
+    """State-matrix coefficients at radii r̂ (base state + autodiff moduli)."""
+    bs = base_state(tube, r)
+    lz = as_float(tube.lambda_z)
+
+    def one(lam, d, p):
+        mod = push_forward_moduli(1.0 / (lam * lz), lam, lz, d, as_float(tube.gent), tube.material)
+        return coefficients(mod, p)
+
+    return jax.vmap(one)(bs.stretch, bs.displacement, bs.pressure)
+
+
+def discretize(tube: Tube, n_layers: int) -> Wall:
+    """Cut the wall into ``n_layers`` equal sublayers (paper Eq. 42)."""
+    geo = geometry(tube)
+    step = geo.thickness / n_layers
+    radii = geo.r_inner + (jnp.arange(n_layers) + 0.5) * step
+    return Wall(
+        geo.r_inner,
+        geo.r_outer,
+        radii,
+        step,
+        layer_coefficients(tube, radii),
+        pressure_difference_unchecked(tube),
+    )
+
+
+def layer_exponentials(wall: Wall, omega, alpha):
+    """T_k = expm[(ĥ/N) M(r̂_k; Ω, α̂)], shape (N, 6, 6) (paper Eq. 43)."""
+    mats = jax.vmap(state_matrix, (0, 0, None, None))(wall.coef, wall.radii, omega, alpha)
+    return jax.vmap(jax.scipy.linalg.expm)(wall.step * mats)
+
+
+def transfer_matrix(wall: Wall, omega, alpha):
+    """A = T_N ⋯ T_2 T_1 with Y(r̂_o) = A Y(r̂_i) (paper Eq. 44), ordered product by ``lax.scan``."""
+    def multiply(acc, t):
+        return t @ acc, None
+
+    acc, _ = jax.lax.scan(multiply, jnp.eye(6), layer_exponentials(wall, omega, alpha))
+    return acc
+
+
+def orthonormalize(y):
+    """Y = Q R for a 6×3 Y: Q with orthonormal columns, R upper triangular with R_jj > 0.
+
+    Classical Gram–Schmidt applied twice ("CGS2", stable to rounding). Returns (Q, log det R).
+    """
+    cols, logdet = [], 0.0
+    for j in range(y.shape[-1]):
+        v = y[:, j]
+        for _ in range(2):
+            for u in cols:
+                v = v - jnp.dot(u, v) * u
+        norm = jnp.linalg.norm(v)
+        logdet = logdet + jnp.log(norm)
+        cols.append(v / norm)
+    return jnp.stack(cols, axis=-1), logdet
+
+
+def propagate_basis(wall: Wall, omega, alpha, basis):
+    """Carry the 6×3 ``basis`` Y(r̂_i) across the wall with re-orthonormalisation.
+
+    Returns:
+        (Q, log_scale): Q spans A·basis, and A·basis = Q·R with log det R = log_scale (R's product is
+        kept only as its log-determinant, the scale factor of the characteristic function).
+    """
+    q0, log0 = orthonormalize(basis)
+
+    def step(carry, t):
+        q, log_scale = carry
+        q_new, log_r = orthonormalize(t @ q)
+        return (q_new, log_scale + log_r), None
+
+    (q, log_scale), _ = jax.lax.scan(step, (q0, log0), layer_exponentials(wall, omega, alpha))
+    return q, log_scale
