@@ -215,6 +215,11 @@ def pull_in(tube: Tube, delta_p=0.0):
     """
     require_x64()
     validate_tube(tube.replace(lambda_i=1.0))
+    return pull_in_unchecked(tube, delta_p)
+
+
+def pull_in_unchecked(tube: Tube, delta_p):
+    """:func:`pull_in` without input validation (for use inside other solvers)."""
     delta_p = as_float(delta_p)
     v2 = lambda li: _squared_voltage(tube, li, delta_p)  # noqa: E731
     slope = jax.grad(v2)
@@ -232,3 +237,19 @@ def pull_in(tube: Tube, delta_p=0.0):
 
     li, status = implicit_root(slope, solve, jnp.asarray(1.0))
     return li, jnp.sqrt(v2(li)), status
+
+
+def voltage_limit(tube: Tube):
+    """Largest voltage of the static response of the tube held at its zero-voltage ΔP̂.
+
+    The pull-in voltage of :func:`pull_in` at ΔP̂ = ΔP̂(λ_i, λ_z, V̂ = 0); where strain stiffening
+    removes the pull-in maximum (Gent), the largest voltage reached before Gent locking. Used as the
+    end of the critical-voltage search.
+    """
+    t0 = tube.replace(voltage=0.0)
+    delta_p = pressure_difference_unchecked(t0)
+    _, v_pull, status = pull_in_unchecked(tube, delta_p)
+    grid = _stretch_grid()
+    v2 = jax.vmap(lambda li: _squared_voltage(tube, li, delta_p))(grid)
+    v_sup = jnp.sqrt(jnp.max(jnp.where(jnp.isfinite(v2), v2, 0.0)))
+    return jax.lax.stop_gradient(jnp.where(status == Status.CONVERGED, v_pull, v_sup))

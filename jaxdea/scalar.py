@@ -84,6 +84,45 @@ def newton_bracketed(fun, lo, hi, f_lo, f_hi, rtol=1e-15, max_iter=200):
     return jnp.where(done, x, jnp.nan), status.astype(jnp.int32)
 
 
+def illinois(fun, lo, hi, f_lo, f_hi, rtol=1e-13, max_iter=100):
+    """Root of ``fun`` in [lo, hi] (f(lo)·f(hi) ≤ 0) by the Illinois variant of regula falsi.
+
+    Needs values only (used on f' to locate extrema without second derivatives); superlinear, and
+    the bracket always shrinks. Returns (x, status) like :func:`newton_bracketed`.
+    """
+    dtype = jnp.result_type(lo, float)
+    lo, hi, f_lo, f_hi = (jnp.asarray(v, dtype) for v in (lo, hi, f_lo, f_hi))
+    bracketed = (jnp.sign(f_lo) * jnp.sign(f_hi) <= 0) & jnp.isfinite(f_lo) & jnp.isfinite(f_hi)
+    width0 = jnp.abs(hi - lo)
+
+    def cond(s):
+        a, b, fa, fb, _, it = s
+        tol = rtol * jnp.maximum(jnp.maximum(jnp.abs(a), jnp.abs(b)), 1e-3 * width0)
+        return (jnp.abs(b - a) > tol) & (it < max_iter) & (fa != 0) & (fb != 0)
+
+    def body(s):
+        a, b, fa, fb, side, it = s
+        x = jnp.where(fb != fa, b - fb * (b - a) / (fb - fa), 0.5 * (a + b))
+        x = jnp.where((x > jnp.minimum(a, b)) & (x < jnp.maximum(a, b)), x, 0.5 * (a + b))
+        fx = fun(x)
+        same_as_b = jnp.sign(fx) == jnp.sign(fb)
+        # replace b by x; if x is on b's side the old a stays and its value is halved when the
+        # same side was kept twice in a row (Illinois)
+        a_new = jnp.where(same_as_b, a, b)
+        fa_new = jnp.where(same_as_b, jnp.where(side == 1, 0.5 * fa, fa), fb)
+        side = jnp.where(same_as_b, 1, -1)
+        return a_new, x, fa_new, fx, side, it + 1
+
+    a, b, fa, fb, _, it = jax.lax.while_loop(
+        cond, body, (lo, hi, jnp.where(bracketed, f_lo, 0.0), f_hi, 0, 0))
+    x = jnp.where(fa == 0, a, b)
+    ok = bracketed & jnp.isfinite(fb)
+    status = jnp.where(ok, jnp.where(it < max_iter, Status.CONVERGED, Status.MAX_ITER),
+                       jnp.where(jnp.isfinite(f_lo) & jnp.isfinite(f_hi), Status.NO_ROOT,
+                                 Status.NOT_FINITE))
+    return jnp.where(status == Status.CONVERGED, x, jnp.nan), status.astype(jnp.int32)
+
+
 def first_sign_change(values, after=None):
     """Index j of the first interval [j, j+1] with a sign change (values finite at both ends).
 

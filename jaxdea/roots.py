@@ -1,0 +1,323 @@
+"""Frequencies: zeros in Ω of the characteristic function, with status codes and exact derivatives.
+
+Root isolation (:func:`solve_frequencies`). f(Ω) is scanned upwards from Ω = 0 in chunks of
+``CHUNK`` points: a first geometric chunk Ω = Δ·2^{-62} … Δ (roots near zero, no fixed lower limit),
+then uniform steps Δ. Δ resolves the oscillation of f: Δ = min(π c_min/ĥ, π ĉ_f/r̂_i)/16, with c_min
+the slowest shear speed in the wall. Each grid interval [a, b] is classified with the values *and*
+autodiff slopes at its ends (Hermite data):
+
+* a sign change of f → one root, refined by safeguarded Newton;
+* no sign change, but f heads towards zero at a and away from it at b (f_a f'_a < 0 < f_b f'_b) →
+  f has an extremum inside, located by Illinois regula falsi on f'; if f changes
+  sign there, the interval holds a pair of roots, each refined in its half.
+
+Guarantee: a root is missed only if an interval contains more than one extremum of f (f' changes sign
+at least twice within one step Δ) or three or more roots. Pairs of roots closer than any step are
+found (tested down to relative gaps of 1e-9). The limits are stated in the README.
+
+Derivatives. Every returned root carries implicit-function derivatives dΩ/dθ = −(∂f/∂θ)/(∂f/∂Ω)
+(``jax.lax.custom_root``), never derivatives of the iterations.
+"""
+
+import functools
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .base_state import voltage_limit
+from .dispersion import characteristic_on_wall, check_inputs
+from .params import Fluid, Tube, as_float, validate_positive
+from .scalar import Status, illinois, implicit_root, newton_bracketed, value_and_slope
+from .transfer import Wall, discretize
+
+CHUNK = 64
+STEPS_PER_OSCILLATION = 16
+
+
+class Roots(NamedTuple):
+    """Roots with one status code per root (see :class:`jaxdea.Status`); NaN where not converged."""
+
+    omega: jax.Array
+    status: jax.Array
+
+
+def scan_step(wall: Wall, fluid: Fluid | None):
+    """Scan step Δ = min(π c_min/ĥ, π ĉ_f/r̂_i)/16 (a sixteenth of the shortest oscillation of f)."""
+    coef = wall.coef
+    c_min = jnp.sqrt(jnp.min(jnp.minimum(coef.c - coef.eps * coef.d**2, coef.a)))
+    thickness = wall.r_outer - wall.r_inner
+    scale = np.pi * c_min / thickness
+    if fluid is not None:
+        scale = jnp.minimum(scale, np.pi * as_float(fluid.speed_ratio) / wall.r_inner)
+    return scale / STEPS_PER_OSCILLATION
+
+
+def default_omega_max(wall: Wall, alpha, n_roots: int):
+    """Search limit when none is given: (n_roots + 1) thickness-mode spacings plus 3α̂ c_max."""
+    coef = wall.coef
+    c_max = jnp.sqrt(jnp.max(jnp.maximum(jnp.maximum(coef.a, coef.b), coef.c)))
+    thickness = wall.r_outer - wall.r_inner
+    return (n_roots + 1) * np.pi * c_max / thickness + 3.0 * alpha * c_max
+
+
+def _refine(fun, a, b, fa, fb, dfa, dfb, kind):
+    """Up to two roots in [a, b]: kind 1 = sign change, kind 2 = hidden pair (see module doc)."""
+    slope = lambda x: value_and_slope(fun, x)[1]  # noqa: E731
+    x_ext, _ = illinois(slope, a, b, jnp.where(kind == 2, dfa, 0.0), dfb)
+    x_ext = jnp.where(jnp.isfinite(x_ext), x_ext, 0.5 * (a + b))
+    f_ext = fun(x_ext)
+    pair = (kind == 2) & (jnp.sign(f_ext) != jnp.sign(fa))
+    mid = jnp.where(pair, x_ext, b)
+    f_mid = jnp.where(pair, f_ext, fb)
+    r1, s1 = newton_bracketed(fun, a, mid, fa, f_mid)
+    r2, s2 = newton_bracketed(fun, x_ext, b, f_ext, fb)
+    keys = jnp.stack([0.5 * (a + mid), 0.5 * (x_ext + b)])
+    roots, status = jnp.stack([r1, r2]), jnp.stack([s1, s2])
+    valid = jnp.stack([(kind == 1) | pair, pair])
+    return jnp.where(valid, keys, jnp.inf), roots, status
+
+
+def _scan_for_roots(fun, step, omega_end, n_roots: int) -> Roots:
+    """Chunked scan with Hermite classification and refinement (module docstring)."""
+    fvals = jax.vmap(lambda x: value_and_slope(fun, x))
+    geometric = step * 2.0 ** jnp.arange(-(CHUNK - 1), 1, dtype=jnp.float64)
+    max_chunks = 1_000_000
+
+    def grid(left, chunk):
+        uniform = left + step * jnp.arange(1, CHUNK + 1, dtype=jnp.float64)
+        return jnp.minimum(jnp.where(chunk == 0, geometric, uniform), omega_end)
+
+    def cond(s):
+        left, _, _, keys, _, _, blocked, chunk = s
+        found = jnp.sum(jnp.isfinite(keys))
+        return (found < n_roots) & (left < omega_end) & ~blocked & (chunk < max_chunks)
+
+    def body(s):
+        left, f_left, df_left, keys, roots, status, _, chunk = s
+        x = grid(left, chunk)
+        f, df = fvals(x)
+        xa, fa, dfa = (jnp.concatenate([v0[None], v[:-1]]) for v0, v in
+                       ((left, x), (f_left, f), (df_left, df)))
+        finite = jnp.isfinite(fa) & jnp.isfinite(f)
+        change = finite & (fa != 0) & (jnp.sign(fa) * jnp.sign(f) <= 0)
+        hidden = finite & ~change & (fa * dfa < 0) & (f * df > 0) & (x > xa)
+        # intervals at or after the first non-finite value are not trusted
+        ok = jnp.cumsum(~finite) == 0
+        kind = jnp.where(ok & change, 1, jnp.where(ok & hidden, 2, 0))
+        (idx,) = jnp.nonzero(kind > 0, size=n_roots, fill_value=0)
+        has = jnp.arange(n_roots) < jnp.sum(kind > 0)
+        k2, r2, s2 = jax.vmap(lambda i: _refine(fun, xa[i], x[i], fa[i], f[i], dfa[i], df[i],
+                                                kind[i]))(idx)
+        k2 = jnp.where(has[:, None], k2, jnp.inf)
+        all_keys = jnp.concatenate([keys, k2.ravel()])
+        order = jnp.argsort(all_keys)[:n_roots]
+        keys = all_keys[order]
+        roots = jnp.concatenate([roots, r2.ravel()])[order]
+        status = jnp.concatenate([status, s2.ravel()])[order]
+        # more candidates than slots: resume after the last processed interval
+        n_candidates = jnp.sum(kind > 0)
+        end = jnp.where(n_candidates > n_roots, idx[n_roots - 1], CHUNK - 1)
+        blocked = jnp.any(~finite & (jnp.arange(CHUNK) <= end))
+        return x[end], f[end], df[end], keys, roots, status, blocked, chunk + 1
+
+    f0, df0 = value_and_slope(fun, jnp.zeros_like(step))
+    nan = jnp.full(n_roots, jnp.nan)
+    init = (jnp.zeros_like(step), f0, df0, jnp.full(n_roots, jnp.inf), nan,
+            jnp.full(n_roots, Status.NO_ROOT, jnp.int32), ~jnp.isfinite(f0), 0)
+    _, _, _, keys, roots, status, blocked, _ = jax.lax.while_loop(cond, body, init)
+    missing = ~jnp.isfinite(keys)
+    status = jnp.where(missing, jnp.where(blocked, Status.NOT_FINITE, Status.NO_ROOT), status)
+    return Roots(jnp.where(status == Status.CONVERGED, roots, jnp.nan), status.astype(jnp.int32))
+
+
+def _with_implicit_derivatives(fun, roots: Roots) -> Roots:
+    """Attach dΩ/dθ = −f_θ/f_Ω to each root (values unchanged)."""
+    def one(x, st):
+        return implicit_root(fun, lambda: (jax.lax.stop_gradient(x), st), x)
+
+    omega, status = jax.vmap(one)(roots.omega, roots.status)
+    return Roots(omega, status)
+
+
+def _problem(tube, alpha, fluid, n_layers, order):
+    """(wall, f) with f(Ω) the characteristic function of one case."""
+    wall = discretize(tube, n_layers)
+    return wall, lambda om: characteristic_on_wall(wall, om, alpha, fluid, order)
+
+
+@functools.partial(jax.jit, static_argnames=("n_roots", "n_layers", "order"))
+def _solve_frequencies(tube, alpha, fluid, omega_max, n_roots, n_layers, order):
+    alpha = as_float(alpha)
+    wall, fun = _problem(tube, alpha, fluid, n_layers, order)
+    end = default_omega_max(wall, alpha, n_roots) if omega_max is None else as_float(omega_max)
+    step = jnp.minimum(scan_step(wall, fluid), end / CHUNK)
+    roots = _scan_for_roots(fun, *jax.lax.stop_gradient((step, end)), n_roots)
+    return _with_implicit_derivatives(fun, roots)
+
+
+def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
+                      omega_max=None, n_layers: int = 30) -> Roots:
+    """The ``n_roots`` lowest roots in (0, omega_max] with a status per root (module docstring).
+
+    Returns:
+        :class:`Roots` (omega ascending, NaN-padded; status CONVERGED, NO_ROOT or NOT_FINITE).
+    """
+    order = check_inputs(tube, alpha, fluid, n_layers)
+    if not isinstance(n_roots, (int, np.integer)) or isinstance(n_roots, bool) or n_roots < 1:
+        raise ValueError(f"n_roots must be an integer >= 1, got {n_roots!r}")
+    if omega_max is not None:
+        validate_positive("omega_max", omega_max)
+    return _solve_frequencies(tube, alpha, fluid, omega_max, int(n_roots), int(n_layers), order)
+
+
+def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
+                omega_max=None, n_layers: int = 30):
+    """The ``n_roots`` lowest frequencies Ω in (0, omega_max], ascending, NaN-padded.
+
+    Every root in the range is found, including close pairs and roots near Ω = 0 (scan with Hermite
+    classification, see :mod:`jaxdea.roots`); derivatives are implicit. ``omega_max=None`` searches up
+    to (n_roots + 1) thickness-mode spacings above α̂-scaled wave speeds. Use
+    :func:`solve_frequencies` for the status of each root.
+
+    Args:
+        tube: the :class:`~jaxdea.Tube`.
+        alpha: α̂ = α R_i > 0 (see :func:`jaxdea.axial_wavenumber`).
+        fluid: a :class:`~jaxdea.Fluid` or None (empty tube).
+        n_roots: number of roots (static).
+        omega_max: upper end of the search (None: automatic).
+        n_layers: sublayers N (static; laminate error O(N⁻²)).
+
+    Example:
+        >>> frequencies(Tube(eta=0.85), 0.445, n_roots=3)  # ≈ [0.745, 1.910, 17.844]
+    """
+    return solve_frequencies(tube, alpha, fluid, n_roots, omega_max, n_layers).omega
+
+
+def _newton_from_guess(fun, guess, max_step, rtol=1e-14, max_iter=100):
+    """Newton from ``guess`` with steps capped at ``max_step``; once two iterates bracket a sign
+    change, the bracketed safeguarded Newton finishes. Returns (root, status)."""
+    def cond(s):
+        _, _, _, _, it, done, _ = s
+        return (~done) & (it < max_iter)
+
+    def body(s):
+        x, fx, dfx, _, it, _, _ = s
+        step = jnp.clip(-fx / dfx, -max_step, max_step)
+        x_new = jnp.abs(x + step)  # f is even in Ω
+        f_new, df_new = value_and_slope(fun, x_new)
+        crossed = jnp.sign(f_new) * jnp.sign(fx) < 0
+        small = jnp.abs(x_new - x) <= rtol * jnp.abs(x_new)
+        done = crossed | small | (f_new == 0) | ~jnp.isfinite(f_new)
+        return x_new, f_new, df_new, x, it + 1, done, crossed
+
+    f0, df0 = value_and_slope(fun, guess)
+    init = (guess, f0, df0, guess, 0, ~jnp.isfinite(f0) | (f0 == 0), False)
+    x, fx, _, x_prev, it, done, crossed = jax.lax.while_loop(cond, body, init)
+    bracketed, st_b = newton_bracketed(fun, x_prev, x, fun(x_prev), fx)
+    root = jnp.where(crossed, bracketed, x)
+    status = jnp.where(crossed, st_b, jnp.where(done, Status.CONVERGED, Status.MAX_ITER))
+    status = jnp.where(jnp.isfinite(fx), status, Status.NOT_FINITE)
+    return jnp.where(status == Status.CONVERGED, root, jnp.nan), status.astype(jnp.int32)
+
+
+@functools.partial(jax.jit, static_argnames=("n_layers", "order"))
+def _solve_frequency(tube, alpha, guess, fluid, n_layers, order):
+    alpha, guess = as_float(alpha), as_float(guess)
+    wall, fun = _problem(tube, alpha, fluid, n_layers, order)
+    max_step = jax.lax.stop_gradient(4.0 * scan_step(wall, fluid))
+    solve = lambda: _newton_from_guess(fun, jax.lax.stop_gradient(guess), max_step)  # noqa: E731
+    return Roots(*implicit_root(fun, solve, guess))
+
+
+def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
+                    n_layers: int = 30) -> Roots:
+    """The root reached by safeguarded Newton from ``guess``, with its status (scalar Roots)."""
+    order = check_inputs(tube, alpha, fluid, n_layers)
+    validate_positive("guess", guess)
+    return _solve_frequency(tube, alpha, guess, fluid, int(n_layers), order)
+
+
+def frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, n_layers: int = 30):
+    """The root Ω reached by safeguarded Newton from ``guess``, with implicit derivatives.
+
+    ``jax.grad``/``jax.jacfwd`` with respect to any Tube/Fluid leaf, α̂ and the ``h_over_Ri`` of
+    :func:`jaxdea.with_thickness_ratio` give dΩ/dθ = −(∂f/∂θ)/(∂f/∂Ω) (exact for the discretisation).
+    NaN if Newton fails (see :func:`solve_frequency` for the status).
+
+    Example:
+        >>> jax.grad(lambda v: frequency(Tube(voltage=v), 0.445, 0.7))(0.1)
+    """
+    return solve_frequency(tube, alpha, guess, fluid, n_layers).omega
+
+
+def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: int = 30):
+    """dΩ/dα̂ on the branch through the root ``omega``: −(∂f/∂α̂)/(∂f/∂Ω) (implicit function theorem).
+
+    ``omega`` should be a root (e.g. from :func:`frequencies`); the formula is exact for the
+    discretisation. The paper's coupling with ``bessel_order=None`` needs an integer mode α̂ and then
+    differentiates at fixed order ν.
+    """
+    order = check_inputs(tube, alpha, fluid, n_layers)
+    return _group_velocity(tube, alpha, omega, fluid, int(n_layers), order)
+
+
+@functools.partial(jax.jit, static_argnames=("n_layers", "order"))
+def _group_velocity(tube, alpha, omega, fluid, n_layers, order):
+    alpha, omega = as_float(alpha), as_float(omega)
+    wall = discretize(tube, n_layers)
+    f = lambda om, al: characteristic_on_wall(wall, om, al, fluid, order)  # noqa: E731
+    f_omega, f_alpha = jax.grad(f, argnums=(0, 1))(omega, alpha)
+    return -f_alpha / f_omega
+
+
+def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
+                           n_layers: int = 30):
+    """(V̂_cr, status): the smallest V̂ > 0 with f(Ω = 0; V̂) = 0 (see :func:`critical_voltage`)."""
+    order = check_inputs(tube, alpha, fluid, n_layers)
+    return _solve_critical_voltage(tube, alpha, fluid, int(n_layers), order)
+
+
+@functools.partial(jax.jit, static_argnames=("n_layers", "order", "n_grid"))
+def _solve_critical_voltage(tube, alpha, fluid, n_layers, order, n_grid=128):
+    alpha = as_float(alpha)
+    v_end = voltage_limit(tube)
+
+    def g(v):
+        wall = discretize(tube.replace(voltage=v), n_layers)
+        return characteristic_on_wall(wall, jnp.zeros_like(v), alpha, fluid, order)
+
+    def solve():
+        grid = v_end * jnp.linspace(0.0, 1.0, n_grid + 1)[1:]
+        vals, slopes = jax.vmap(lambda v: value_and_slope(g, v))(grid)
+        g0 = g(jnp.zeros_like(v_end))
+        va, ga, sa = (jnp.concatenate([v0[None], v[:-1]]) for v0, v in
+                      ((jnp.zeros_like(v_end), grid), (g0, vals), (jnp.zeros_like(g0), slopes)))
+        finite = jnp.isfinite(ga) & jnp.isfinite(vals)
+        ok = jnp.cumsum(~finite) == 0
+        change = ok & (jnp.sign(ga) * jnp.sign(vals) <= 0) & (ga != 0)
+        hidden = ok & ~change & (ga * sa < 0) & (vals * slopes > 0)
+        j = jnp.argmax(change | hidden)
+        found = jnp.any(change | hidden)
+        kind = jnp.where(change[j], 1, 2)
+        keys, roots, status = _refine(g, va[j], grid[j], ga[j], vals[j], sa[j], slopes[j], kind)
+        first = jnp.argmin(keys)
+        ok_root = found & jnp.isfinite(keys[first])
+        stat = jnp.where(ok_root, status[first],
+                         jnp.where(jnp.all(finite), Status.NO_ROOT, Status.NOT_FINITE))
+        return jnp.where(ok_root, roots[first], jnp.nan), stat
+
+    return implicit_root(g, solve, v_end)
+
+
+def critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None, n_layers: int = 30):
+    """The smallest V̂ > 0 at which the lowest frequency at α̂ reaches zero.
+
+    Solves f(Ω = 0; V̂) = 0 in V̂ directly (the tube's ``voltage`` is ignored; λ_i, λ_z fixed): scan of
+    (0, V̂_lim] with Hermite classification, then safeguarded Newton; implicit derivatives. V̂_lim is
+    the pull-in limit: the largest voltage of the static response of the tube held at its zero-voltage
+    pressure difference (:func:`jaxdea.base_state.voltage_limit`). Fluids do not change V̂_cr (their
+    terms vanish like Ω²). NaN (status NO_ROOT) if no root below V̂_lim.
+    """
+    return solve_critical_voltage(tube, alpha, fluid, n_layers)[0]
