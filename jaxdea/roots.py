@@ -29,7 +29,7 @@ import numpy as np
 from .base_state import voltage_limit
 from .dispersion import characteristic_on_wall, check_inputs
 from .params import Fluid, Tube, as_float, validate_positive
-from .scalar import Status, illinois, implicit_root, newton_bracketed, value_and_slope
+from .scalar import Status, implicit_root, run_lanes, start_lanes, value_and_slope
 from .transfer import Wall, discretize
 
 CHUNK = 64
@@ -62,32 +62,20 @@ def default_omega_max(wall: Wall, alpha, n_roots: int):
     return (n_roots + 1) * np.pi * c_max / thickness + 3.0 * alpha * c_max
 
 
-def _refine(fun, a, b, fa, fb, dfa, dfb, kind):
-    """Up to two roots in [a, b]: kind 1 = sign change, kind 2 = hidden pair (see module doc)."""
-    slope = lambda x: value_and_slope(fun, x)[1]  # noqa: E731
-    x_ext, _ = illinois(slope, a, b, jnp.where(kind == 2, dfa, 0.0), dfb)
-    x_ext = jnp.where(jnp.isfinite(x_ext), x_ext, 0.5 * (a + b))
-    f_ext = fun(x_ext)
-    pair = (kind == 2) & (jnp.sign(f_ext) != jnp.sign(fa))
-    mid = jnp.where(pair, x_ext, b)
-    f_mid = jnp.where(pair, f_ext, fb)
-    r1, s1 = newton_bracketed(fun, a, mid, fa, f_mid)
-    r2, s2 = newton_bracketed(fun, x_ext, b, f_ext, fb)
-    keys = jnp.stack([0.5 * (a + mid), 0.5 * (x_ext + b)])
-    roots, status = jnp.stack([r1, r2]), jnp.stack([s1, s2])
-    valid = jnp.stack([(kind == 1) | pair, pair])
-    return jnp.where(valid, keys, jnp.inf), roots, status
-
-
 def _scan_for_roots(fun, step, omega_end, n_roots: int) -> Roots:
-    """Chunked scan with Hermite classification and refinement (module docstring)."""
+    """Chunked scan with Hermite classification and refinement (module docstring).
+
+    f and f' are evaluated at exactly two places (the grid chunk and the refinement lanes), which
+    keeps the compiled program small.
+    """
     fvals = jax.vmap(lambda x: value_and_slope(fun, x))
-    geometric = step * 2.0 ** jnp.arange(-(CHUNK - 1), 1, dtype=jnp.float64)
+    geometric = step * 2.0 ** jnp.arange(-(CHUNK - 2), 1, dtype=jnp.float64)
+    first = jnp.concatenate([jnp.zeros(1), geometric])  # Ω = 0, then Δ·2^-62 … Δ
     max_chunks = 1_000_000
 
     def grid(left, chunk):
         uniform = left + step * jnp.arange(1, CHUNK + 1, dtype=jnp.float64)
-        return jnp.minimum(jnp.where(chunk == 0, geometric, uniform), omega_end)
+        return jnp.minimum(jnp.where(chunk == 0, first, uniform), omega_end)
 
     def cond(s):
         left, _, _, keys, _, _, blocked, chunk = s
@@ -98,34 +86,33 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int) -> Roots:
         left, f_left, df_left, keys, roots, status, _, chunk = s
         x = grid(left, chunk)
         f, df = fvals(x)
-        xa, fa, dfa = (jnp.concatenate([v0[None], v[:-1]]) for v0, v in
-                       ((left, x), (f_left, f), (df_left, df)))
-        finite = jnp.isfinite(fa) & jnp.isfinite(f)
+        start = chunk == 0  # the first interval [0, 0] is empty
+        xa = jnp.concatenate([jnp.where(start, x[0], left)[None], x[:-1]])
+        fa = jnp.concatenate([jnp.where(start, f[0], f_left)[None], f[:-1]])
+        dfa = jnp.concatenate([jnp.where(start, df[0], df_left)[None], df[:-1]])
+        finite = jnp.isfinite(fa) & jnp.isfinite(f) & jnp.isfinite(dfa) & jnp.isfinite(df)
         change = finite & (fa != 0) & (jnp.sign(fa) * jnp.sign(f) <= 0)
         hidden = finite & ~change & (fa * dfa < 0) & (f * df > 0) & (x > xa)
-        # intervals at or after the first non-finite value are not trusted
-        ok = jnp.cumsum(~finite) == 0
+        ok = jnp.cumsum(~finite) == 0  # nothing at or after a non-finite value is trusted
         kind = jnp.where(ok & change, 1, jnp.where(ok & hidden, 2, 0))
         (idx,) = jnp.nonzero(kind > 0, size=n_roots, fill_value=0)
         has = jnp.arange(n_roots) < jnp.sum(kind > 0)
-        k2, r2, s2 = jax.vmap(lambda i: _refine(fun, xa[i], x[i], fa[i], f[i], dfa[i], df[i],
-                                                kind[i]))(idx)
-        k2 = jnp.where(has[:, None], k2, jnp.inf)
-        all_keys = jnp.concatenate([keys, k2.ravel()])
+        lanes = start_lanes(xa[idx], x[idx], fa[idx], f[idx], dfa[idx], df[idx],
+                            jnp.where(has, kind[idx], 0))
+        new_roots, new_keys, new_status = run_lanes(fun, lanes)
+        all_keys = jnp.concatenate([keys, new_keys])
         order = jnp.argsort(all_keys)[:n_roots]
         keys = all_keys[order]
-        roots = jnp.concatenate([roots, r2.ravel()])[order]
-        status = jnp.concatenate([status, s2.ravel()])[order]
+        roots = jnp.concatenate([roots, new_roots])[order]
+        status = jnp.concatenate([status, new_status])[order]
         # more candidates than slots: resume after the last processed interval
-        n_candidates = jnp.sum(kind > 0)
-        end = jnp.where(n_candidates > n_roots, idx[n_roots - 1], CHUNK - 1)
+        end = jnp.where(jnp.sum(kind > 0) > n_roots, idx[n_roots - 1], CHUNK - 1)
         blocked = jnp.any(~finite & (jnp.arange(CHUNK) <= end))
         return x[end], f[end], df[end], keys, roots, status, blocked, chunk + 1
 
-    f0, df0 = value_and_slope(fun, jnp.zeros_like(step))
-    nan = jnp.full(n_roots, jnp.nan)
-    init = (jnp.zeros_like(step), f0, df0, jnp.full(n_roots, jnp.inf), nan,
-            jnp.full(n_roots, Status.NO_ROOT, jnp.int32), ~jnp.isfinite(f0), 0)
+    zero = jnp.zeros_like(step)
+    init = (zero, zero, zero, jnp.full(n_roots, jnp.inf), jnp.full(n_roots, jnp.nan),
+            jnp.full(n_roots, Status.NO_ROOT, jnp.int32), jnp.asarray(False), 0)
     _, _, _, keys, roots, status, blocked, _ = jax.lax.while_loop(cond, body, init)
     missing = ~jnp.isfinite(keys)
     status = jnp.where(missing, jnp.where(blocked, Status.NOT_FINITE, Status.NO_ROOT), status)
@@ -195,31 +182,15 @@ def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
     return solve_frequencies(tube, alpha, fluid, n_roots, omega_max, n_layers).omega
 
 
-def _newton_from_guess(fun, guess, max_step, rtol=1e-14, max_iter=100):
+def _newton_from_guess(fun, guess, max_step):
     """Newton from ``guess`` with steps capped at ``max_step``; once two iterates bracket a sign
-    change, the bracketed safeguarded Newton finishes. Returns (root, status)."""
-    def cond(s):
-        _, _, _, _, it, done, _ = s
-        return (~done) & (it < max_iter)
-
-    def body(s):
-        x, fx, dfx, _, it, _, _ = s
-        step = jnp.clip(-fx / dfx, -max_step, max_step)
-        x_new = jnp.abs(x + step)  # f is even in Ω
-        f_new, df_new = value_and_slope(fun, x_new)
-        crossed = jnp.sign(f_new) * jnp.sign(fx) < 0
-        small = jnp.abs(x_new - x) <= rtol * jnp.abs(x_new)
-        done = crossed | small | (f_new == 0) | ~jnp.isfinite(f_new)
-        return x_new, f_new, df_new, x, it + 1, done, crossed
-
-    f0, df0 = value_and_slope(fun, guess)
-    init = (guess, f0, df0, guess, 0, ~jnp.isfinite(f0) | (f0 == 0), False)
-    x, fx, _, x_prev, it, done, crossed = jax.lax.while_loop(cond, body, init)
-    bracketed, st_b = newton_bracketed(fun, x_prev, x, fun(x_prev), fx)
-    root = jnp.where(crossed, bracketed, x)
-    status = jnp.where(crossed, st_b, jnp.where(done, Status.CONVERGED, Status.MAX_ITER))
-    status = jnp.where(jnp.isfinite(fx), status, Status.NOT_FINITE)
-    return jnp.where(status == Status.CONVERGED, root, jnp.nan), status.astype(jnp.int32)
+    change, safeguarded bracketed Newton finishes (a FREE lane of :func:`run_lanes`)."""
+    one = lambda v: jnp.reshape(v, (1,))  # noqa: E731
+    nan = jnp.full((1,), jnp.nan)
+    lanes = start_lanes(one(guess), one(guess), nan, nan, nan, nan, jnp.array([3]),
+                        max_step=one(max_step))
+    roots, _, status = run_lanes(fun, lanes)
+    return roots[0], status[0]
 
 
 @functools.partial(jax.jit, static_argnames=("n_layers", "order"))
@@ -289,24 +260,23 @@ def _solve_critical_voltage(tube, alpha, fluid, n_layers, order, n_grid=128):
         return characteristic_on_wall(wall, jnp.zeros_like(v), alpha, fluid, order)
 
     def solve():
-        grid = v_end * jnp.linspace(0.0, 1.0, n_grid + 1)[1:]
+        grid = v_end * jnp.linspace(0.0, 1.0, n_grid + 1)
         vals, slopes = jax.vmap(lambda v: value_and_slope(g, v))(grid)
-        g0 = g(jnp.zeros_like(v_end))
-        va, ga, sa = (jnp.concatenate([v0[None], v[:-1]]) for v0, v in
-                      ((jnp.zeros_like(v_end), grid), (g0, vals), (jnp.zeros_like(g0), slopes)))
-        finite = jnp.isfinite(ga) & jnp.isfinite(vals)
+        va, vb, ga, gb, sa, sb = grid[:-1], grid[1:], vals[:-1], vals[1:], slopes[:-1], slopes[1:]
+        finite = jnp.isfinite(ga) & jnp.isfinite(gb) & jnp.isfinite(sa) & jnp.isfinite(sb)
         ok = jnp.cumsum(~finite) == 0
-        change = ok & (jnp.sign(ga) * jnp.sign(vals) <= 0) & (ga != 0)
-        hidden = ok & ~change & (ga * sa < 0) & (vals * slopes > 0)
+        change = ok & (jnp.sign(ga) * jnp.sign(gb) <= 0) & (ga != 0)
+        hidden = ok & ~change & (ga * sa < 0) & (gb * sb > 0)
         j = jnp.argmax(change | hidden)
-        found = jnp.any(change | hidden)
-        kind = jnp.where(change[j], 1, 2)
-        keys, roots, status = _refine(g, va[j], grid[j], ga[j], vals[j], sa[j], slopes[j], kind)
+        kind = jnp.where(change[j], 1, jnp.where(hidden[j], 2, 0))
+        one = lambda v: jnp.reshape(v, (1,))  # noqa: E731
+        lanes = start_lanes(*(one(v[j]) for v in (va, vb, ga, gb, sa, sb)), one(kind))
+        roots, keys, status = run_lanes(g, lanes)
         first = jnp.argmin(keys)
-        ok_root = found & jnp.isfinite(keys[first])
-        stat = jnp.where(ok_root, status[first],
+        found = jnp.isfinite(keys[first])
+        stat = jnp.where(found, status[first],
                          jnp.where(jnp.all(finite), Status.NO_ROOT, Status.NOT_FINITE))
-        return jnp.where(ok_root, roots[first], jnp.nan), stat
+        return jnp.where(found, roots[first], jnp.nan), stat
 
     return implicit_root(g, solve, v_end)
 

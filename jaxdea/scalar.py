@@ -6,6 +6,7 @@ failures give NaN and a status code instead of an exception.
 """
 
 import enum
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -88,39 +89,43 @@ def illinois(fun, lo, hi, f_lo, f_hi, rtol=1e-13, max_iter=100):
     """Root of ``fun`` in [lo, hi] (f(lo)·f(hi) ≤ 0) by the Illinois variant of regula falsi.
 
     Needs values only (used on f' to locate extrema without second derivatives); superlinear, and
-    the bracket always shrinks. Returns (x, status) like :func:`newton_bracketed`.
+    the bracket always shrinks. ``fun`` returns ``(value, aux)``; the aux at the root comes back too.
+
+    Returns:
+        (x, aux, status) like :func:`newton_bracketed` (x NaN unless converged).
     """
     dtype = jnp.result_type(lo, float)
     lo, hi, f_lo, f_hi = (jnp.asarray(v, dtype) for v in (lo, hi, f_lo, f_hi))
     bracketed = (jnp.sign(f_lo) * jnp.sign(f_hi) <= 0) & jnp.isfinite(f_lo) & jnp.isfinite(f_hi)
     width0 = jnp.abs(hi - lo)
+    _, aux0 = jax.eval_shape(fun, lo)
+    aux0 = jnp.full(aux0.shape, jnp.nan, aux0.dtype)
 
     def cond(s):
-        a, b, fa, fb, _, it = s
+        a, b, fa, fb, _, _, it = s
         tol = rtol * jnp.maximum(jnp.maximum(jnp.abs(a), jnp.abs(b)), 1e-3 * width0)
         return (jnp.abs(b - a) > tol) & (it < max_iter) & (fa != 0) & (fb != 0)
 
     def body(s):
-        a, b, fa, fb, side, it = s
+        a, b, fa, fb, _, side, it = s
         x = jnp.where(fb != fa, b - fb * (b - a) / (fb - fa), 0.5 * (a + b))
         x = jnp.where((x > jnp.minimum(a, b)) & (x < jnp.maximum(a, b)), x, 0.5 * (a + b))
-        fx = fun(x)
+        fx, aux = fun(x)
         same_as_b = jnp.sign(fx) == jnp.sign(fb)
-        # replace b by x; if x is on b's side the old a stays and its value is halved when the
-        # same side was kept twice in a row (Illinois)
+        # x replaces b; if x is on b's side, a stays and its value is halved when that side was
+        # kept twice in a row (Illinois)
         a_new = jnp.where(same_as_b, a, b)
         fa_new = jnp.where(same_as_b, jnp.where(side == 1, 0.5 * fa, fa), fb)
         side = jnp.where(same_as_b, 1, -1)
-        return a_new, x, fa_new, fx, side, it + 1
+        return a_new, x, fa_new, fx, aux, side, it + 1
 
-    a, b, fa, fb, _, it = jax.lax.while_loop(
-        cond, body, (lo, hi, jnp.where(bracketed, f_lo, 0.0), f_hi, 0, 0))
-    x = jnp.where(fa == 0, a, b)
-    ok = bracketed & jnp.isfinite(fb)
+    init = (lo, hi, jnp.where(bracketed, f_lo, 0.0), f_hi, aux0, 0, 0)
+    a, b, fa, fb, aux, _, it = jax.lax.while_loop(cond, body, init)
+    ok = bracketed & jnp.isfinite(fb) & (it > 0)
     status = jnp.where(ok, jnp.where(it < max_iter, Status.CONVERGED, Status.MAX_ITER),
                        jnp.where(jnp.isfinite(f_lo) & jnp.isfinite(f_hi), Status.NO_ROOT,
                                  Status.NOT_FINITE))
-    return jnp.where(status == Status.CONVERGED, x, jnp.nan), status.astype(jnp.int32)
+    return jnp.where(status == Status.CONVERGED, b, jnp.nan), aux, status.astype(jnp.int32)
 
 
 def first_sign_change(values, after=None):
@@ -165,3 +170,176 @@ def implicit_root(fun, solve, x0):
         fun, x0, solver, lambda g, y: y / g(jnp.ones_like(y)), has_aux=True
     )
     return x, jax.lax.stop_gradient(status).astype(jnp.int32)
+
+
+# ------------------------------------------------------------------------- vectorised lane solver
+IDLE, EXTREMUM, BRACKET, FREE = 0, 1, 2, 3
+
+
+class Lanes(NamedTuple):
+    """State of a batch of scalar solves that share one evaluation of (f, f') per iteration.
+
+    mode: IDLE (finished), EXTREMUM (Illinois on f' inside [a, b], then split into the root
+    bracket on this lane's ``side``), BRACKET (safeguarded Newton inside [neg, pos]) or FREE
+    (Newton from a guess with capped steps until two iterates bracket a sign change).
+    """
+
+    mode: jax.Array
+    side: jax.Array  # EXTREMUM lanes: 0 takes [a, x_ext], 1 takes [x_ext, b]
+    a: jax.Array  # original interval and f, f' at its ends
+    b: jax.Array
+    fa: jax.Array
+    fb: jax.Array
+    dfa: jax.Array
+    dfb: jax.Array
+    lo: jax.Array  # current bracket (EXTREMUM: on f'; BRACKET: f(lo) < 0 < f(hi))
+    hi: jax.Array
+    glo: jax.Array  # f' at lo, hi (EXTREMUM only; Illinois-weighted)
+    ghi: jax.Array
+    last: jax.Array  # Illinois: which end was kept last time
+    x: jax.Array
+    fx: jax.Array
+    dfx: jax.Array
+    step: jax.Array
+    step_old: jax.Array
+    max_step: jax.Array  # FREE lanes: step cap
+    key: jax.Array  # sort key of the root (inf: none)
+    status: jax.Array
+
+
+def _enter_bracket(lanes, mask, a, b, fa, fb, dfa, dfb):
+    """Switch the masked lanes to BRACKET on [a, b] (f(a)·f(b) ≤ 0), starting at the end with the
+    smaller |f| (its slope is known, so no extra evaluation is needed)."""
+    start_a = jnp.abs(fa) <= jnp.abs(fb)
+    neg = jnp.where(fa < 0, a, b)
+    pos = jnp.where(fa < 0, b, a)
+    width = jnp.abs(b - a)
+    upd = dict(
+        mode=jnp.where(mask, BRACKET, lanes.mode),
+        lo=jnp.where(mask, neg, lanes.lo),
+        hi=jnp.where(mask, pos, lanes.hi),
+        x=jnp.where(mask, jnp.where(start_a, a, b), lanes.x),
+        fx=jnp.where(mask, jnp.where(start_a, fa, fb), lanes.fx),
+        dfx=jnp.where(mask, jnp.where(start_a, dfa, dfb), lanes.dfx),
+        step=jnp.where(mask, width, lanes.step),
+        step_old=jnp.where(mask, 2.0 * width, lanes.step_old),
+        key=jnp.where(mask, 0.5 * (a + b), lanes.key),
+    )
+    return lanes._replace(**upd)
+
+
+def start_lanes(a, b, fa, fb, dfa, dfb, kind, max_step=None):
+    """Lanes for candidate intervals: kind 1 = sign change (one root), 2 = hidden pair (two lanes
+    each, left and right of the extremum), 3 = FREE Newton from ``a`` (guess), 0 = nothing.
+
+    Inputs have shape (n,); the lanes have shape (2n,) (lane 2i and 2i+1 serve candidate i).
+    """
+    rep = lambda v: jnp.repeat(jnp.asarray(v, jnp.float64), 2)  # noqa: E731
+    a, b, fa, fb, dfa, dfb = map(rep, (a, b, fa, fb, dfa, dfb))
+    kind = jnp.repeat(kind, 2)
+    side = jnp.tile(jnp.array([0, 1]), kind.shape[0] // 2)
+    max_step = jnp.full_like(a, jnp.inf) if max_step is None else rep(max_step)
+    mode = jnp.where((kind == 2) | ((kind == 3) & (side == 0)), jnp.where(kind == 2, EXTREMUM, FREE),
+                     IDLE)
+    lanes = Lanes(
+        mode=mode, side=side, a=a, b=b, fa=fa, fb=fb, dfa=dfa, dfb=dfb,
+        lo=a, hi=b, glo=dfa, ghi=dfb, last=jnp.zeros_like(side),
+        x=a, fx=fa, dfx=dfa, step=jnp.abs(b - a), step_old=2.0 * jnp.abs(b - a),
+        max_step=max_step, key=jnp.full_like(a, jnp.inf),
+        status=jnp.full(a.shape, Status.NO_ROOT, jnp.int32),
+    )
+    return _enter_bracket(lanes, (kind == 1) & (side == 0), a, b, fa, fb, dfa, dfb)
+
+
+def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
+    """Iterate all lanes until every one is IDLE; one vectorised (f, f') evaluation per iteration.
+
+    BRACKET lanes follow Numerical Recipes' rtsafe (a Newton step that leaves the bracket or does
+    not halve the previous step becomes a bisection): guaranteed convergence, quadratic near a
+    simple root. EXTREMUM lanes use Illinois regula falsi on f'. FREE lanes take Newton steps capped
+    at ``max_step`` (f is even in Ω, so iterates stay positive) and hand over to BRACKET as soon as
+    two iterates bracket a sign change.
+
+    Returns:
+        (roots, keys, status): roots NaN unless converged; keys order them (inf = no root).
+    """
+    evaluate = jax.vmap(lambda x: value_and_slope(fun, x))
+
+    def cond(c):
+        lanes, it = c
+        return jnp.any(lanes.mode != IDLE) & (it < max_iter)
+
+    def body(c):
+        s, it = c
+        # proposals
+        newton = s.x - s.fx / s.dfx
+        lo_, hi_ = jnp.minimum(s.lo, s.hi), jnp.maximum(s.lo, s.hi)
+        use_newton = (newton > lo_) & (newton < hi_) & jnp.isfinite(newton)
+        use_newton &= jnp.abs(2.0 * s.fx) <= jnp.abs(s.step_old * s.dfx)
+        x_bracket = jnp.where(use_newton, newton, 0.5 * (s.lo + s.hi))
+        secant = jnp.where(s.ghi != s.glo, s.hi - s.ghi * (s.hi - s.lo) / (s.ghi - s.glo), 0.5 * (s.lo + s.hi))
+        x_extremum = jnp.where((secant > lo_) & (secant < hi_), secant, 0.5 * (s.lo + s.hi))
+        fresh = jnp.isnan(s.fx)  # a FREE lane's guess has not been evaluated yet
+        x_free = jnp.where(fresh, s.x,
+                           jnp.abs(s.x + jnp.clip(-s.fx / s.dfx, -s.max_step, s.max_step)))
+        x_new = jnp.select([s.mode == BRACKET, s.mode == EXTREMUM, s.mode == FREE],
+                           [x_bracket, x_extremum, x_free], s.x)
+        f_new, df_new = evaluate(x_new)
+        finite = jnp.isfinite(f_new) & jnp.isfinite(df_new)
+        scale = jnp.maximum(jnp.abs(x_new), 1e-3 * jnp.abs(s.b - s.a))
+        tol = rtol * scale
+
+        # BRACKET update
+        in_bracket = s.mode == BRACKET
+        lo = jnp.where(in_bracket & (f_new < 0), x_new, s.lo)
+        hi = jnp.where(in_bracket & (f_new > 0), x_new, s.hi)
+        step_new = jnp.abs(x_new - s.x)
+        converged = in_bracket & ((step_new <= tol) | (f_new == 0) | (jnp.abs(hi - lo) <= tol))
+
+        # EXTREMUM update (Illinois on f')
+        in_ext = s.mode == EXTREMUM
+        same = jnp.sign(df_new) == jnp.sign(s.ghi)
+        e_lo = jnp.where(same, s.lo, s.hi)
+        g_lo = jnp.where(same, jnp.where(s.last == 1, 0.5 * s.glo, s.glo), s.ghi)
+        last = jnp.where(same, 1, -1)
+        ext_done = in_ext & ((jnp.abs(x_new - e_lo) <= 1e2 * tol) | (df_new == 0))
+
+        # FREE update
+        in_free = s.mode == FREE
+        crossed = in_free & (jnp.sign(f_new) * jnp.sign(s.fx) < 0)
+        free_done = in_free & ~crossed & ~fresh & ((step_new <= tol) | (f_new == 0))
+
+        s = s._replace(
+            lo=jnp.where(in_ext, e_lo, lo), hi=jnp.where(in_ext, x_new, hi),
+            glo=jnp.where(in_ext, g_lo, s.glo), ghi=jnp.where(in_ext, df_new, s.ghi),
+            last=jnp.where(in_ext, last, s.last),
+            step_old=jnp.where(in_bracket | in_free, s.step, s.step_old),
+            step=jnp.where(in_bracket | in_free, step_new, s.step),
+        )
+        x_prev, f_prev, df_prev = s.x, s.fx, s.dfx
+        s = s._replace(x=x_new, fx=f_new, dfx=df_new)
+
+        # extremum found: split into the two root brackets if f changes sign there
+        pair = ext_done & (jnp.sign(f_new) != jnp.sign(s.fa))
+        left = s.side == 0
+        s = _enter_bracket(
+            s, pair,
+            jnp.where(left, s.a, x_new), jnp.where(left, x_new, s.b),
+            jnp.where(left, s.fa, f_new), jnp.where(left, f_new, s.fb),
+            jnp.where(left, s.dfa, df_new), jnp.where(left, df_new, s.dfb),
+        )
+        s = _enter_bracket(s, crossed, x_prev, x_new, f_prev, f_new, df_prev, df_new)
+
+        ok = converged | free_done
+        failed = (s.mode != IDLE) & ~finite & ~pair
+        status = jnp.where(ok, Status.CONVERGED, jnp.where(failed, Status.NOT_FINITE, s.status))
+        key = jnp.where(free_done, x_new, s.key)
+        mode = jnp.where(ok | failed | (ext_done & ~pair), IDLE, s.mode)
+        return s._replace(mode=mode, status=status.astype(jnp.int32), key=key), it + 1
+
+    lanes, _ = jax.lax.while_loop(cond, body, (lanes, 0))
+    status = jnp.where(lanes.mode != IDLE, Status.MAX_ITER, lanes.status).astype(jnp.int32)
+    roots = jnp.where(status == Status.CONVERGED, lanes.x, jnp.nan)
+    fallback = jnp.where(jnp.isfinite(lanes.key), lanes.key, 0.5 * (lanes.a + lanes.b))
+    keys = jnp.where(status == Status.NO_ROOT, jnp.inf, fallback)
+    return roots, keys, status

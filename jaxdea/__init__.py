@@ -1,0 +1,63 @@
+"""jaxdea: differentiable axisymmetric dispersion of pre-stretched, voltage-driven soft dielectric
+elastomer tubes, empty or filled with an inviscid compressible fluid (see theory.md).
+
+64-bit floats are required: ``jax.config.update("jax_enable_x64", True)`` before use.
+"""
+
+import math
+
+import jax.numpy as jnp
+
+from .base_state import (
+    inner_stretch,
+    pressure_difference,
+    pull_in,
+    thickness_ratio,
+    with_thickness_ratio,
+)
+from .dispersion import characteristic
+from .modes import mode_shape
+from .params import Fluid, Tube, as_float, require_x64
+from .roots import (
+    Roots,
+    critical_voltage,
+    frequencies,
+    frequency,
+    group_velocity,
+    solve_critical_voltage,
+    solve_frequencies,
+    solve_frequency,
+)
+from .scalar import Status
+
+
+def axial_wavenumber(tube: Tube, n):
+    """α̂ = α R_i for axial mode number n: α = 2nπ/l, l = λ_z L, so α̂ = 2nπη/(length_ratio·λ_z)."""
+    require_x64()
+    return (2.0 * math.pi * as_float(n) * as_float(tube.eta)
+            / (as_float(tube.length_ratio) * as_float(tube.lambda_z)))
+
+
+__all__ = [
+    "Fluid",
+    "Roots",
+    "Status",
+    "Tube",
+    "axial_wavenumber",
+    "characteristic",
+    "critical_voltage",
+    "frequencies",
+    "frequency",
+    "group_velocity",
+    "inner_stretch",
+    "mode_shape",
+    "pressure_difference",
+    "pull_in",
+    "solve_critical_voltage",
+    "solve_frequencies",
+    "solve_frequency",
+    "thickness_ratio",
+    "with_thickness_ratio",
+]
+__version__ = "0.1.0"
+del jnp

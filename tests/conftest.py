@@ -1,0 +1,25 @@
+"""Shared test set-up: 64-bit floats and finite-difference helpers."""
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def fd_derivative(fun, x, h=None):
+    """Central difference (f(x + h) − f(x − h)) / 2h with h ~ eps^(1/3)·max(1, |x|) by default
+    (truncation O(h²) and rounding O(eps/h) balanced)."""
+    x = float(x)
+    if h is None:
+        h = 6e-6 * max(1.0, abs(x))
+    return (float(fun(jnp.asarray(x + h))) - float(fun(jnp.asarray(x - h)))) / (2.0 * h)
+
+
+def assert_tree_allclose(a, b, rtol=1e-12, atol=0.0):
+    """allclose on every leaf of two pytrees."""
+    la, lb = jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b)
+    assert len(la) == len(lb)
+    for x, y in zip(la, lb, strict=True):
+        np.testing.assert_allclose(np.asarray(x), np.asarray(y), rtol=rtol, atol=atol)

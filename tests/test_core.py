@@ -1,0 +1,250 @@
+"""Pipeline stages against closed forms and independent computations."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from conftest import fd_derivative
+from scipy import integrate, special
+
+import jaxdea as jd
+from jaxdea import base_state as bs
+from jaxdea.bessel import _switch, coupling_pair
+from jaxdea.dispersion import characteristic_and_scale, reference_determinant
+from jaxdea.moduli import closed_form_coefficients, coefficients, push_forward_moduli
+from jaxdea.state_matrix import state_matrix
+from jaxdea.transfer import discretize, expm_taylor, layer_exponentials
+
+PAPER = dict(lambda_z=1.2, eta=0.85)
+
+
+@pytest.mark.parametrize(
+    "lam, lam_z, d, gent",
+    [(1.0, 1.0, 0.0, jnp.inf), (0.9, 1.2, 0.3, 97.2), (1.3, 0.8, 1.1, 5.0), (1.6, 1.5, 0.7, 2.2)],
+)
+def test_autodiff_moduli_equal_closed_forms(lam, lam_z, d, gent):
+    """A0, Γ0, K0 by autodiff of the energy give theory.md §2's components and §3's a…q."""
+    lam_r = 1.0 / (lam * lam_z)
+    mod = push_forward_moduli(jnp.asarray(lam_r), jnp.asarray(lam), jnp.asarray(lam_z),
+                              jnp.asarray(d), jnp.asarray(gent))
+    i1 = lam_r**2 + lam**2 + lam_z**2
+    w1 = 0.5 / (1.0 - (i1 - 3.0) / gent)
+    w11 = 2.0 * w1**2 / gent
+    np.testing.assert_allclose(mod.A[0, 0, 0, 0], 2 * w1 * lam_r**2 + 4 * w11 * lam_r**4 + d * d,
+                               rtol=1e-13)
+    np.testing.assert_allclose(mod.A[1, 1, 2, 2], 4 * w11 * lam**2 * lam_z**2, rtol=1e-13,
+                               atol=1e-15)
+    np.testing.assert_allclose(mod.A[0, 2, 0, 2], 2 * w1 * lam_r**2 + d * d, rtol=1e-13)
+    np.testing.assert_allclose(mod.A[0, 2, 2, 0], 0.0, atol=1e-14)
+    np.testing.assert_allclose(mod.Gamma[0, 0, 0], 2 * d, atol=1e-14)
+    np.testing.assert_allclose(mod.Gamma[2, 0, 2], d, atol=1e-14)
+    np.testing.assert_allclose(mod.K, np.eye(3), atol=1e-14)
+    auto = coefficients(mod, 0.37)
+    closed = closed_form_coefficients(jnp.asarray(lam), lam_z, jnp.asarray(d), 0.37, gent)
+    for name, x, y in zip(auto._fields, auto, closed, strict=True):
+        np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-14, err_msg=name)
+
+
+def test_linear_elastic_coefficients():
+    """λ = λ_z = 1, V = 0, neo-Hookean: a = c = q = 1, b = 1, g = 0, d = 0 (theory.md §3)."""
+    one = jnp.asarray(1.0)
+    c = coefficients(push_forward_moduli(one, one, one, 0.0 * one, jnp.inf), 1.0)
+    np.testing.assert_allclose([c.a, c.b, c.c, c.q, c.g, c.d], [1, 1, 1, 1, 0, 0], atol=1e-14)
+
+
+@pytest.mark.parametrize("order", [0, 1, 3, 10, 25])
+def test_bessel_pair_matches_scipy(order):
+    """(N_ν, D_ν) has the direction of (J_ν, x J_ν') / (I_ν, x I_ν') from scipy on both sides of
+    the series/integral switch; sin(angle) ≤ 1e-10 (series cancellation ≲ 1e4·eps)."""
+    sw = float(_switch(order))
+    s_values = np.concatenate([np.linspace(-4000, 4000, 401), sw * np.array([0.99, 1.01]),
+                               -sw * np.array([0.99, 1.01]), [1e-6, -1e-6]])
+    for s in s_values:
+        n, d = (float(v) for v in coupling_pair(jnp.asarray(s), order))
+        x = np.sqrt(abs(s))
+        if s == 0:
+            continue
+        if s > 0:
+            ref = np.array([special.jv(order, x), x * special.jvp(order, x)])
+        else:  # e^{-x} I_ν and e^{-x} x I_ν' (a common positive factor)
+            ref = np.array([special.ive(order, x),
+                            x * 0.5 * (special.ive(order - 1, x) + special.ive(order + 1, x))])
+        ref = ref / np.hypot(*ref)
+        got = np.array([n, d]) / np.hypot(n, d)
+        assert abs(got[0] * ref[1] - got[1] * ref[0]) < 1e-10, (order, s)
+        assert got @ ref > 0  # the same positive factor: no flipped sign
+
+
+def test_bessel_pair_entire_through_zero():
+    """D_0 = −s/2 + O(s²) and N_0 = 1 at s = 0 (the χ̂² = 0 limit of theory.md §4(c))."""
+    n, d = coupling_pair(jnp.asarray(0.0), 0)
+    assert float(n) == 1.0 and float(d) == 0.0
+    np.testing.assert_allclose(jax.grad(lambda s: coupling_pair(s, 0)[1])(0.0), -0.5, rtol=1e-14)
+    n1, d1 = coupling_pair(jnp.asarray(0.0), 2)
+    np.testing.assert_allclose(float(n1) / float(d1), 0.5, rtol=1e-14)  # B_ν → r̂_i/ν
+
+
+def test_pressure_difference_independent_quadrature():
+    """ΔP̂ of Eq. (1.1) against scipy.integrate.quad of the same integrand (Gent, V ≠ 0)."""
+    tube = jd.Tube(voltage=0.2, lambda_i=0.9, **PAPER)
+    ri, ro, lz, g = 0.9, float(bs.geometry(tube).r_outer), 1.2, 97.2
+
+    def integrand(r):
+        lam = r / np.sqrt(lz * (r * r - ri * ri) + 1.0)
+        lam_r = 1.0 / (lam * lz)
+        w1 = 0.5 / (1.0 - (lam_r**2 + lam**2 + lz**2 - 3.0) / g)
+        d = 0.2 / (r * np.log(ro / ri))
+        return (2 * w1 * (lam**2 - lam_r**2) - d * d) / r
+
+    ref, _ = integrate.quad(integrand, ri, ro, epsabs=1e-14, epsrel=1e-13)
+    np.testing.assert_allclose(jd.pressure_difference(tube), ref, rtol=1e-12)
+
+
+def test_homogeneous_state_has_no_pressure():
+    """λ_i = λ_z^{-1/2}, V = 0: uniaxial tension, ΔP̂ = 0 (theory.md §1, erratum E16)."""
+    tube = jd.Tube(lambda_i=1.2**-0.5, **PAPER)
+    assert abs(float(jd.pressure_difference(tube))) < 1e-15
+
+
+def test_base_state_equilibrium_and_boundary_values():
+    """τ_rr = 2W_1λ_r² + D² − p satisfies dτ_rr/dr + (τ_rr − τ_θθ)/r = 0, τ_rr(r_i) = −ΔP̂ and
+    τ_rr(r_o) = 0 (gauge P_o = 0)."""
+    tube = jd.Tube(voltage=0.25, lambda_i=1.1, **PAPER)
+    geo = bs.geometry(tube)
+    r = jnp.linspace(geo.r_inner, geo.r_outer, 41)
+
+    def stresses(r):
+        st = bs.base_state(tube, r)
+        lam_r = 1.0 / (st.stretch * 1.2)
+        i1 = lam_r**2 + st.stretch**2 + 1.44
+        w1 = 0.5 / (1.0 - (i1 - 3.0) / 97.2)
+        return (2 * w1 * lam_r**2 + st.displacement**2 - st.pressure,
+                2 * w1 * st.stretch**2 - st.pressure)
+
+    tau_rr, tau_tt = stresses(r)
+    dtau = jax.vmap(jax.grad(lambda x: stresses(x[None])[0][0]))(r)
+    np.testing.assert_allclose(dtau + (tau_rr - tau_tt) / r, 0.0, atol=1e-12)
+    np.testing.assert_allclose(tau_rr[0], -jd.pressure_difference(tube), rtol=1e-13)
+    np.testing.assert_allclose(tau_rr[-1], 0.0, atol=1e-13)
+
+
+def test_inner_stretch_inverts_pressure_difference():
+    """λ_i(ΔP̂, λ_z, V̂) reproduces ΔP̂; its implicit derivative matches central differences."""
+    tube = jd.Tube(voltage=0.05, **PAPER)
+    li, status = jd.inner_stretch(tube, 0.01)
+    assert int(status) == 0
+    np.testing.assert_allclose(jd.pressure_difference(tube.replace(lambda_i=li)), 0.01, atol=1e-14)
+    li0, _ = jd.inner_stretch(tube.replace(voltage=0.0), 0.0)
+    np.testing.assert_allclose(li0, 1.2**-0.5, rtol=1e-13)
+    grad = jax.grad(lambda v: jd.inner_stretch(tube.replace(voltage=v), 0.01)[0])(0.05)
+    fd = fd_derivative(lambda v: jd.inner_stretch(tube.replace(voltage=v), 0.01)[0], 0.05)
+    np.testing.assert_allclose(grad, fd, rtol=1e-6)
+
+
+def test_neo_hookean_pressure_closed_form():
+    """λ_z = 1, neo-Hookean, V = 0: ΔP̂ = ln(λ_i/λ_o) + 1/(2λ_o²) − 1/(2λ_i²) (Eq. 1.1 integrated
+    with dr/r = dλ/(λ − λ³))."""
+    for li in (0.7, 1.0, 1.5, 3.0):
+        tube = jd.Tube(lambda_i=li, lambda_z=1.0, eta=0.85, gent=jnp.inf)
+        lo = float(bs.geometry(tube).r_outer) * 0.85
+        exact = np.log(li / lo) + 0.5 / lo**2 - 0.5 / li**2
+        np.testing.assert_allclose(jd.pressure_difference(tube), exact, rtol=1e-13, atol=1e-15)
+
+
+def test_static_response_without_pull_in():
+    """At fixed λ_z the ideal-dielectric neo-Hookean tube has no pull-in at ΔP̂ = 0: V̂²(λ_i) rises
+    monotonically to ln(1/η)/E(∞) with E(∞) = 2λ_z/(η⁻² − 1) (both limits in closed form), so
+    pull_in reports NO_ROOT, and the critical-voltage search ends at that supremum."""
+    tube = jd.Tube(gent=jnp.inf, lambda_z=1.0, eta=0.85)
+    li, v, status = jd.pull_in(tube, 0.0)
+    assert int(status) == int(jd.Status.NO_ROOT) and np.isnan(float(v))
+    grid = np.geomspace(0.5, 20.0, 200)
+    v2 = np.array([float(bs._squared_voltage(tube, x, 0.0)) for x in grid])
+    assert np.all(np.diff(v2) > 0)
+    sup = np.log(1 / 0.85) * (0.85**-2 - 1.0) / 2.0
+    assert v2[-1] < sup and abs(v2[-1] / sup - 1) < 0.01
+    np.testing.assert_allclose(float(bs.voltage_limit(tube.replace(lambda_i=1.0))) ** 2,
+                               v2[-1], rtol=1e-12)
+
+
+def test_taylor_exponential_matches_expm():
+    """The branch-free exponential equals jax.scipy.linalg.expm on real sublayer matrices,
+    from a thin wall at low Ω to α̂ = 60 (‖hM‖ ≈ 10³)."""
+    for tube, omega, alpha in [(jd.Tube(), 0.5, 0.445), (jd.Tube(voltage=0.2, lambda_i=1.1,
+                               **PAPER), 18.0, 2.0), (jd.Tube(eta=0.3), 30.0, 60.0)]:
+        wall = discretize(tube, 30)
+        a = layer_exponentials(wall, omega, alpha, "taylor")
+        b = layer_exponentials(wall, omega, alpha, "expm")
+        scale = jnp.max(jnp.abs(b), axis=(1, 2), keepdims=True)
+        np.testing.assert_allclose(a / scale, b / scale, atol=1e-12)
+
+
+@pytest.mark.parametrize("fluid", [None, jd.Fluid(), jd.Fluid(coupling="paper", bessel_order=1)])
+def test_stable_characteristic_equals_reference_determinant(fluid):
+    """det(B A S) from the plain 6×6 expm product equals f·exp(log_scale) of the re-orthonormalised
+    propagation (same zeros and sign), where the product is well conditioned."""
+    tube = jd.Tube(voltage=0.15, lambda_i=0.95, **PAPER)
+    wall = discretize(tube, 30)
+    for omega in (0.3, 1.234, 7.0):
+        f, log_scale = characteristic_and_scale(wall, omega, 0.89, fluid, 1)
+        ref = reference_determinant(wall, omega, 0.89, fluid, 1)
+        np.testing.assert_allclose(f * jnp.exp(log_scale), ref, rtol=1e-9)
+        assert abs(float(f)) <= 1.0
+
+
+def test_characteristic_stays_finite_for_thick_walls():
+    """α̂ĥ ≈ 150: the raw product grows like e^{α̂ĥ}; the scaled function stays in [−1, 1] and
+    its root agrees between N = 60 and N = 120 (laminate error ~N⁻²)."""
+    tube = jd.Tube(eta=0.3)
+    h = float(jd.thickness_ratio(tube))
+    alpha = 150.0 / h
+    wall = discretize(tube, 60)
+    f, log_scale = characteristic_and_scale(wall, 20.0, alpha)
+    assert np.isfinite(float(f)) and abs(float(f)) <= 1 and float(log_scale) > 100
+    r60 = jd.frequencies(tube, alpha, n_roots=1, n_layers=60)
+    r120 = jd.frequencies(tube, alpha, n_roots=1, n_layers=120)
+    assert np.isfinite(r60[0]) and abs(float(r60[0] / r120[0]) - 1) < 1e-3
+
+
+def test_state_matrix_linear_elastic_rows():
+    """λ = 1, V = 0: M reduces to the classical incompressible equations (theory.md §3 check):
+    β1 = 4, β3 = 2, β5 = 4, δ1 = δ3 = 1 with p = 1."""
+    one = jnp.asarray(1.0)
+    c = coefficients(push_forward_moduli(one, one, one, 0.0 * one, jnp.inf), 1.0)
+    m = state_matrix(c, 1.3, 0.7, 0.4)
+    np.testing.assert_allclose(m[3, 0], 4 / 1.3**2 - 0.49, rtol=1e-14)
+    np.testing.assert_allclose(m[4, 0], 0.4 * 2 / 1.3, rtol=1e-14)
+    np.testing.assert_allclose(m[4, 1], 0.16 * 4 - 0.49, rtol=1e-14)
+    np.testing.assert_allclose([m[1, 0], m[1, 4]], [0.4, 1.0], rtol=1e-14)
+
+
+def test_thickness_ratio_round_trip_and_gradient():
+    tube = jd.Tube(lambda_i=1.1, **PAPER)
+    t2 = jd.with_thickness_ratio(tube, 0.3)
+    np.testing.assert_allclose(jd.thickness_ratio(t2), 0.3, rtol=1e-14)
+    g = jax.grad(lambda h: jd.thickness_ratio(jd.with_thickness_ratio(tube, h)))(0.3)
+    np.testing.assert_allclose(g, 1.0, rtol=1e-13)
+
+
+def test_axial_wavenumber():
+    tube = jd.Tube(lambda_z=1.2, eta=0.85, length_ratio=10.0)
+    np.testing.assert_allclose(jd.axial_wavenumber(tube, 3), 6 * np.pi * 0.85 / 12.0, rtol=1e-15)
+
+
+def test_mode_shape_satisfies_boundary_conditions():
+    """Φ = 0 on both faces, follower-pressure tractions at r̂_i, zero tractions at r̂_o, and the
+    fields agree with the plain transfer-matrix propagation."""
+    tube = jd.Tube(voltage=0.2, lambda_i=0.9, **PAPER)
+    alpha = jd.axial_wavenumber(tube, 1)
+    omega = jd.frequencies(tube, alpha)[1]
+    r, y = jd.mode_shape(tube, alpha, omega, n_points=31)
+    p = jd.pressure_difference(tube)
+    u, w, phi, t, s, _ = y[:, 0]
+    np.testing.assert_allclose([phi, t + p / r[0] * u + alpha * p * w, s + alpha * p * u],
+                               0.0, atol=1e-10)
+    np.testing.assert_allclose(y[2:5, -1], 0.0, atol=1e-8)
+    assert np.isclose(float(jnp.max(jnp.abs(y[:2]))), 1.0)
+    from jaxdea.transfer import transfer_matrix
+    wall = discretize(tube, 30)
+    a = transfer_matrix(wall, omega, alpha)
+    np.testing.assert_allclose(a @ y[:, 0], y[:, -1], atol=1e-8)
