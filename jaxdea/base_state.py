@@ -99,7 +99,7 @@ def pressure_difference(tube: Tube):
     """
     require_x64()
     validate_tube(tube)
-    return pressure_difference_unchecked(tube)
+    return jax.jit(pressure_difference_unchecked)(tube)
 
 
 class BaseState(NamedTuple):
@@ -182,6 +182,11 @@ def inner_stretch(tube: Tube, delta_p=0.0):
     """
     require_x64()
     validate_tube(tube.replace(lambda_i=1.0))
+    return _inner_stretch(tube, delta_p)
+
+
+@jax.jit
+def _inner_stretch(tube: Tube, delta_p):
     delta_p = as_float(delta_p)
     v2 = as_float(tube.voltage) ** 2
 
@@ -215,7 +220,7 @@ def pull_in(tube: Tube, delta_p=0.0):
     """
     require_x64()
     validate_tube(tube.replace(lambda_i=1.0))
-    return pull_in_unchecked(tube, delta_p)
+    return jax.jit(pull_in_unchecked)(tube, delta_p)
 
 
 def pull_in_unchecked(tube: Tube, delta_p):

@@ -14,6 +14,8 @@ The characteristic function is det(B Q_N), with Q_N the orthonormalised propagat
 det C, and |f| ≤ 1 (well scaled for Newton at any α̂ĥ).
 """
 
+import functools
+
 import jax
 import jax.numpy as jnp
 
@@ -113,8 +115,13 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
         >>> f = characteristic(Tube(), 1.0, 0.445)
     """
     order = check_inputs(tube, alpha, fluid, n_layers)
-    alpha = as_float(alpha)
-    return characteristic_on_wall(discretize(tube, n_layers), as_float(omega), alpha, fluid, order)
+    return _characteristic(tube, omega, alpha, fluid, int(n_layers), order)
+
+
+@functools.partial(jax.jit, static_argnames=("n_layers", "order"))
+def _characteristic(tube, omega, alpha, fluid, n_layers, order):
+    wall = discretize(tube, n_layers)
+    return characteristic_on_wall(wall, as_float(omega), as_float(alpha), fluid, order)
 
 
 characteristic_batched = jax.vmap(characteristic_on_wall, (None, 0, None, None, None))
