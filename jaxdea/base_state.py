@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .moduli import energy_derivatives
-from .params import Tube, as_float, require_x64, validate_tube
+from .params import Tube, as_float, canonical, require_x64, validate_tube
 from .scalar import Status, implicit_root, newton_bracketed
 
 GAUSS_ORDER = 8
@@ -99,7 +99,10 @@ def pressure_difference(tube: Tube):
     """
     require_x64()
     validate_tube(tube)
-    return jax.jit(pressure_difference_unchecked)(tube)
+    return _pressure_difference(canonical(tube))
+
+
+_pressure_difference = jax.jit(pressure_difference_unchecked)
 
 
 class BaseState(NamedTuple):
@@ -182,7 +185,7 @@ def inner_stretch(tube: Tube, delta_p=0.0):
     """
     require_x64()
     validate_tube(tube.replace(lambda_i=1.0))
-    return _inner_stretch(tube, delta_p)
+    return _inner_stretch(*canonical(tube, delta_p))
 
 
 @jax.jit
@@ -220,7 +223,7 @@ def pull_in(tube: Tube, delta_p=0.0):
     """
     require_x64()
     validate_tube(tube.replace(lambda_i=1.0))
-    return jax.jit(pull_in_unchecked)(tube, delta_p)
+    return _pull_in(*canonical(tube, delta_p))
 
 
 def pull_in_unchecked(tube: Tube, delta_p):
@@ -258,3 +261,6 @@ def voltage_limit(tube: Tube):
     v2 = jax.vmap(lambda li: _squared_voltage(tube, li, delta_p))(grid)
     v_sup = jnp.sqrt(jnp.max(jnp.where(jnp.isfinite(v2), v2, 0.0)))
     return jax.lax.stop_gradient(jnp.where(status == Status.CONVERGED, v_pull, v_sup))
+
+
+_pull_in = jax.jit(pull_in_unchecked)

@@ -24,6 +24,7 @@ from .params import (
     Fluid,
     Tube,
     as_float,
+    canonical,
     mode_number,
     require_x64,
     validate_fluid,
@@ -115,6 +116,7 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
         >>> f = characteristic(Tube(), 1.0, 0.445)
     """
     order = check_inputs(tube, alpha, fluid, n_layers)
+    tube, omega, alpha, fluid = canonical(tube, omega, alpha, fluid)
     return _characteristic(tube, omega, alpha, fluid, int(n_layers), order)
 
 

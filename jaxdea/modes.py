@@ -6,7 +6,7 @@ import jax
 import jax.numpy as jnp
 
 from .dispersion import OUTER_ROWS, check_inputs, initial_basis
-from .params import Fluid, Tube, as_float
+from .params import Fluid, Tube, as_float, canonical
 from .state_matrix import state_matrix
 from .transfer import discretize, expm_taylor, propagate_basis_history
 
@@ -50,4 +50,5 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
         (r, fields): radii r̂ (n_points,) from r̂_i to r̂_o and fields (6, n_points).
     """
     order = check_inputs(tube, alpha, fluid, n_layers)
+    tube, alpha, omega, fluid = canonical(tube, alpha, omega, fluid)
     return _mode_shape(tube, alpha, omega, fluid, int(n_points), int(n_layers), order)

@@ -84,6 +84,13 @@ def as_float(x) -> jax.Array:
     return jnp.asarray(x, dtype=jnp.float64)
 
 
+def canonical(*trees):
+    """Every leaf as a float64 array (strongly typed), so that Python floats, NumPy scalars and JAX
+    arrays share one compiled program (a weak-typed float would compile separately)."""
+    out = tuple(jax.tree_util.tree_map(as_float, t) for t in trees)
+    return out if len(out) > 1 else out[0]
+
+
 def _concrete(x):
     """The value of x as a numpy array, or None when it is traced."""
     if isinstance(x, jax.core.Tracer):

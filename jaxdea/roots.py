@@ -28,7 +28,7 @@ import numpy as np
 
 from .base_state import voltage_limit
 from .dispersion import characteristic_on_wall, check_inputs
-from .params import Fluid, Tube, as_float, validate_positive
+from .params import Fluid, Tube, as_float, canonical, validate_positive
 from .scalar import Status, implicit_root, run_lanes, start_lanes, value_and_slope
 from .transfer import Wall, discretize
 
@@ -156,6 +156,7 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
         raise ValueError(f"n_roots must be an integer >= 1, got {n_roots!r}")
     if omega_max is not None:
         validate_positive("omega_max", omega_max)
+    tube, alpha, fluid, omega_max = canonical(tube, alpha, fluid, omega_max)
     return _solve_frequencies(tube, alpha, fluid, omega_max, int(n_roots), int(n_layers), order)
 
 
@@ -207,6 +208,7 @@ def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
     """The root reached by safeguarded Newton from ``guess``, with its status (scalar Roots)."""
     order = check_inputs(tube, alpha, fluid, n_layers)
     validate_positive("guess", guess)
+    tube, alpha, guess, fluid = canonical(tube, alpha, guess, fluid)
     return _solve_frequency(tube, alpha, guess, fluid, int(n_layers), order)
 
 
@@ -231,6 +233,7 @@ def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layer
     differentiates at fixed order ν.
     """
     order = check_inputs(tube, alpha, fluid, n_layers)
+    tube, alpha, omega, fluid = canonical(tube, alpha, omega, fluid)
     return _group_velocity(tube, alpha, omega, fluid, int(n_layers), order)
 
 
@@ -247,6 +250,7 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
                            n_layers: int = 30):
     """(V̂_cr, status): the smallest V̂ > 0 with f(Ω = 0; V̂) = 0 (see :func:`critical_voltage`)."""
     order = check_inputs(tube, alpha, fluid, n_layers)
+    tube, alpha, fluid = canonical(tube, alpha, fluid)
     return _solve_critical_voltage(tube, alpha, fluid, int(n_layers), order)
 
 

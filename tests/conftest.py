@@ -1,8 +1,14 @@
 """Shared test set-up: 64-bit floats and finite-difference helpers."""
 
+import os
+
 import jax
 
 jax.config.update("jax_enable_x64", True)
+# compiled programs are reused across test processes and runs (compilation dominates test time)
+jax.config.update("jax_compilation_cache_dir",
+                  os.path.join(os.path.dirname(os.path.dirname(__file__)), ".jax_cache"))
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402

@@ -1,0 +1,220 @@
+"""Public API: implicit derivatives (g), batching without recompilation (h), bad inputs (i),
+status codes and root isolation."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from conftest import fd_derivative
+
+import jaxdea as jd
+from jaxdea import roots as roots_module
+from jaxdea.scalar import Status
+
+PAPER = dict(lambda_z=1.2, eta=0.85)
+TUBE = jd.Tube(voltage=0.1, lambda_i=0.9, **PAPER)
+ALPHA = 0.445
+
+
+def _omega(tube=TUBE, alpha=ALPHA, fluid=None, guess=0.72):
+    return jd.frequency(tube, alpha, guess, fluid)
+
+
+# (g) implicit derivatives against central finite differences (relative 1e-6): Newton converges
+# to ~1e-15, so h = 6e-6 gives truncation O(h²) ~ 1e-10 and rounding O(1e-15/h) ~ 1e-10.
+# All leaves are differentiated in one jacfwd call (one compilation).
+FLUID = jd.Fluid()
+PARAMS = dict(voltage=0.1, lambda_i=0.9, lambda_z=1.2, gent=97.2, h_over_Ri=0.17,
+              density_ratio=0.13, speed_ratio=0.27, alpha=ALPHA)
+
+
+def _omega_of(params, guess=0.117):
+    """Ω of the Korteweg branch as a function of every design parameter (η via h/R_i)."""
+    tube = jd.Tube(voltage=params["voltage"], lambda_i=params["lambda_i"],
+                   lambda_z=params["lambda_z"], gent=params["gent"])
+    tube = jd.with_thickness_ratio(tube, params["h_over_Ri"])
+    fluid = FLUID.replace(density_ratio=params["density_ratio"],
+                          speed_ratio=params["speed_ratio"])
+    return jd.frequency(tube, params["alpha"], guess, fluid)
+
+
+def test_every_derivative_of_frequency_matches_finite_differences():
+    jac = jax.jacfwd(_omega_of)({k: jnp.asarray(v) for k, v in PARAMS.items()})
+    for name, x0 in PARAMS.items():
+        fd = fd_derivative(lambda x, name=name: _omega_of({**PARAMS, name: x}), x0)
+        np.testing.assert_allclose(jac[name], fd, rtol=1e-6, err_msg=name)
+
+
+def test_reverse_mode_equals_forward_mode_and_group_velocity():
+    """jax.grad (reverse, through custom_root's transpose) equals jacfwd; dΩ/dα̂ equals
+    group_velocity; η enters directly too (empty tube)."""
+    tube = jd.Tube(voltage=0.1, lambda_i=0.9, **PAPER)
+    fun = lambda eta, alpha: jd.frequency(tube.replace(eta=eta), alpha, 0.72)  # noqa: E731
+    rev = jax.grad(fun, argnums=(0, 1))(0.85, ALPHA)
+    fwd = jax.jacfwd(fun, argnums=(0, 1))(0.85, ALPHA)
+    np.testing.assert_allclose(rev, fwd, rtol=1e-12)
+    np.testing.assert_allclose(fwd[0], fd_derivative(lambda e: fun(e, ALPHA), 0.85), rtol=1e-6)
+    omega = fun(0.85, ALPHA)
+    np.testing.assert_allclose(jd.group_velocity(tube, ALPHA, omega), fwd[1], rtol=1e-10)
+
+
+def test_frequencies_derivatives_of_every_root():
+    """jacfwd of all roots returned by frequencies (implicit per root) equals finite differences.
+    The third root (Ω ≈ 17.9) barely moves (dΩ/dV̂ ≈ −6e-5): there the FD rounding error
+    eps·Ω/h ≈ 1e-9 sets an absolute floor, hence atol = 1e-8."""
+    fun = lambda v: jd.frequencies(TUBE.replace(voltage=v), ALPHA)  # noqa: E731
+    jac = jax.jacfwd(fun)(0.1)
+    h = 6e-6
+    np.testing.assert_allclose(jac, (fun(0.1 + h) - fun(0.1 - h)) / (2 * h), rtol=1e-6,
+                               atol=1e-8)
+
+
+def test_critical_voltage_is_a_zero_frequency_and_differentiable():
+    """f(Ω = 0; V̂_cr) = 0: just below V̂_cr the lowest root vanishes like sqrt(V̂_cr − V̂), and
+    dV̂_cr/dλ_i (implicit) matches finite differences."""
+    tube = jd.Tube(lambda_i=1.1, **PAPER)
+    alpha = jd.axial_wavenumber(tube, 1)
+    v_cr, status = jd.solve_critical_voltage(tube, alpha)
+    assert int(status) == 0 and 0.1 < float(v_cr) < 0.4
+    near = jd.frequencies(tube.replace(voltage=float(v_cr) * (1 - 1e-4)), alpha)
+    far = jd.frequencies(tube.replace(voltage=float(v_cr) * (1 - 1e-2)), alpha)
+    np.testing.assert_allclose(float(near[0] / far[0]), 0.1, rtol=0.05)  # Ω² ∝ (V̂_cr − V̂)
+    fun = lambda li: jd.critical_voltage(tube.replace(lambda_i=li), alpha)  # noqa: E731
+    np.testing.assert_allclose(jax.jacfwd(fun)(1.1), fd_derivative(fun, 1.1), rtol=1e-6)
+
+
+@pytest.mark.slow
+def test_critical_voltage_same_with_fluid():
+    """The fluid's terms vanish like Ω²: the same V̂_cr for the acoustic model (theory.md §4(c))."""
+    tube = jd.Tube(lambda_i=1.1, **PAPER)
+    alpha = jd.axial_wavenumber(tube, 1)
+    np.testing.assert_allclose(jd.critical_voltage(tube, alpha, jd.Fluid()),
+                               jd.critical_voltage(tube, alpha), rtol=1e-12)
+
+
+# (h) batching
+def test_vmap_equals_loop_and_no_recompilation():
+    voltages = jnp.array([0.0, 0.05, 0.1, 0.15])
+    batched = jax.vmap(lambda v: jd.solve_frequencies(TUBE.replace(voltage=v), ALPHA))(voltages)
+    for i, v in enumerate(voltages):
+        one = jd.solve_frequencies(TUBE.replace(voltage=float(v)), ALPHA)
+        np.testing.assert_allclose(batched.omega[i], one.omega, rtol=1e-13)
+        np.testing.assert_array_equal(batched.status[i], one.status)
+    before = roots_module._solve_frequencies._cache_size()
+    jd.frequencies(TUBE.replace(voltage=0.123, lambda_i=0.95, gent=50.0), 0.6).block_until_ready()
+    assert roots_module._solve_frequencies._cache_size() == before
+
+
+def test_batched_failures_do_not_stop_the_batch():
+    """A traced batch with a locked and a non-finite point: NaN + status there, the rest fine."""
+    tubes = TUBE.replace(voltage=jnp.array([0.1, 0.1, jnp.nan]),
+                         lambda_i=jnp.array([0.9, 9.0, 0.9]))
+    axes = jd.Tube(voltage=0, lambda_i=0, lambda_z=None, eta=None, gent=None, length_ratio=None)
+    out = jax.vmap(lambda t: jd.solve_frequencies(t, ALPHA), in_axes=(axes,))(tubes)
+    assert np.all(np.asarray(out.status[0]) == Status.CONVERGED)
+    np.testing.assert_allclose(out.omega[0], jd.frequencies(TUBE, ALPHA), rtol=1e-13)
+    for i in (1, 2):
+        assert np.all(np.isnan(np.asarray(out.omega[i])))
+        assert np.all(np.asarray(out.status[i]) == Status.NOT_FINITE)
+
+
+# (i) bad inputs
+@pytest.mark.parametrize(
+    "changes, name",
+    [
+        (dict(lambda_i=-1.0), "lambda_i"),
+        (dict(lambda_z=0.0), "lambda_z"),
+        (dict(eta=1.0), "eta"),
+        (dict(eta=0.0), "eta"),
+        (dict(gent=-2.0), "gent"),
+        (dict(voltage=float("nan")), "voltage"),
+        (dict(length_ratio=-1.0), "length_ratio"),
+        (dict(lambda_i=3.0, gent=2.0), "Gent locking"),
+        (dict(material="mooney"), "material"),
+    ],
+)
+def test_bad_tube_raises_value_error_naming_the_parameter(changes, name):
+    with pytest.raises(ValueError, match=name):
+        jd.frequencies(TUBE.replace(**changes), ALPHA)
+
+
+def test_locking_message_states_the_limit():
+    with pytest.raises(ValueError, match=r"I_1 - 3 must stay below gent = 2\.0.*reaches"):
+        jd.characteristic(TUBE.replace(lambda_i=3.0, gent=2.0), 1.0, ALPHA)
+
+
+@pytest.mark.parametrize(
+    "call, name",
+    [
+        (lambda: jd.frequencies(TUBE, ALPHA, jd.Fluid(density_ratio=0.0)), "density_ratio"),
+        (lambda: jd.frequencies(TUBE, ALPHA, jd.Fluid(speed_ratio=-1.0)), "speed_ratio"),
+        (lambda: jd.frequencies(TUBE, ALPHA, jd.Fluid(coupling="bogus")), "coupling"),
+        (lambda: jd.frequencies(TUBE, ALPHA, n_layers=0), "n_layers"),
+        (lambda: jd.frequencies(TUBE, -0.1), "alpha"),
+        (lambda: jd.frequencies(TUBE, ALPHA, n_roots=0), "n_roots"),
+        (lambda: jd.frequencies(TUBE, ALPHA, omega_max=float("inf")), "omega_max"),
+        (lambda: jd.frequency(TUBE, ALPHA, -1.0), "guess"),
+        (lambda: jd.frequencies(TUBE, 0.5, jd.Fluid(coupling="paper")), "no integer axial mode"),
+        (lambda: jd.with_thickness_ratio(TUBE, -0.2), "h_over_Ri"),
+        (lambda: jd.frequencies("tube", ALPHA), "tube"),
+    ],
+)
+def test_bad_arguments_raise_value_error(call, name):
+    with pytest.raises(ValueError, match=name):
+        call()
+
+
+def test_paper_order_needs_concrete_alpha():
+    fluid = jd.Fluid(coupling="paper")
+    with pytest.raises(ValueError, match="bessel_order"):
+        jax.jit(lambda a: jd.frequencies(TUBE, a, fluid))(ALPHA)
+    n1 = jd.frequencies(TUBE, jd.axial_wavenumber(TUBE, 1), fluid)
+    explicit = jd.frequencies(TUBE, jd.axial_wavenumber(TUBE, 1), fluid.replace(bessel_order=1))
+    np.testing.assert_array_equal(n1, explicit)
+
+
+def test_float32_is_refused():
+    jax.config.update("jax_enable_x64", False)
+    try:
+        with pytest.raises(RuntimeError, match="jax_enable_x64"):
+            jd.frequencies(jd.Tube(), 0.445)
+    finally:
+        jax.config.update("jax_enable_x64", True)
+
+
+# root isolation
+def test_scan_finds_pairs_closer_than_any_step():
+    """Synthetic f with root pairs at relative gaps 1e-3 … 1e-9 inside single scan intervals,
+    a root at 1e-7 near Ω = 0 and a double-ish pair: every root is found (Hermite classification)."""
+    pairs = [(0.9, 1e-3), (2.3, 1e-6), (3.7, 1e-9)]
+    expected = sorted([1e-7, 5.0] + [c for c, _ in pairs] + [c * (1 + g) for c, g in pairs])
+
+    def f(x):
+        val = (x - 1e-7) * (x - 5.0)
+        for c, g in pairs:
+            val = val * (x - c) * (x - c * (1 + g))
+        return val / (1.0 + x**8)
+
+    got = jax.jit(lambda: roots_module._scan_for_roots(f, jnp.asarray(0.25), 6.0, 8))()
+    np.testing.assert_allclose(got.omega, expected, rtol=1e-12)
+    assert np.all(np.asarray(got.status) == Status.CONVERGED)
+    few = jax.jit(lambda: roots_module._scan_for_roots(f, jnp.asarray(0.25), 6.0, 10))()
+    assert np.all(np.isnan(np.asarray(few.omega[8:])))
+    assert np.all(np.asarray(few.status[8:]) == Status.NO_ROOT)
+
+
+def test_paper_coupling_close_pairs_against_dense_scan():
+    """The paper's coupling makes close pairs straddling its poles (theory.md §7): frequencies must
+    return exactly the sign changes a 40 000-point scan of the characteristic function sees."""
+    tube = jd.Tube(voltage=0.2, lambda_i=1.1, **PAPER)
+    fluid = jd.Fluid(coupling="paper", bessel_order=1)
+    alpha = jd.axial_wavenumber(tube, 1)
+    got = jd.solve_frequencies(tube, alpha, fluid, n_roots=10, omega_max=4.0)
+    grid = jnp.linspace(1e-6, 4.0, 40_001)
+    vals = np.asarray(jax.jit(jax.vmap(lambda o: jd.characteristic(tube, o, alpha, fluid)))(grid))
+    changes = np.nonzero(np.sign(vals[:-1]) * np.sign(vals[1:]) < 0)[0]
+    found = np.asarray(got.omega)[np.isfinite(np.asarray(got.omega))]
+    assert len(found) == min(10, len(changes))
+    np.testing.assert_allclose(found, np.asarray(grid)[changes][: len(found)], atol=1e-4)
+    gaps = np.diff(found) / found[1:]
+    assert gaps.min() < 1e-2  # a close pair is among them
