@@ -16,7 +16,8 @@ at least twice within one step Δ) or three or more roots. Pairs of roots closer
 found (tested down to relative gaps of 1e-9). The limits are stated in the README.
 
 Derivatives. Every returned root carries implicit-function derivatives dΩ/dθ = −(∂f/∂θ)/(∂f/∂Ω)
-(``jax.lax.custom_root``), never derivatives of the iterations.
+(a ``jax.custom_jvp`` around the values of the solver), never derivatives of the iterations: the
+solver is compiled once for values, and differentiating compiles only f and its derivatives.
 """
 
 import functools
@@ -29,7 +30,7 @@ import numpy as np
 from .base_state import voltage_limit
 from .dispersion import characteristic_on_wall, check_inputs
 from .params import Fluid, Tube, as_float, canonical, validate_positive
-from .scalar import Status, implicit_root, run_lanes, start_lanes, value_and_slope
+from .scalar import Status, run_lanes, start_lanes, value_and_slope
 from .transfer import Wall, discretize
 
 CHUNK = 64
@@ -119,13 +120,47 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int) -> Roots:
     return Roots(jnp.where(status == Status.CONVERGED, roots, jnp.nan), status.astype(jnp.int32))
 
 
-def _with_implicit_derivatives(fun, roots: Roots) -> Roots:
-    """Attach dΩ/dθ = −f_θ/f_Ω to each root (values unchanged)."""
-    def one(x, st):
-        return implicit_root(fun, lambda: (jax.lax.stop_gradient(x), st), x)
+def _residual(x, tube, alpha, fluid, n_layers, order, unknown):
+    """The characteristic function as a function of the unknown x and of every parameter:
+    unknown = "omega": f(Ω = x); "voltage": f(Ω = 0; V̂ = x)."""
+    if unknown == "voltage":
+        wall = discretize(tube.replace(voltage=x), n_layers)
+        return characteristic_on_wall(wall, jnp.zeros_like(x), alpha, fluid, order)
+    return characteristic_on_wall(discretize(tube, n_layers), x, alpha, fluid, order)
 
-    omega, status = jax.vmap(one)(roots.omega, roots.status)
-    return Roots(omega, status)
+
+@functools.partial(jax.jit, static_argnames=("n_layers", "order", "unknown"))
+def _root_tangent(x, params, dparams, n_layers, order, unknown):
+    """ẋ = −(∂f/∂θ · θ̇)/(∂f/∂x) at a root x (implicit function theorem), vectorised over roots."""
+    def one(x):
+        f = lambda y, p: _residual(y, *p, n_layers, order, unknown)  # noqa: E731
+        f_x = jax.grad(f)(x, params)
+        _, f_dot = jax.jvp(lambda p: f(x, p), (params,), (dparams,))
+        return -f_dot / f_x
+
+    return jax.vmap(one)(x) if jnp.ndim(x) else one(x)
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(2, 3, 4))
+def _implicit(x, params, n_layers, order, unknown):
+    """Roots x (computed without derivatives) with implicit-function derivatives attached.
+
+    The solver is compiled once, for values only; differentiating recompiles only f and its
+    derivatives (:func:`_root_tangent`), never the iterations."""
+    del params, n_layers, order, unknown
+    return x
+
+
+@_implicit.defjvp
+def _implicit_jvp(n_layers, order, unknown, primals, tangents):
+    x, params = primals
+    _, dparams = tangents
+    return x, _root_tangent(x, params, dparams, n_layers, order, unknown)
+
+
+def _with_derivatives(roots: Roots, params, n_layers, order, unknown="omega") -> Roots:
+    omega = _implicit(jax.lax.stop_gradient(roots.omega), params, n_layers, order, unknown)
+    return Roots(omega, roots.status)
 
 
 def _problem(tube, alpha, fluid, n_layers, order):
@@ -140,8 +175,7 @@ def _solve_frequencies(tube, alpha, fluid, omega_max, n_roots, n_layers, order):
     wall, fun = _problem(tube, alpha, fluid, n_layers, order)
     end = default_omega_max(wall, alpha, n_roots) if omega_max is None else as_float(omega_max)
     step = jnp.minimum(scan_step(wall, fluid), end / CHUNK)
-    roots = _scan_for_roots(fun, *jax.lax.stop_gradient((step, end)), n_roots)
-    return _with_implicit_derivatives(fun, roots)
+    return _scan_for_roots(fun, step, end, n_roots)
 
 
 def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
@@ -157,7 +191,9 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
     if omega_max is not None:
         validate_positive("omega_max", omega_max)
     tube, alpha, fluid, omega_max = canonical(tube, alpha, fluid, omega_max)
-    return _solve_frequencies(tube, alpha, fluid, omega_max, int(n_roots), int(n_layers), order)
+    roots = _solve_frequencies(*jax.lax.stop_gradient((tube, alpha, fluid, omega_max)),
+                               int(n_roots), int(n_layers), order)
+    return _with_derivatives(roots, (tube, alpha, fluid), int(n_layers), order)
 
 
 def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
@@ -198,9 +234,7 @@ def _newton_from_guess(fun, guess, max_step):
 def _solve_frequency(tube, alpha, guess, fluid, n_layers, order):
     alpha, guess = as_float(alpha), as_float(guess)
     wall, fun = _problem(tube, alpha, fluid, n_layers, order)
-    max_step = jax.lax.stop_gradient(4.0 * scan_step(wall, fluid))
-    solve = lambda: _newton_from_guess(fun, jax.lax.stop_gradient(guess), max_step)  # noqa: E731
-    return Roots(*implicit_root(fun, solve, guess))
+    return Roots(*_newton_from_guess(fun, guess, 4.0 * scan_step(wall, fluid)))
 
 
 def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
@@ -209,7 +243,9 @@ def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
     order = check_inputs(tube, alpha, fluid, n_layers)
     validate_positive("guess", guess)
     tube, alpha, guess, fluid = canonical(tube, alpha, guess, fluid)
-    return _solve_frequency(tube, alpha, guess, fluid, int(n_layers), order)
+    roots = _solve_frequency(*jax.lax.stop_gradient((tube, alpha, guess, fluid)), int(n_layers),
+                             order)
+    return _with_derivatives(roots, (tube, alpha, fluid), int(n_layers), order)
 
 
 def frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, n_layers: int = 30):
@@ -251,7 +287,9 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
     """(V̂_cr, status): the smallest V̂ > 0 with f(Ω = 0; V̂) = 0 (see :func:`critical_voltage`)."""
     order = check_inputs(tube, alpha, fluid, n_layers)
     tube, alpha, fluid = canonical(tube, alpha, fluid)
-    return _solve_critical_voltage(tube, alpha, fluid, int(n_layers), order)
+    roots = Roots(*_solve_critical_voltage(*jax.lax.stop_gradient((tube, alpha, fluid)),
+                                           int(n_layers), order))
+    return _with_derivatives(roots, (tube, alpha, fluid), int(n_layers), order, "voltage")
 
 
 @functools.partial(jax.jit, static_argnames=("n_layers", "order", "n_grid"))
@@ -260,8 +298,7 @@ def _solve_critical_voltage(tube, alpha, fluid, n_layers, order, n_grid=128):
     v_end = voltage_limit(tube)
 
     def g(v):
-        wall = discretize(tube.replace(voltage=v), n_layers)
-        return characteristic_on_wall(wall, jnp.zeros_like(v), alpha, fluid, order)
+        return _residual(v, tube, alpha, fluid, n_layers, order, "voltage")
 
     def solve():
         grid = v_end * jnp.linspace(0.0, 1.0, n_grid + 1)
@@ -282,7 +319,7 @@ def _solve_critical_voltage(tube, alpha, fluid, n_layers, order, n_grid=128):
                          jnp.where(jnp.all(finite), Status.NO_ROOT, Status.NOT_FINITE))
         return jnp.where(found, roots[first], jnp.nan), stat
 
-    return implicit_root(g, solve, v_end)
+    return solve()
 
 
 def critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None, n_layers: int = 30):
