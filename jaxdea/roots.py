@@ -113,7 +113,8 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int) -> Roots:
 
     zero = jnp.zeros_like(step)
     init = (zero, zero, zero, jnp.full(n_roots, jnp.inf), jnp.full(n_roots, jnp.nan),
-            jnp.full(n_roots, Status.NO_ROOT, jnp.int32), jnp.asarray(False), 0)
+            jnp.full(n_roots, Status.NO_ROOT, jnp.int32),
+            ~(jnp.isfinite(step) & jnp.isfinite(omega_end) & (step > 0)), 0)
     _, _, _, keys, roots, status, blocked, _ = jax.lax.while_loop(cond, body, init)
     missing = ~jnp.isfinite(keys)
     status = jnp.where(missing, jnp.where(blocked, Status.NOT_FINITE, Status.NO_ROOT), status)
