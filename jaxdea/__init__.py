@@ -5,7 +5,9 @@ elastomer tubes, empty or filled with an inviscid compressible fluid (see theory
 """
 
 import math
+import os
 
+import jax
 import jax.numpy as jnp
 
 from .base_state import (
@@ -61,3 +63,16 @@ __all__ = [
 ]
 __version__ = "0.1.0"
 del jnp
+
+
+def _enable_compilation_cache():
+    """Keep compiled solvers on disk between processes (compilation dominates a first call):
+    ~/.cache/jaxdea/xla unless the user configured a JAX cache or set JAXDEA_CACHE_DIR=off."""
+    where = os.environ.get("JAXDEA_CACHE_DIR", os.path.join("~", ".cache", "jaxdea", "xla"))
+    if where.lower() == "off" or jax.config.jax_compilation_cache_dir is not None:
+        return
+    jax.config.update("jax_compilation_cache_dir", os.path.expanduser(where))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+
+
+_enable_compilation_cache()

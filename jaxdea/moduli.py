@@ -93,9 +93,11 @@ def coefficients(moduli: Moduli, p) -> Coefficients:
 
 
 def closed_form_coefficients(lam, lam_z, D_r, p, gent_constant, material="gent") -> Coefficients:
-    """The closed forms of theory.md §3 (corrected Eq. 33), used to check :func:`coefficients`."""
+    """The closed forms of theory.md §3 (corrected Eq. 33) for Ω = W(I_1) + I_5/2, with W_1, W_11
+    from the energy by autodiff; equal to :func:`coefficients` of the tensor moduli (tests)."""
     lam_r = 1.0 / (lam * lam_z)
-    w1, w11 = energy_derivatives(lam_r**2 + lam**2 + lam_z**2, gent_constant, material)
+    i1 = lam_r**2 + lam**2 + lam_z**2
+    w1, w11 = jnp.vectorize(lambda i: energy_derivatives(i, gent_constant, material))(i1)
     dD = D_r * D_r
     s = 1.0 - lam**4 * lam_z**2
     return Coefficients(

@@ -135,7 +135,7 @@ def _root_tangent(x, params, dparams, n_layers, order, unknown):
     """ẋ = −(∂f/∂θ · θ̇)/(∂f/∂x) at a root x (implicit function theorem), vectorised over roots."""
     def one(x):
         f = lambda y, p: _residual(y, *p, n_layers, order, unknown)  # noqa: E731
-        f_x = jax.grad(f)(x, params)
+        f_x = value_and_slope(lambda y: f(y, params), x)[1]
         _, f_dot = jax.jvp(lambda p: f(x, p), (params,), (dparams,))
         return -f_dot / f_x
 

@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 
 from .base_state import base_state, geometry, pressure_difference_unchecked
-from .moduli import Coefficients, coefficients, push_forward_moduli
+from .moduli import Coefficients, closed_form_coefficients, coefficients, push_forward_moduli
 from .params import Tube, as_float
 from .state_matrix import state_matrix
 
@@ -44,14 +44,23 @@ class Wall(NamedTuple):
     pressure_inner: jax.Array
 
 
-def layer_coefficients(tube: Tube, r) -> Coefficients:
-    """State-matrix coefficients at radii r̂ (base state + autodiff moduli)."""
+def layer_coefficients(tube: Tube, r, moduli: str = "closed") -> Coefficients:
+    """State-matrix coefficients at radii r̂ (theory.md §3).
+
+    ``moduli="closed"`` (default) evaluates the corrected Eq. (33) forms with W_1, W_11 from the
+    energy by autodiff (exact for every energy W(I_1)); ``"tensor"`` pushes forward the full
+    autodiff Hessian of Ω(F, D_L) (theory.md §2), the general route, equal to rounding (tests) but
+    far costlier to compile and to differentiate.
+    """
     bs = base_state(tube, r)
-    lz = as_float(tube.lambda_z)
+    lz, gent = as_float(tube.lambda_z), as_float(tube.gent)
+    if moduli == "closed":
+        return closed_form_coefficients(bs.stretch, lz, bs.displacement, bs.pressure, gent,
+                                        tube.material)
 
     def one(lam, d, p):
-        mod = push_forward_moduli(1.0 / (lam * lz), lam, lz, d, as_float(tube.gent), tube.material)
-        return coefficients(mod, p)
+        return coefficients(push_forward_moduli(1.0 / (lam * lz), lam, lz, d, gent, tube.material),
+                            p)
 
     return jax.vmap(one)(bs.stretch, bs.displacement, bs.pressure)
 

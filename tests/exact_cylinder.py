@@ -171,7 +171,7 @@ if __name__ == "__main__":
     print(f"Reference check, a = {a0}, b = {b0:.6f} (eta = 0.85)")
     worst = 0.0
     t0 = time.perf_counter()
-    for k, ref in zip(EXACT_K, EXACT_OMEGA):
+    for k, ref in zip(EXACT_K, EXACT_OMEGA, strict=False):
         got = roots(k, a0, b0)
         rel = np.abs(got - ref) / np.abs(ref)
         worst = max(worst, rel.max())

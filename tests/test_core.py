@@ -13,7 +13,7 @@ from jaxdea.bessel import _switch, coupling_pair
 from jaxdea.dispersion import characteristic_and_scale, reference_determinant
 from jaxdea.moduli import closed_form_coefficients, coefficients, push_forward_moduli
 from jaxdea.state_matrix import state_matrix
-from jaxdea.transfer import discretize, expm_taylor, layer_exponentials
+from jaxdea.transfer import discretize, layer_exponentials
 
 PAPER = dict(lambda_z=1.2, eta=0.85)
 
