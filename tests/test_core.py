@@ -252,3 +252,16 @@ def test_mode_shape_satisfies_boundary_conditions():
     wall = discretize(tube, 30)
     a = transfer_matrix(wall, omega, alpha)
     np.testing.assert_allclose(a @ y[:, 0], y[:, -1], atol=1e-8)
+
+
+def test_wall_coefficients_tensor_route_equals_closed_route():
+    """The default closed forms (W_1, W_11 by autodiff) and the full tensor push-forward of the
+    autodiff Hessian give the same sublayer coefficients on a Gent wall near its locking limit."""
+    from jaxdea.transfer import layer_coefficients
+
+    tube = jd.Tube(voltage=0.3, lambda_i=1.6, lambda_z=1.5, eta=0.7, gent=6.0)
+    r = jnp.linspace(1.6, float(bs.geometry(tube).r_outer), 7)
+    closed = jax.jit(lambda t: layer_coefficients(t, r, "closed"))(tube)
+    tensor = jax.jit(lambda t: layer_coefficients(t, r, "tensor"))(tube)
+    for name, x, y in zip(closed._fields, closed, tensor, strict=True):
+        np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-14, err_msg=name)
