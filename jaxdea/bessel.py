@@ -75,6 +75,3 @@ def coupling_pair(s, order):
     n_small, d_small = f_nu, order * f_nu - 0.5 * s_small * f_next
     n_large, d_large = _integrals(s_large, order)
     return jnp.where(small, n_small, n_large), jnp.where(small, d_small, d_large)
-
-
-coupling_pair_batched = jax.vmap(coupling_pair, (0, None))

@@ -124,6 +124,3 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
 def _characteristic(tube, omega, alpha, fluid, n_layers, order):
     wall = discretize(tube, n_layers)
     return characteristic_on_wall(wall, as_float(omega), as_float(alpha), fluid, order)
-
-
-characteristic_batched = jax.vmap(characteristic_on_wall, (None, 0, None, None, None))
