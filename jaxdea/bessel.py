@@ -16,7 +16,6 @@ exponentially accurate for periodic integrands while x + ν < NODES − 40; beyo
 NaN (reported, never wrong).
 """
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.scipy.special import gammaln
