@@ -116,11 +116,14 @@ def _check(name, x, allowed, ok, allow_inf=False):
 
 
 def gent_limit_excess(lambda_i, lambda_z, eta):
-    """max over the wall of I_1 − 3 (attained at a face; I_1 is convex in λ², theory.md §1)."""
-    ro = np.sqrt(lambda_i**2 + (eta**-2 - 1.0) / lambda_z)
-    lam_o = ro * eta  # r_o / R_o
-    i1 = [lam**2 + 1.0 / (lam * lambda_z) ** 2 + lambda_z**2 for lam in (lambda_i, lam_o)]
-    return np.maximum(i1[0], i1[1]) - 3.0
+    """max over the wall of I_1 − 3 (attained at a face; I_1 is convex in λ², theory.md §1);
+    inf where extreme inputs overflow (such a wall is past any locking limit)."""
+    with np.errstate(all="ignore"):
+        ro = np.sqrt(lambda_i**2 + (eta**-2 - 1.0) / lambda_z)
+        lam_o = ro * eta  # r_o / R_o
+        i1 = [lam**2 + 1.0 / (lam * lambda_z) ** 2 + lambda_z**2 for lam in (lambda_i, lam_o)]
+        excess = np.maximum(i1[0], i1[1]) - 3.0
+    return np.where(np.isfinite(excess), excess, np.inf)
 
 
 def validate_tube(tube: Tube) -> None:
