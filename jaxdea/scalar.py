@@ -211,6 +211,7 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
         use_newton = (newton > lo_) & (newton < hi_) & jnp.isfinite(newton)
         use_newton &= jnp.abs(2.0 * s.fx) <= jnp.abs(s.step_old * s.dfx)
         x_bracket = jnp.where(use_newton, newton, 0.5 * (s.lo + s.hi))
+        x_bracket = jnp.where(s.fx == 0, s.x, x_bracket)  # started on an exact zero: done
         secant = jnp.where(s.ghi != s.glo, s.hi - s.ghi * (s.hi - s.lo) / (s.ghi - s.glo), 0.5 * (s.lo + s.hi))
         x_extremum = jnp.where((secant > lo_) & (secant < hi_), secant, 0.5 * (s.lo + s.hi))
         fresh = jnp.isnan(s.fx)  # a FREE lane's guess has not been evaluated yet

@@ -217,3 +217,13 @@ def test_paper_coupling_close_pairs_against_dense_scan():
     assert len(found) == min(24, len(changes)) and len(found) >= 16
     np.testing.assert_allclose(found, np.asarray(grid)[changes][: len(found)], atol=1e-4)
     assert np.diff(found).min() < 1e-2  # pairs closer than 1e-2 in Ω are among them
+
+
+def test_roots_exactly_on_grid_points():
+    """A root that falls exactly on a scan point is returned once, converged (no bisection drift)."""
+    def f(x):
+        return (x - 1.0) * (x - 2.5)
+
+    got = jax.jit(lambda: roots_module._scan_for_roots(f, jnp.asarray(0.5), 4.0, 3))()
+    np.testing.assert_array_equal(got.omega[:2], [1.0, 2.5])
+    np.testing.assert_array_equal(got.status, [Status.CONVERGED, Status.CONVERGED, Status.NO_ROOT])
