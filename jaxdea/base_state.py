@@ -12,7 +12,7 @@ import numpy as np
 
 from .moduli import energy_derivatives
 from .params import Tube, as_float, canonical, require_x64, validate_tube
-from .scalar import Status, implicit_root, newton_bracketed
+from .scalar import Status, bracketed_root, implicit_root
 
 GAUSS_ORDER = 8
 PANELS = 16
@@ -203,7 +203,7 @@ def _inner_stretch(tube: Tube, delta_p):
         ok = jnp.isfinite(vals)
         down = ok[:-1] & ok[1:] & (vals[:-1] > 0) & (vals[1:] <= 0)
         j = jnp.argmax(down)
-        root, status = newton_bracketed(residual, grid[j], grid[j + 1], vals[j], vals[j + 1])
+        root, status = bracketed_root(residual, grid[j], grid[j + 1], vals[j], vals[j + 1])
         return jnp.where(jnp.any(down), root, jnp.nan), jnp.where(
             jnp.any(down), status, Status.NO_ROOT
         )
@@ -239,7 +239,7 @@ def pull_in_unchecked(tube: Tube, delta_p):
         ok = jnp.isfinite(slopes[:-1]) & jnp.isfinite(slopes[1:]) & (vals[:-1] > 0)
         peak = ok & (slopes[:-1] > 0) & (slopes[1:] <= 0)
         j = jnp.argmax(peak)
-        root, status = newton_bracketed(slope, grid[j], grid[j + 1], slopes[j], slopes[j + 1])
+        root, status = bracketed_root(slope, grid[j], grid[j + 1], slopes[j], slopes[j + 1])
         found = jnp.any(peak)
         return jnp.where(found, root, jnp.nan), jnp.where(found, status, Status.NO_ROOT)
 

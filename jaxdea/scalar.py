@@ -26,65 +26,6 @@ def value_and_slope(fun, x):
     return jax.jvp(fun, (x,), (jnp.ones_like(x),))
 
 
-def newton_bracketed(fun, lo, hi, f_lo, f_hi, rtol=1e-15, max_iter=200):
-    """Root of ``fun`` in [lo, hi] given f(lo)·f(hi) ≤ 0, by Newton safeguarded with bisection.
-
-    A Newton step that leaves the bracket, or that does not halve the previous step, is replaced
-    by a bisection (Numerical Recipes' rtsafe), so convergence is guaranteed and quadratic near a
-    simple root.
-
-    Args:
-        fun: x -> f(x), differentiable (the slope comes from ``jax.jvp``).
-        lo, hi: the bracket; f_lo, f_hi: f there.
-        rtol: stop when the step is below rtol·max(|x|, hi − lo of the initial bracket·1e-3).
-        max_iter: iteration limit.
-
-    Returns:
-        (x, status): the root (NaN unless converged) and a :class:`Status` code.
-    """
-    dtype = jnp.result_type(lo, float)
-    lo, hi, f_lo, f_hi = (jnp.asarray(v, dtype) for v in (lo, hi, f_lo, f_hi))
-    # orient so that f(neg) < 0 < f(pos)
-    neg = jnp.where(f_lo < 0, lo, hi)
-    pos = jnp.where(f_lo < 0, hi, lo)
-    width0 = jnp.abs(hi - lo)
-    x0 = jnp.where(f_hi != f_lo, lo - f_lo * (hi - lo) / (f_hi - f_lo), 0.5 * (lo + hi))
-    x0 = jnp.where((x0 > jnp.minimum(lo, hi)) & (x0 < jnp.maximum(lo, hi)), x0, 0.5 * (lo + hi))
-    fx, dfx = value_and_slope(fun, x0)
-    scale = jnp.maximum(jnp.abs(x0), 1e-3 * width0)
-
-    def cond(s):
-        _, _, _, fx, _, step, _, it, done = s
-        return (~done) & (it < max_iter) & jnp.isfinite(fx)
-
-    def body(s):
-        neg, pos, x, fx, dfx, step, step_old, it, _ = s
-        newton = x - fx / dfx
-        lo_, hi_ = jnp.minimum(neg, pos), jnp.maximum(neg, pos)
-        use_newton = (newton > lo_) & (newton < hi_) & jnp.isfinite(newton)
-        use_newton &= jnp.abs(2.0 * fx) <= jnp.abs(step_old * dfx)
-        x_new = jnp.where(use_newton, newton, 0.5 * (neg + pos))
-        step_new = jnp.abs(x_new - x)
-        f_new, df_new = value_and_slope(fun, x_new)
-        neg = jnp.where(f_new < 0, x_new, neg)
-        pos = jnp.where(f_new > 0, x_new, pos)
-        tol = rtol * jnp.maximum(jnp.abs(x_new), scale)
-        done = (step_new <= tol) | (f_new == 0) | (jnp.abs(pos - neg) <= tol)
-        return neg, pos, x_new, f_new, df_new, step_new, step, it + 1, done
-
-    bracketed = jnp.sign(f_lo) * jnp.sign(f_hi) <= 0
-    finite = jnp.isfinite(f_lo) & jnp.isfinite(f_hi) & jnp.isfinite(lo) & jnp.isfinite(hi)
-    init = (neg, pos, x0, fx, dfx, width0, 2.0 * width0, 0, (fx == 0) | ~bracketed | ~finite)
-    neg, pos, x, fx, _, _, _, _, done = jax.lax.while_loop(cond, body, init)
-    status = jnp.where(
-        done, Status.CONVERGED, jnp.where(jnp.isfinite(fx), Status.MAX_ITER, Status.NOT_FINITE)
-    )
-    status = jnp.where(bracketed, status, Status.NO_ROOT)
-    status = jnp.where(finite, status, Status.NOT_FINITE)
-    done &= bracketed & finite
-    return jnp.where(done, x, jnp.nan), status.astype(jnp.int32)
-
-
 def implicit_root(fun, solve, x0):
     """A root x* of ``fun`` with implicit-function derivatives, dx*/dθ = −(∂f/∂θ)/(∂f/∂x).
 
@@ -278,3 +219,20 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
     fallback = jnp.where(jnp.isfinite(lanes.key), lanes.key, 0.5 * (lanes.a + lanes.b))
     keys = jnp.where(status == Status.NO_ROOT, jnp.inf, fallback)
     return roots, keys, status
+
+
+def bracketed_root(fun, lo, hi, f_lo, f_hi):
+    """Root of ``fun`` in [lo, hi] (f(lo)·f(hi) ≤ 0) by one BRACKET lane of :func:`run_lanes`.
+
+    Returns:
+        (x, status): NaN and NO_ROOT / NOT_FINITE unless converged.
+    """
+    one = lambda v: jnp.reshape(jnp.asarray(v, jnp.float64), (1,))  # noqa: E731
+    df_lo, df_hi = (value_and_slope(fun, x)[1] for x in (lo, hi))
+    bracketed = (jnp.sign(f_lo) * jnp.sign(f_hi) <= 0) & jnp.isfinite(f_lo) & jnp.isfinite(f_hi)
+    lanes = start_lanes(one(lo), one(hi), one(f_lo), one(f_hi), one(df_lo), one(df_hi),
+                        jnp.where(bracketed, 1, 0)[None])
+    roots, _, status = run_lanes(fun, lanes)
+    finite = jnp.isfinite(f_lo) & jnp.isfinite(f_hi)
+    status = jnp.where(bracketed, status[0], jnp.where(finite, Status.NO_ROOT, Status.NOT_FINITE))
+    return roots[0], status.astype(jnp.int32)
