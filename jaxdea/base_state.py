@@ -147,6 +147,12 @@ def with_thickness_ratio(tube: Tube, h_over_Ri) -> Tube:
     h = as_float(h_over_Ri)
     if not isinstance(h_over_Ri, jax.core.Tracer) and not np.all(np.asarray(h) > 0):
         raise ValueError(f"h_over_Ri must be > 0, got {h_over_Ri!r}")
+    return with_thickness_ratio_unchecked(tube, h)
+
+
+def with_thickness_ratio_unchecked(tube: Tube, h_over_Ri) -> Tube:
+    """:func:`with_thickness_ratio` without validation (traced use inside solvers)."""
+    h = as_float(h_over_Ri)
     li, lz = as_float(tube.lambda_i), as_float(tube.lambda_z)
     return tube.replace(eta=1.0 / jnp.sqrt(1.0 + lz * h * (2.0 * li + h)))
 

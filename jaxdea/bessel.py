@@ -14,6 +14,10 @@ x ≲ 0.7ν + 8). Large |s|: Bessel's integrals J_ν(x) = (1/2π)∫cos(νt − 
 e^{−x̃}I_ν(x̃) = (1/2π)∫e^{x̃(cos t − 1)}cos νt dt by the trapezoidal rule on ``NODES`` points, which is
 exponentially accurate for periodic integrands while x + ν < NODES − 40; beyond that the result is
 NaN (reported, never wrong).
+
+The positive factor is 2^ν ν! times e^{coupling_log_factor(s, ν)} (:func:`coupling_log_factor`), so
+the true Bessel values can be recovered where they are needed, e.g. for the acoustic pressure
+profile p̂*(r̂) ∝ J_0(χ̂ r̂) inside the cavity (:func:`jaxdea.modes.fluid_pressure`).
 """
 
 import jax.numpy as jnp
@@ -66,7 +70,7 @@ def coupling_pair(s, order):
     Returns:
         (n, d) with B_ν = r̂_i n/d (r̂_i n/d = r̂_i/ν at s = 0 for ν ≥ 1; D_0 = −s/2 + O(s²)).
     """
-    order = float(order)
+    order = jnp.asarray(order, dtype=jnp.float64)  # static int or traced (sweeps over n)
     small = jnp.abs(s) <= _switch(order)
     s_small = jnp.where(small, s, 0.0)  # double-where: clean derivatives in each branch
     s_large = jnp.where(small, _switch(order) * 4.0, s)
@@ -74,3 +78,26 @@ def coupling_pair(s, order):
     n_small, d_small = f_nu, order * f_nu - 0.5 * s_small * f_next
     n_large, d_large = _integrals(s_large, order)
     return jnp.where(small, n_small, n_large), jnp.where(small, d_small, d_large)
+
+
+def coupling_log_factor(s, order):
+    """log of the extra positive factor carried by :func:`coupling_pair` beyond 2^ν ν!.
+
+    ``coupling_pair(s, ν)`` is (N_ν, D_ν) with N_ν = 2^ν ν! e^{g(s)} J_ν(x)/x^ν (s > 0) or
+    2^ν ν! e^{g(s)} I_ν(x̃)/x̃^ν (s < 0), and g(s) = −x̃ = −sqrt(−s) on the large negative-s branch
+    (the exponentially scaled integral of e^{−x̃}I_ν, module docstring), g(s) = 0 elsewhere. Hence
+    e^{−g(s)} N_ν is the plain (2^ν ν!-normalised) Bessel value and, for 0 ≤ |s'| ≤ |s|, the ratio
+    of true values is N_ν(s')/N_ν(s) · e^{g(s) − g(s')} with g(s) − g(s') ≤ 0 (no overflow).
+
+    Args:
+        s: χ̂² r̂² (the argument of ``coupling_pair`` at radius r̂), any real value.
+        order: Bessel order ν ≥ 0, the same as in ``coupling_pair``.
+
+    Returns:
+        g(s): −sqrt(−s) where s < −switch(ν) (the branch of ``coupling_pair``), else 0; finite
+        derivatives everywhere (double-where).
+    """
+    order = jnp.asarray(order, dtype=jnp.float64)  # static int or traced (sweeps over n)
+    large_negative = s < -_switch(order)
+    root = jnp.sqrt(jnp.where(large_negative, -s, 1.0))
+    return jnp.where(large_negative, -root, 0.0)

@@ -1,54 +1,194 @@
-"""Mode shapes: the state fields across the wall for a root Ω (theory.md §3–4)."""
+"""Mode shapes: the state fields across the wall and the acoustic pressure in the cavity for a root Ω
+(theory.md §3–4).
+
+One solve serves both public functions (:func:`mode_shape`, :func:`fluid_pressure`):
+
+1. the initial basis S(Ω) (:func:`jaxdea.dispersion.initial_basis`, denominators cleared) is carried
+   across the wall with re-orthonormalisation, T_k Q_{k−1} = Q_k R_k, S = Q_0 R_0
+   (:func:`jaxdea.transfer.propagate_basis_history`);
+2. the null vector c_N of the outer-face rows (Φ, T̄, S̄) of Q_N is carried back, c_{k−1} = R_k⁻¹ c_k
+   (triangular solves: stable for any α̂ĥ), giving the state Y_k = Q_k c_k at every interface and the
+   coefficients x = R_0⁻¹ c_0 of the columns of S, Y(r̂_i) = S x;
+3. inside sublayer k the fields are exp[(r̂ − r̂_{k−1}) M(r̂_k)] Y_{k−1}; all of them are divided by
+   the displacement entry of largest modulus (so max(|ū|, |w̄|) = 1 and that entry is +1).
+
+The consistent acoustic coupling (theory.md §4(c)) writes the ū column of S as
+D_0 S⁰_{·1} − Ω²ρ̂_f r̂_i N_0 e_T̄, so with c_u = x_0:
+
+    ū_i = D_0 c_u,   p̂*(r̂_i) = Ω²ρ̂_f B̂_0 ū_i = Ω²ρ̂_f r̂_i N_0 c_u,
+
+and no division by D_0 (zero at the rigid-wall cavity resonances) or by N_0 is ever needed.
+"""
 
 import functools
 
 import jax
 import jax.numpy as jnp
 
-from .dispersion import OUTER_ROWS, check_inputs, initial_basis
+from .bessel import coupling_log_factor, coupling_pair
+from .dispersion import OUTER_ROWS, U, W, check_inputs, initial_basis
 from .params import Fluid, Tube, as_float, canonical
 from .state_matrix import state_matrix
-from .transfer import discretize, expm_taylor, propagate_basis_history
+from .transfer import Wall, discretize, expm_taylor, propagate_basis_history
 
 
-@functools.partial(jax.jit, static_argnames=("n_points", "n_layers", "order"))
-def _mode_shape(tube, alpha, omega, fluid, n_points, n_layers, order):
-    alpha, omega = as_float(alpha), as_float(omega)
-    wall = discretize(tube, n_layers)
-    qs, rs = propagate_basis_history(wall, omega, alpha,
-                                     initial_basis(wall, omega, alpha, fluid, order))
+def _interface_solution(wall: Wall, omega, alpha, fluid, order):
+    """States Y_k (N+1, 6) at the interfaces r̂_i = r̂_0 < … < r̂_N = r̂_o and the coefficients
+    x (3,) of the initial basis, Y_0 = S x (module docstring, steps 1–2). Unnormalised."""
+    basis = initial_basis(wall, omega, alpha, fluid, order)
+    qs, rs = propagate_basis_history(wall, omega, alpha, basis)
     # null vector of the outer-face conditions in the last basis, then back through the R factors
     _, _, vt = jnp.linalg.svd(qs[-1][OUTER_ROWS, :])
-    c_last = vt[-1]
 
     def back(c, r):
         return jax.scipy.linalg.solve_triangular(r, c, lower=False), c
 
-    _, cs = jax.lax.scan(back, c_last, rs[1:], reverse=True)  # cs[k] = coefficients at interface k+1
-    c0 = jax.scipy.linalg.solve_triangular(rs[1], cs[0], lower=False)
-    states = jnp.einsum("kij,kj->ki", qs, jnp.concatenate([c0[None], cs]))  # (N+1, 6) interfaces
+    c_0, cs = jax.lax.scan(back, vt[-1], rs[1:], reverse=True)  # cs[k]: coefficients at interface k+1
+    states = jnp.einsum("kij,kj->ki", qs, jnp.concatenate([c_0[None], cs]))
+    return states, jax.scipy.linalg.solve_triangular(rs[0], c_0, lower=False)
+
+
+def _wall_fields(wall: Wall, states, omega, alpha, n_points: int, n_layers: int):
+    """Radii (n_points,) from r̂_i to r̂_o and the fields (n_points, 6) there (module docstring,
+    step 3), unnormalised."""
     r = jnp.linspace(wall.r_inner, wall.r_outer, n_points)
     layer = jnp.clip(jnp.floor((r - wall.r_inner) / wall.step).astype(int), 0, n_layers - 1)
     start = wall.r_inner + layer * wall.step
     coef = jax.tree_util.tree_map(lambda x: x[layer], wall.coef)
     mats = jax.vmap(state_matrix, (0, 0, None, None))(coef, wall.radii[layer], omega, alpha)
-    fields = jax.vmap(lambda m, d, y: expm_taylor(d * m) @ y)(mats, r - start, states[layer])
-    big = jnp.argmax(jnp.max(jnp.abs(fields[:, :2]), axis=1))
-    comp = jnp.argmax(jnp.abs(fields[big, :2]))
-    return r, (fields / fields[big, comp]).T
+    return r, jax.vmap(lambda m, d, y: expm_taylor(d * m) @ y)(mats, r - start, states[layer])
+
+
+def _displacement_scale(fields):
+    """The displacement entry (ū or w̄) of largest modulus over the sampled fields (n_points, 6)."""
+    big = jnp.argmax(jnp.max(jnp.abs(fields[:, U:W + 1]), axis=1))
+    comp = jnp.argmax(jnp.abs(fields[big, U:W + 1]))
+    return fields[big, comp]
+
+
+def _cavity_pressure(wall: Wall, omega, alpha, fluid: Fluid, c_u, n_points: int):
+    """Radii (n_points,) from 0 to r̂_i and p̂*(r̂) = Ω²ρ̂_f r̂_i c_u · N_0(χ̂²r̂²) e^{g(χ̂²r̂_i²) − g(χ̂²r̂²)}.
+
+    N_0(s) e^{−g(s)} is J_0(sqrt(s)) (s ≥ 0) or I_0(sqrt(−s)) (s < 0) (:func:`coupling_log_factor`),
+    and the basis column carries N_0(χ̂²r̂_i²) with its own factor e^{g(χ̂²r̂_i²)}, so this is
+    p̂*(r̂_i) J_0(χ̂r̂)/J_0(χ̂r̂_i) with p̂*(r̂_i) = Ω²ρ̂_f r̂_i N_0 c_u (theory.md §4(c)), computed without
+    dividing by J_0(χ̂r̂_i); g(χ̂²r̂_i²) − g(χ̂²r̂²) ≤ 0 for r̂ ≤ r̂_i, so nothing overflows.
+    """
+    rho, c_f = as_float(fluid.density_ratio), as_float(fluid.speed_ratio)
+    ri = wall.r_inner
+    chi2 = (omega / c_f) ** 2 - alpha**2  # χ̂²
+    r = jnp.linspace(0.0, ri, n_points)
+    s = chi2 * r**2
+    n = jax.vmap(lambda x: coupling_pair(x, 0)[0])(s)
+    ratio = jnp.exp(coupling_log_factor(chi2 * ri**2, 0) - coupling_log_factor(s, 0))
+    return r, omega**2 * rho * ri * c_u * n * ratio
+
+
+@functools.partial(jax.jit, static_argnames=("n_points", "n_layers", "order"))
+def _solve_mode(tube, alpha, omega, fluid, n_points, n_layers, order):
+    """(r, fields (6, n_points), r_f, p) in the normalisation of :func:`mode_shape`; r_f, p are the
+    cavity radii and acoustic pressure for the ``acoustic`` coupling, None otherwise."""
+    alpha, omega = as_float(alpha), as_float(omega)
+    wall = discretize(tube, n_layers)
+    states, coefficients = _interface_solution(wall, omega, alpha, fluid, order)
+    r, fields = _wall_fields(wall, states, omega, alpha, n_points, n_layers)
+    scale = _displacement_scale(fields)
+    r_f = p = None
+    if fluid is not None and fluid.coupling == "acoustic":
+        r_f, p = _cavity_pressure(wall, omega, alpha, fluid, coefficients[0], n_points)
+        p = p / scale
+    return r, (fields / scale).T, r_f, p
 
 
 def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: int = 64,
                n_layers: int = 30):
     """The state fields [ū, w̄, Φ, T̄, S̄, D̄] across the wall for the root ``omega``.
 
-    The null vector of the outer-face conditions is carried back through the orthonormalised
-    propagation (stable for any α̂ĥ) and the fields inside each sublayer follow from its exponential.
-    Scaled so that max(|ū|, |w̄|) = 1 (the largest displacement entry is +1).
+    Y = [ū, w̄, Φ, T̄, S̄, D̄] is the state of theory.md §3 (u_r = R_i ū cos αz, u_z = R_i w̄ sin αz,
+    Ṫ_rr = μ T̄ cos αz, …). The null vector of the outer-face conditions (theory.md §4) is carried
+    back through the orthonormalised propagation (stable for any α̂ĥ) and the fields inside each
+    sublayer follow from its exponential (module docstring). Scaled so that max(|ū|, |w̄|) = 1 over
+    the ``n_points`` samples, the displacement entry of largest modulus being +1; the acoustic
+    pressure of :func:`fluid_pressure` with the same ``n_points`` uses the same scale.
+
+    At a non-root ``omega`` the fields are those of the least-singular direction of the outer-face
+    conditions (they then violate them).
+
+    Args:
+        tube: the :class:`~jaxdea.Tube`.
+        alpha: α̂ = α R_i > 0.
+        omega: a root Ω of the characteristic function (e.g. from :func:`jaxdea.frequencies`).
+        fluid: a :class:`~jaxdea.Fluid`, or None for the empty tube.
+        n_points: number of radii sampled across the wall (static).
+        n_layers: number of sublayers N (static; use the value the root was found with).
 
     Returns:
         (r, fields): radii r̂ (n_points,) from r̂_i to r̂_o and fields (6, n_points).
+
+    Raises:
+        ValueError: for invalid concrete inputs, naming the parameter.
+
+    Example:
+        >>> import jaxdea as jd
+        >>> tube = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
+        >>> omega = jd.frequencies(tube, 0.445)[0]
+        >>> r, (u, w, phi, t, s, d) = jd.mode_shape(tube, 0.445, omega)
     """
     order = check_inputs(tube, alpha, fluid, n_layers)
     tube, alpha, omega, fluid = canonical(tube, alpha, omega, fluid)
-    return _mode_shape(tube, alpha, omega, fluid, int(n_points), int(n_layers), order)
+    r, fields, _, _ = _solve_mode(tube, alpha, omega, fluid, int(n_points), int(n_layers), order)
+    return r, fields
+
+
+def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64, n_layers: int = 30):
+    """The acoustic excess pressure p̂*(r̂) in the cavity for the root ``omega`` (theory.md §4(c)).
+
+    The fluid field of the consistent acoustic coupling, p* = μ p̂*(r̂) cos αz with
+
+        p̂*(r̂) = A J_0(χ̂ r̂),  χ̂² = Ω²/ĉ_f² − α̂²  (A I_0(χ̃ r̂), χ̃² = −χ̂², when χ̂² < 0),
+
+    regular on the axis, solves the Helmholtz equation p̂*'' + p̂*'/r̂ + χ̂² p̂* = 0 and, from
+    ρ_f ü = −grad p*, dp̂*/dr̂ = Ω²ρ̂_f ū (so p̂*(r̂_i) = Ω²ρ̂_f B̂_0 ū_i, B̂_0 = J_0(x)/(χ̂ J_0'(x)),
+    x = χ̂ r̂_i). It is the −Ṗ̂ = −p̂*(r̂_i) load in the inner-face traction T̄(r̂_i) of
+    :func:`mode_shape`. Computed in the normalisation of :func:`mode_shape` with the same
+    ``n_points`` (max(|ū|, |w̄|) = 1 over the wall, same sign), from the coefficient of the ū column
+    of the initial basis, p̂*(r̂_i) = Ω²ρ̂_f r̂_i N_0 c_u (module docstring): finite also where
+    D_0 = 0 (rigid-wall cavity resonance, ū_i = 0) or J_0(x) = 0 (pressure node at the wall).
+
+    In SI units the pressure is μ p̂* per unit of the displacement scale R_i (see
+    :mod:`jaxdea.units`): a mode with largest displacement δ has pressure μ (δ/R_i) p̂*.
+
+    Args:
+        tube: the :class:`~jaxdea.Tube`.
+        alpha: α̂ = α R_i > 0.
+        omega: a root Ω of the fluid-filled tube (e.g. ``frequencies(tube, alpha, fluid)``).
+        fluid: a :class:`~jaxdea.Fluid` with ``coupling="acoustic"``.
+        n_points: number of radii sampled in the cavity and across the wall (static).
+        n_layers: number of sublayers N (static; use the value the root was found with).
+
+    Returns:
+        (r, p): radii r̂ (n_points,) from 0 (the axis) to r̂_i and p̂*(r̂) (n_points,).
+
+    Raises:
+        ValueError: if ``fluid`` is None or uses the ``"paper"`` coupling (the paper's model has no
+            pressure field: the fluid acts only as a follower pressure on the inner face, theory.md
+            §4(b)), or for invalid concrete inputs, naming the parameter.
+
+    Example:
+        >>> import jaxdea as jd
+        >>> from jaxdea.modes import fluid_pressure
+        >>> tube, fluid = jd.Tube(lambda_i=0.9, lambda_z=1.2), jd.Fluid()
+        >>> omega = jd.frequencies(tube, 0.445, fluid)[0]
+        >>> r, p = fluid_pressure(tube, 0.445, omega, fluid)
+    """
+    if fluid is None:
+        raise ValueError("fluid must be a jaxdea.Fluid: the empty tube (fluid=None) has no fluid pressure")
+    if isinstance(fluid, Fluid) and fluid.coupling == "paper":
+        raise ValueError(
+            "coupling='paper' has no fluid pressure field: the paper's model (theory.md §4(b)) loads the "
+            "inner face with an Ω-dependent follower pressure P̂_f only; use coupling='acoustic'"
+        )
+    order = check_inputs(tube, alpha, fluid, n_layers)
+    tube, alpha, omega, fluid = canonical(tube, alpha, omega, fluid)
+    _, _, r, p = _solve_mode(tube, alpha, omega, fluid, int(n_points), int(n_layers), order)
+    return r, p

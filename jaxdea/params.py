@@ -8,6 +8,7 @@ a ``jax.vmap`` ``in_axes`` spec); conversion to float64 happens in :func:`as_flo
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import jax
@@ -119,11 +120,35 @@ def gent_limit_excess(lambda_i, lambda_z, eta):
     """max over the wall of I_1 − 3 (attained at a face; I_1 is convex in λ², theory.md §1);
     inf where extreme inputs overflow (such a wall is past any locking limit)."""
     with np.errstate(all="ignore"):
-        ro = np.sqrt(lambda_i**2 + (eta**-2 - 1.0) / lambda_z)
-        lam_o = ro * eta  # r_o / R_o
-        i1 = [lam**2 + 1.0 / (lam * lambda_z) ** 2 + lambda_z**2 for lam in (lambda_i, lam_o)]
-        excess = np.maximum(i1[0], i1[1]) - 3.0
+        excess = _face_excess(lambda_i, lambda_z, eta, np)
     return np.where(np.isfinite(excess), excess, np.inf)
+
+
+def _face_excess(lambda_i, lambda_z, eta, xp):
+    """max(I_1 − 3) over the two faces (``xp``: numpy or jax.numpy)."""
+    ro = xp.sqrt(lambda_i**2 + (1.0 / eta**2 - 1.0) / lambda_z)
+    i1 = [lam**2 + 1.0 / (lam * lambda_z) ** 2 + lambda_z**2 for lam in (lambda_i, ro * eta)]
+    return xp.maximum(i1[0], i1[1]) - 3.0
+
+
+def admissible(tube: Tube, alpha=1.0, fluid: Fluid | None = None) -> jax.Array:
+    """Traced counterpart of the validation: True where every input is inside its allowed range
+    (finite; λ_i, λ_z, G, length_ratio, α̂, ρ̂_f, ĉ_f > 0; 0 < η < 1; I_1 − 3 < G in the whole wall).
+
+    Solvers use it under jit/vmap to return NaN with status INVALID instead of a plausible number.
+    """
+    li, lz, eta = (as_float(x) for x in (tube.lambda_i, tube.lambda_z, tube.eta))
+    g, length, v, a = (as_float(x) for x in (tube.gent, tube.length_ratio, tube.voltage, alpha))
+    finite = [jnp.isfinite(x) for x in (li, lz, eta, length, v, a)]
+    positive = [x > 0 for x in (li, lz, length, a)] + [(eta > 0) & (eta < 1), g > 0]
+    ok = functools.reduce(jnp.logical_and, finite + positive) & ~jnp.isnan(g)
+    if tube.material == "gent":
+        excess = _face_excess(li, lz, eta, jnp)
+        ok &= jnp.isfinite(excess) & (excess < g)
+    if fluid is not None:
+        rho, c = as_float(fluid.density_ratio), as_float(fluid.speed_ratio)
+        ok &= jnp.isfinite(rho) & jnp.isfinite(c) & (rho > 0) & (c > 0)
+    return ok
 
 
 def validate_tube(tube: Tube) -> None:

@@ -29,7 +29,7 @@ import numpy as np
 
 from .base_state import voltage_limit
 from .dispersion import characteristic_on_wall, check_inputs
-from .params import Fluid, Tube, as_float, canonical, validate_positive
+from .params import Fluid, Tube, admissible, as_float, canonical, validate_positive
 from .scalar import Status, run_lanes, start_lanes, value_and_slope
 from .transfer import Wall, discretize
 
@@ -170,13 +170,36 @@ def _problem(tube, alpha, fluid, n_layers, order):
     return wall, lambda om: characteristic_on_wall(wall, om, alpha, fluid, order)
 
 
-@functools.partial(jax.jit, static_argnames=("n_roots", "n_layers", "order"))
-def _solve_frequencies(tube, alpha, fluid, omega_max, n_roots, n_layers, order):
-    alpha = as_float(alpha)
+def guard(tube, alpha, fluid):
+    """(ok, tube, alpha, fluid): ``ok`` from :func:`~jaxdea.params.admissible`; where not ok the
+    inputs are swapped for a harmless default case, so that a solver under vmap does no work on
+    them (the caller returns NaN with status INVALID there)."""
+    ok = admissible(tube, alpha, fluid)
+    swap = lambda x, d: jnp.where(ok, as_float(x), d)  # noqa: E731
+    tube = jax.tree_util.tree_map(swap, tube, Tube(material=tube.material))
+    if fluid is not None:
+        default = Fluid(coupling=fluid.coupling, bessel_order=fluid.bessel_order)
+        fluid = jax.tree_util.tree_map(swap, fluid, default)
+    return ok, tube, swap(alpha, 1.0), fluid
+
+
+def invalid_where(ok, roots: Roots) -> Roots:
+    """NaN with status INVALID where ``ok`` is False."""
+    return Roots(jnp.where(ok, roots.omega, jnp.nan),
+                 jnp.where(ok, roots.status, Status.INVALID).astype(jnp.int32))
+
+
+def frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, order) -> Roots:
+    """The ``n_roots`` lowest roots for one case (traceable; ``order`` may be traced)."""
+    ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
     wall, fun = _problem(tube, alpha, fluid, n_layers, order)
     end = default_omega_max(wall, alpha, n_roots) if omega_max is None else as_float(omega_max)
+    ok &= jnp.isfinite(end) & (end > 0)
     step = jnp.minimum(scan_step(wall, fluid), end / CHUNK)
-    return _scan_for_roots(fun, step, end, n_roots)
+    return invalid_where(ok, _scan_for_roots(fun, step, end, n_roots))
+
+
+_solve_frequencies = jax.jit(frequencies_unchecked, static_argnames=("n_roots", "n_layers", "order"))
 
 
 def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
@@ -233,9 +256,12 @@ def _newton_from_guess(fun, guess, max_step):
 
 @functools.partial(jax.jit, static_argnames=("n_layers", "order"))
 def _solve_frequency(tube, alpha, guess, fluid, n_layers, order):
-    alpha, guess = as_float(alpha), as_float(guess)
+    ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
+    guess = as_float(guess)
+    ok &= jnp.isfinite(guess) & (guess > 0)
     wall, fun = _problem(tube, alpha, fluid, n_layers, order)
-    return Roots(*_newton_from_guess(fun, guess, 4.0 * scan_step(wall, fluid)))
+    guess = jnp.where(ok, guess, 1.0)
+    return invalid_where(ok, Roots(*_newton_from_guess(fun, guess, 4.0 * scan_step(wall, fluid))))
 
 
 def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
@@ -276,11 +302,12 @@ def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layer
 
 @functools.partial(jax.jit, static_argnames=("n_layers", "order"))
 def _group_velocity(tube, alpha, omega, fluid, n_layers, order):
-    alpha, omega = as_float(alpha), as_float(omega)
+    ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
+    omega = as_float(omega)
     wall = discretize(tube, n_layers)
     f = lambda om, al: characteristic_on_wall(wall, om, al, fluid, order)  # noqa: E731
     f_omega, f_alpha = jax.grad(f, argnums=(0, 1))(omega, alpha)
-    return -f_alpha / f_omega
+    return jnp.where(ok, -f_alpha / f_omega, jnp.nan)
 
 
 def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
@@ -293,9 +320,9 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
     return _with_derivatives(roots, (tube, alpha, fluid), int(n_layers), order, "voltage")
 
 
-@functools.partial(jax.jit, static_argnames=("n_layers", "order", "n_grid"))
-def _solve_critical_voltage(tube, alpha, fluid, n_layers, order, n_grid=128):
-    alpha = as_float(alpha)
+def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=128):
+    """(V̂_cr, status) for one case (traceable); see :func:`critical_voltage`."""
+    ok, tube, alpha, fluid = guard(tube.replace(voltage=0.0), as_float(alpha), fluid)
     v_end = voltage_limit(tube)
 
     def g(v):
@@ -320,7 +347,10 @@ def _solve_critical_voltage(tube, alpha, fluid, n_layers, order, n_grid=128):
                          jnp.where(jnp.all(finite), Status.NO_ROOT, Status.NOT_FINITE))
         return jnp.where(found, roots[first], jnp.nan), stat
 
-    return solve()
+    return invalid_where(ok, Roots(*solve()))
+
+
+_solve_critical_voltage = jax.jit(critical_voltage_unchecked, static_argnames=("n_layers", "order", "n_grid"))
 
 
 def critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None, n_layers: int = 30):
@@ -333,3 +363,43 @@ def critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None, n_layers: in
     terms vanish like Ω²). NaN (status NO_ROOT) if no root below V̂_lim.
     """
     return solve_critical_voltage(tube, alpha, fluid, n_layers)[0]
+
+
+def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
+                            n_layers: int = 30) -> Roots:
+    """(V̂_cr, status) for every axial mode n = 1 … n_max in one compiled call.
+
+    α̂_n = 2nπη/(length_ratio λ_z) (:func:`jaxdea.axial_wavenumber`); each entry as
+    :func:`critical_voltage`, with implicit derivatives. A fluid does not change V̂_cr (its terms
+    vanish like Ω²), so ``fluid`` is validated and otherwise not used.
+
+    Returns:
+        :class:`Roots` whose ``omega`` field holds V̂_cr, shape (n_max,).
+    """
+    check_inputs(tube, 1.0, fluid, n_layers)
+    if not isinstance(n_max, (int, np.integer)) or isinstance(n_max, bool) or n_max < 1:
+        raise ValueError(f"n_max must be an integer >= 1, got {n_max!r}")
+    return _critical_voltages(canonical(tube), int(n_max), int(n_layers))
+
+
+@functools.partial(jax.jit, static_argnames=("n_max", "n_layers"))
+def _critical_voltages(tube, n_max, n_layers):
+    eta, lr, lz = (as_float(x) for x in (tube.eta, tube.length_ratio, tube.lambda_z))
+    alphas = 2.0 * np.pi * jnp.arange(1, n_max + 1, dtype=jnp.float64) * eta / (lr * lz)
+
+    def one(alpha):
+        values = jax.lax.stop_gradient((tube, alpha))
+        roots = Roots(*critical_voltage_unchecked(*values, None, n_layers, 0))
+        return _with_derivatives(roots, (tube, alpha, None), n_layers, 0, "voltage")
+
+    return jax.lax.map(one, alphas)
+
+
+def critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None, n_layers: int = 30):
+    """V̂_cr of the axial modes n = 1 … n_max, shape (n_max,) (see :func:`solve_critical_voltages`)."""
+    return solve_critical_voltages(tube, n_max, fluid, n_layers).omega
+
+
+def phase_velocity(omega, alpha):
+    """Phase velocity Ω/α̂ (in units of c_s): c_p/c_s = ω/(α c_s)."""
+    return as_float(omega) / as_float(alpha)

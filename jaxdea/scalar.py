@@ -19,6 +19,7 @@ class Status(enum.IntEnum):
     NO_ROOT = 1  # no (further) root in the searched range
     NOT_FINITE = 2  # a non-finite function value (overflow, expm failure, locking) stopped the search
     MAX_ITER = 3  # the iteration limit was reached before convergence
+    INVALID = 4  # inputs outside their allowed range (what validation rejects, met under jit/vmap)
 
 
 def value_and_slope(fun, x):

@@ -49,11 +49,11 @@ def test_random_inputs_large_profile(voltage, lambda_i, lambda_z, eta, gent, alp
 
 
 def test_traced_bad_values_give_nan_and_status():
-    """Under vmap nothing is validated: a negative stretch or η ≥ 1 gives NaN and NOT_FINITE."""
+    """Under vmap nothing is validated: a negative stretch or η ≥ 1 gives NaN and status INVALID."""
     import jax
 
     tubes = jd.Tube(lambda_i=jnp.array([-1.0, 1.0]), eta=jnp.array([0.85, 1.5]))
     axes = jd.Tube(voltage=None, lambda_i=0, lambda_z=None, eta=0, gent=None, length_ratio=None)
     out = jax.vmap(lambda t: jd.solve_frequencies(t, 0.445), in_axes=(axes,))(tubes)
     assert np.all(np.isnan(np.asarray(out.omega)))
-    assert np.all(np.asarray(out.status) == jd.Status.NOT_FINITE)
+    assert np.all(np.asarray(out.status) == jd.Status.INVALID)
