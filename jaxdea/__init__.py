@@ -18,19 +18,24 @@ from .base_state import (
     with_thickness_ratio,
 )
 from .dispersion import characteristic
-from .modes import mode_shape
+from . import units
+from .modes import fluid_pressure, mode_shape
 from .params import Fluid, Tube, as_float, require_x64
 from .roots import (
     Roots,
     critical_voltage,
+    critical_voltages,
     frequencies,
     frequency,
     group_velocity,
+    phase_velocity,
     solve_critical_voltage,
+    solve_critical_voltages,
     solve_frequencies,
     solve_frequency,
 )
 from .scalar import Status
+from .sweeps import SweepResult, sweep
 
 
 def axial_wavenumber(tube: Tube, n):
@@ -44,21 +49,28 @@ __all__ = [
     "Fluid",
     "Roots",
     "Status",
+    "SweepResult",
     "Tube",
     "axial_wavenumber",
     "characteristic",
     "critical_voltage",
+    "critical_voltages",
+    "fluid_pressure",
     "frequencies",
     "frequency",
     "group_velocity",
     "inner_stretch",
     "mode_shape",
+    "phase_velocity",
     "pressure_difference",
     "pull_in",
     "solve_critical_voltage",
+    "solve_critical_voltages",
     "solve_frequencies",
     "solve_frequency",
+    "sweep",
     "thickness_ratio",
+    "units",
     "with_thickness_ratio",
 ]
 __version__ = "0.1.0"
