@@ -161,7 +161,8 @@ def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_
         return jnp.where(jnp.isfinite(omega), d, jnp.nan)
 
     d = jax.vmap(derivatives)(roots.omega)  # (n_roots, 1 + len(jac_names))
-    return roots.omega, roots.status, alpha_point, d[:, 0], d[:, 1:]
+    jac = (d[:, 1:],) if jac_names else ()  # no zero-size outputs (lax.map cannot batch them)
+    return roots.omega, roots.status, alpha_point, d[:, 0], *jac
 
 
 @functools.partial(jax.jit, static_argnames=("names", "n_roots", "n_layers", "order", "jac_names",
@@ -174,7 +175,7 @@ def _sweep_chunk(columns, tube, alpha, fluid, omega_max, names, n_roots, n_layer
         return _point(dict(zip(names, vals, strict=True)), tube, alpha, fluid, omega_max,
                       n_roots, n_layers, order, jac_names)
 
-    return jax.lax.map(one, columns, batch_size=batch_size)
+    return jax.lax.map(one, columns, batch_size=batch_size if batch_size > 1 else None)
 
 
 def _axis(name, values):
@@ -270,7 +271,8 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
     return SweepResult(
         axes=axes, omega=reshape(omega), status=reshape(status).astype(np.int32),
         alpha=reshape(alpha),
-        jacobian=None if jac_names is None else reshape(outputs[4]),
+        jacobian=None if jac_names is None else (
+            reshape(outputs[4]) if jac_names else np.empty((*shape, n_roots, 0))),
         jacobian_names=jac_names or (),
         group_velocity=None if jac_names is None else reshape(outputs[3]),
         settings=_settings(tube, fluid, n_roots, omega_max, n_layers),

@@ -208,3 +208,25 @@ def test_hundred_thousand_points_in_bounded_memory():
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True,
                          env=dict(os.environ, JAX_PLATFORMS="cpu"))
     assert float(out.stdout.strip().splitlines()[-1]) < 64
+
+
+def test_group_velocity_through_a_zero_group_velocity_point():
+    """Second branch of the driven tube (V̂ = 0.15): Ω(α̂) has a minimum near α̂ = 0.57. The implicit
+    group velocity matches central differences of the branch on both sides and vanishes where Ω
+    is smallest (located by bisection on its sign; Ω rises by ½Ω''δ² on both sides)."""
+    tube = TUBE.replace(voltage=0.15)
+    branch = lambda a: float(jd.frequency(tube, a, 1.3178))  # noqa: E731
+    cg = lambda a: float(jd.group_velocity(tube, a, branch(a)))  # noqa: E731
+    for a in (0.5, 0.57, 0.65):
+        h = 1e-5
+        fd = (branch(a + h) - branch(a - h)) / (2 * h)
+        assert abs(cg(a) - fd) < 1e-8
+    lo, hi = 0.5, 0.65
+    assert cg(lo) < 0 < cg(hi)
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if cg(mid) < 0 else (lo, mid)
+    a_zgv = 0.5 * (lo + hi)
+    d = 1e-3
+    rise = [branch(a_zgv + s * d) - branch(a_zgv) for s in (-1, 1)]
+    assert min(rise) > 0 and abs(rise[0] - rise[1]) < 1e-2 * max(rise)  # symmetric minimum
