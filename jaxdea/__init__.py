@@ -36,6 +36,7 @@ from .roots import (
 )
 from .scalar import Status
 from .sweeps import SweepResult, sweep
+from .trace import Branch, BranchEnd, trace_branch
 
 
 def axial_wavenumber(tube: Tube, n):
@@ -46,6 +47,8 @@ def axial_wavenumber(tube: Tube, n):
 
 
 __all__ = [
+    "Branch",
+    "BranchEnd",
     "Fluid",
     "Roots",
     "Status",
@@ -70,6 +73,7 @@ __all__ = [
     "solve_frequency",
     "sweep",
     "thickness_ratio",
+    "trace_branch",
     "units",
     "with_thickness_ratio",
 ]
