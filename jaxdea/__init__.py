@@ -10,6 +10,7 @@ import os
 import jax
 import jax.numpy as jnp
 
+from . import units
 from .base_state import (
     inner_stretch,
     pressure_difference,
@@ -18,7 +19,6 @@ from .base_state import (
     with_thickness_ratio,
 )
 from .dispersion import characteristic
-from . import units
 from .modes import fluid_pressure, mode_shape
 from .params import Fluid, Tube, as_float, require_x64
 from .roots import (
