@@ -55,6 +55,39 @@ def scan_step(wall: Wall, fluid: Fluid | None):
     return scale / STEPS_PER_OSCILLATION
 
 
+def cutoff_steps(wall: Wall, alpha, fluid: Fluid | None, step):
+    """next(x): the grid point after x, at most Δ = ``step`` beyond it and denser near the cutoffs.
+
+    Above a cutoff Ω_c = c_z α̂ (c_z = sqrt(a), the speed of shear waves along z, between its
+    smallest and largest value over the wall; for the fluid ĉ_f α̂) a wave family starts to
+    propagate across the thickness ℓ (ĥ, or r̂_i for the fluid) with radial wavenumber
+    k = sqrt(Ω² − Ω_c²)/c (c = c_min, or ĉ_f): thickness resonances at kℓ = jπ crowd at Ω_c with
+    spacing ≈ c²(2j + 1)π²/(2Ω_c ℓ²), far below Δ when α̂ℓ is large. The grid is uniform in the
+    phase φ = kℓ there: a step never advances φ by more than π/16 (the step Δ is π/16 of the
+    oscillation far above the cutoff).
+    """
+    coef = wall.coef
+    c_min = jnp.sqrt(jnp.min(jnp.minimum(coef.c - coef.eps * coef.d**2, coef.a)))
+    c_z = jnp.sqrt(coef.a)
+    cut = [jnp.min(c_z) * alpha, jnp.max(c_z) * alpha]
+    speed = [c_min, c_min]
+    length = [wall.r_outer - wall.r_inner] * 2
+    if fluid is not None:
+        c_f = as_float(fluid.speed_ratio)
+        cut.append(c_f * alpha)
+        speed.append(c_f)
+        length.append(wall.r_inner)
+    cut, speed, length = jnp.stack(cut), jnp.stack(speed), jnp.stack(length)
+    dphi = np.pi / STEPS_PER_OSCILLATION
+
+    def next_point(x):
+        phi = length * jnp.sqrt(jnp.maximum(x * x - cut * cut, 0.0)) / speed
+        ahead = jnp.sqrt(cut * cut + (speed * (phi + dphi) / length) ** 2)
+        return x + jnp.minimum(step, jnp.min(ahead - x))
+
+    return next_point
+
+
 def default_omega_max(wall: Wall, alpha, n_roots: int):
     """Search limit when none is given: (n_roots + 1) thickness-mode spacings plus 3α̂ c_max."""
     coef = wall.coef
@@ -63,8 +96,11 @@ def default_omega_max(wall: Wall, alpha, n_roots: int):
     return (n_roots + 1) * np.pi * c_max / thickness + 3.0 * alpha * c_max
 
 
-def _scan_for_roots(fun, step, omega_end, n_roots: int) -> Roots:
+def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None) -> Roots:
     """Chunked scan with Hermite classification and refinement (module docstring).
+
+    ``next_point(x)`` gives the grid point after x (default x + step); runs of plain steps are
+    laid out as base + k·step, so a uniform grid has no accumulated rounding.
 
     f and f' are evaluated at exactly two places (the grid chunk and the refinement lanes), which
     keeps the compiled program small.
@@ -74,8 +110,20 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int) -> Roots:
     first = jnp.concatenate([jnp.zeros(1), geometric])  # Ω = 0, then Δ·2^-62 … Δ
     max_chunks = 1_000_000
 
+    def advance(carry, _):
+        x, base, count = carry
+        plain = base + step * (count + 1)
+        special = next_point(x)
+        use_plain = special >= x + step  # no cutoff nearby: stay on the uniform lattice
+        new = jnp.where(use_plain, plain, special)
+        carry = (new, jnp.where(use_plain, base, new), jnp.where(use_plain, count + 1, 0.0))
+        return carry, new
+
     def grid(left, chunk):
-        uniform = left + step * jnp.arange(1, CHUNK + 1, dtype=jnp.float64)
+        if next_point is None:
+            uniform = left + step * jnp.arange(1, CHUNK + 1, dtype=jnp.float64)
+        else:
+            _, uniform = jax.lax.scan(advance, (left, left, jnp.zeros_like(left)), None, length=CHUNK)
         return jnp.minimum(jnp.where(chunk == 0, first, uniform), omega_end)
 
     def cond(s):
@@ -196,7 +244,8 @@ def frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, orde
     end = default_omega_max(wall, alpha, n_roots) if omega_max is None else as_float(omega_max)
     ok &= jnp.isfinite(end) & (end > 0)
     step = jnp.minimum(scan_step(wall, fluid), end / CHUNK)
-    return invalid_where(ok, _scan_for_roots(fun, step, end, n_roots))
+    return invalid_where(ok, _scan_for_roots(fun, step, end, n_roots,
+                                             cutoff_steps(wall, alpha, fluid, step)))
 
 
 _solve_frequencies = jax.jit(frequencies_unchecked, static_argnames=("n_roots", "n_layers", "order"))

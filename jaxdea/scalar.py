@@ -20,6 +20,7 @@ class Status(enum.IntEnum):
     NOT_FINITE = 2  # a non-finite function value (overflow, expm failure, locking) stopped the search
     MAX_ITER = 3  # the iteration limit was reached before convergence
     INVALID = 4  # inputs outside their allowed range (what validation rejects, met under jit/vmap)
+    INACCURATE = 5  # a requested tolerance was not reached (accuracy.frequencies_with_error)
 
 
 def value_and_slope(fun, x):
