@@ -11,6 +11,7 @@ import jax
 import jax.numpy as jnp
 
 from . import units
+from .accuracy import Estimate, frequencies_with_error
 from .base_state import (
     inner_stretch,
     pressure_difference,
@@ -49,6 +50,7 @@ def axial_wavenumber(tube: Tube, n):
 __all__ = [
     "Branch",
     "BranchEnd",
+    "Estimate",
     "Fluid",
     "Roots",
     "Status",
@@ -60,6 +62,7 @@ __all__ = [
     "critical_voltages",
     "fluid_pressure",
     "frequencies",
+    "frequencies_with_error",
     "frequency",
     "group_velocity",
     "inner_stretch",

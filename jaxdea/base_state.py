@@ -11,7 +11,17 @@ import jax.numpy as jnp
 import numpy as np
 
 from .moduli import energy_derivatives
-from .params import Tube, as_float, canonical, require_x64, validate_tube
+from .params import (
+    Tube,
+    admissible,
+    as_float,
+    canonical,
+    require_x64,
+    validate_broadcast,
+    validate_range,
+    validate_real,
+    validate_tube,
+)
 from .scalar import Status, bracketed_root, implicit_root
 
 GAUSS_ORDER = 8
@@ -102,7 +112,10 @@ def pressure_difference(tube: Tube):
     return _pressure_difference(canonical(tube))
 
 
-_pressure_difference = jax.jit(pressure_difference_unchecked)
+@jax.jit
+def _pressure_difference(tube: Tube):
+    """ΔP̂, NaN where the (traced) tube is not admissible (never a plausible number there)."""
+    return jnp.where(admissible(tube), pressure_difference_unchecked(tube), jnp.nan)
 
 
 class BaseState(NamedTuple):
@@ -134,8 +147,9 @@ def base_state(tube: Tube, r) -> BaseState:
 def thickness_ratio(tube: Tube):
     """h/R_i = r̂_o − r̂_i, the deformed wall thickness over the undeformed inner radius."""
     require_x64()
-    validate_tube(tube)
-    return geometry(tube).thickness
+    validate_tube(tube, scalar=False)  # elementwise: arrays that broadcast are fine
+    # NaN where a traced tube is not admissible (concrete ones were validated above)
+    return jnp.where(admissible(tube), geometry(tube).thickness, jnp.nan)
 
 
 def with_thickness_ratio(tube: Tube, h_over_Ri) -> Tube:
@@ -144,10 +158,19 @@ def with_thickness_ratio(tube: Tube, h_over_Ri) -> Tube:
     From (λ_i + h)² = λ_i² + (η⁻² − 1)/λ_z: η = [1 + λ_z h (2λ_i + h)]^(−1/2).
     """
     require_x64()
-    h = as_float(h_over_Ri)
-    if not isinstance(h_over_Ri, jax.core.Tracer) and not np.all(np.asarray(h) > 0):
-        raise ValueError(f"h_over_Ri must be > 0, got {h_over_Ri!r}")
-    return with_thickness_ratio_unchecked(tube, h)
+    if not isinstance(tube, Tube):
+        raise ValueError(f"tube must be a jaxdea.Tube, got {type(tube).__name__}")
+    h = validate_range("h_over_Ri", h_over_Ri, "> 0", lambda v: v > 0, scalar=False)
+    li = validate_range("lambda_i", tube.lambda_i, "> 0", lambda v: v > 0, scalar=False)
+    lz = validate_range("lambda_z", tube.lambda_z, "> 0", lambda v: v > 0, scalar=False)
+    validate_broadcast("h_over_Ri and Tube", dict(h_over_Ri=h, lambda_i=li, lambda_z=lz))
+    out = with_thickness_ratio_unchecked(tube, h_over_Ri)
+    eta = None if isinstance(out.eta, jax.core.Tracer) else np.asarray(out.eta)
+    if eta is not None and not np.all((eta > 0) & (eta < 1)):
+        raise ValueError(f"h_over_Ri = {h_over_Ri!r} gives eta = R_i/R_o outside (0, 1) in float64 "
+                         f"(got {np.ravel(eta)[0]!r}): the wall is too thick or too thin")
+    validate_tube(out, scalar=False)  # the other fields, and Gent locking of the new wall
+    return out
 
 
 def with_thickness_ratio_unchecked(tube: Tube, h_over_Ri) -> Tube:
@@ -190,12 +213,23 @@ def inner_stretch(tube: Tube, delta_p=0.0):
         (lambda_i, status). ``tube.lambda_i`` is ignored.
     """
     require_x64()
-    validate_tube(tube.replace(lambda_i=1.0))
+    if not isinstance(tube, Tube):
+        raise ValueError(f"tube must be a jaxdea.Tube, got {type(tube).__name__}")
+    tube = tube.replace(lambda_i=1.0)  # ignored (the unknown); a placeholder for the validation
+    validate_tube(tube)
+    validate_real("delta_p", delta_p, "a finite real number (the pressure difference)")
     return _inner_stretch(*canonical(tube, delta_p))
 
 
 @jax.jit
 def _inner_stretch(tube: Tube, delta_p):
+    """(λ_i, status); NaN and INVALID where the traced inputs are not admissible."""
+    ok = admissible(tube) & jnp.isfinite(as_float(delta_p))
+    li, status = _inner_stretch_unchecked(tube, delta_p)
+    return jnp.where(ok, li, jnp.nan), jnp.where(ok, status, Status.INVALID).astype(jnp.int32)
+
+
+def _inner_stretch_unchecked(tube: Tube, delta_p):
     delta_p = as_float(delta_p)
     v2 = as_float(tube.voltage) ** 2
 
@@ -228,7 +262,11 @@ def pull_in(tube: Tube, delta_p=0.0):
         (lambda_i, voltage, status). ``tube.lambda_i`` and ``tube.voltage`` are ignored.
     """
     require_x64()
-    validate_tube(tube.replace(lambda_i=1.0))
+    if not isinstance(tube, Tube):
+        raise ValueError(f"tube must be a jaxdea.Tube, got {type(tube).__name__}")
+    tube = tube.replace(lambda_i=1.0, voltage=0.0)  # both ignored; placeholders for the validation
+    validate_tube(tube)
+    validate_real("delta_p", delta_p, "a finite real number (the pressure difference)")
     return _pull_in(*canonical(tube, delta_p))
 
 
@@ -269,4 +307,11 @@ def voltage_limit(tube: Tube):
     return jax.lax.stop_gradient(jnp.where(status == Status.CONVERGED, v_pull, v_sup))
 
 
-_pull_in = jax.jit(pull_in_unchecked)
+@jax.jit
+def _pull_in(tube: Tube, delta_p):
+    """(λ_i, V̂, status) of :func:`pull_in`; NaN and INVALID where the traced inputs are not
+    admissible."""
+    ok = admissible(tube) & jnp.isfinite(as_float(delta_p))
+    li, v, status = pull_in_unchecked(tube, delta_p)
+    nan = lambda x: jnp.where(ok, x, jnp.nan)  # noqa: E731
+    return nan(li), nan(v), jnp.where(ok, status, Status.INVALID).astype(jnp.int32)

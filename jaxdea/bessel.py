@@ -60,11 +60,42 @@ def _integrals(s, order):
     return jnp.where(in_range, n, jnp.nan), jnp.where(in_range, d, jnp.nan)
 
 
+def _integrals_complex(s, order):
+    """(N, D) for large |s| and complex s (complex Ω, :mod:`jaxdea.counting`), series normalisation
+    times a positive factor.
+
+    Re s ≥ 0: J_ν, J_ν' from Bessel's integral at x = sqrt(s) (principal), scaled by e^{−|Im x|};
+    Re s < 0: I_ν, I_ν' at x̃ = sqrt(−s) (principal), scaled by e^{−Re x̃}. J_ν(x)/x^ν and
+    x J_ν'(x)/x^ν are even in x and equal I_ν(x̃)/x̃^ν, x̃ I_ν'(x̃)/x̃^ν at x = i x̃, so both branches are
+    the same entire function of s up to a real positive factor: arg N, arg D and the direction of
+    (N, D) are continuous across Re s = 0, and the trapezoidal rule stays exponentially accurate for
+    complex arguments while |x| + ν < NODES − 40 (beyond: NaN). The factors are positive but not
+    analytic: only the arguments of N, D (and of the characteristic function) are meaningful.
+    """
+    theta = jnp.asarray(2.0 * np.pi * np.arange(NODES) / NODES)
+    right = jnp.real(s) >= 0
+    x = jnp.sqrt(jnp.where(right, s, -s))  # x (right) or x̃ (left), Re ≥ 0
+    phase = order * theta - x * jnp.sin(theta)
+    shrink = jnp.exp(-jnp.abs(jnp.imag(x)))
+    j_nu = jnp.mean(jnp.cos(phase)) * shrink
+    xj_prime = x * jnp.mean(jnp.sin(phase) * jnp.sin(theta)) * shrink
+    damp = jnp.exp(x * (jnp.cos(theta) - 1.0) + 1j * jnp.imag(x))  # e^{x̃ cos t − Re x̃}
+    i_nu = jnp.mean(damp * jnp.cos(order * theta))
+    xi_prime = x * jnp.mean(jnp.cos(theta) * damp * jnp.cos(order * theta))
+    factor = jnp.exp(order * np.log(2.0) + gammaln(order + 1.0) - order * jnp.log(x))  # 2^ν ν!/x^ν
+    n = jnp.where(right, j_nu, i_nu) * factor
+    d = jnp.where(right, xj_prime, xi_prime) * factor
+    in_range = jnp.abs(x) + order < NODES - 40
+    return jnp.where(in_range, n, jnp.nan), jnp.where(in_range, d, jnp.nan)
+
+
 def coupling_pair(s, order):
     """(N_ν, D_ν) up to a common positive factor, entire in s = χ̂² r̂_i² (module docstring).
 
     Args:
-        s: χ̂² r̂_i², any real value.
+        s: χ̂² r̂_i², any real value; or complex (complex Ω, :mod:`jaxdea.counting`), where the
+            large-|s| branch is :func:`_integrals_complex` and the common factor stays real and
+            positive (so arg N, arg D are exact), though no longer analytic in s.
         order: Bessel order ν ≥ 0 (static int).
 
     Returns:
@@ -76,7 +107,8 @@ def coupling_pair(s, order):
     s_large = jnp.where(small, _switch(order) * 4.0, s)
     f_nu, f_next = _series(s_small, order)
     n_small, d_small = f_nu, order * f_nu - 0.5 * s_small * f_next
-    n_large, d_large = _integrals(s_large, order)
+    integrals = _integrals_complex if jnp.iscomplexobj(s) else _integrals  # real s: unchanged
+    n_large, d_large = integrals(s_large, order)
     return jnp.where(small, n_small, n_large), jnp.where(small, d_small, d_large)
 
 

@@ -27,7 +27,7 @@ import jax.numpy as jnp
 
 from .bessel import coupling_log_factor, coupling_pair
 from .dispersion import OUTER_ROWS, U, W, check_inputs, initial_basis
-from .params import Fluid, Tube, as_float, canonical
+from .params import Fluid, Tube, admissible, as_float, canonical, validate_count, validate_real
 from .state_matrix import state_matrix
 from .transfer import Wall, discretize, expm_taylor, propagate_basis_history
 
@@ -97,7 +97,17 @@ def _solve_mode(tube, alpha, omega, fluid, n_points, n_layers, order):
     if fluid is not None and fluid.coupling == "acoustic":
         r_f, p = _cavity_pressure(wall, omega, alpha, fluid, coefficients[0], n_points)
         p = p / scale
-    return r, (fields / scale).T, r_f, p
+    # traced inputs outside their range give NaN (concrete ones were validated by the callers)
+    ok = admissible(tube, alpha, fluid) & jnp.isfinite(omega)
+    nan = lambda x: None if x is None else jnp.where(ok, x, jnp.nan)  # noqa: E731
+    return nan(r), nan((fields / scale).T), nan(r_f), nan(p)
+
+
+def _check_mode_arguments(omega, n_points) -> None:
+    """Ω must be a finite real scalar (a root; batches go through ``jax.vmap``) and ``n_points`` a
+    static integer >= 1."""
+    validate_real("omega", omega, "a finite real number (a root of the characteristic function)")
+    validate_count("n_points", n_points)
 
 
 def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: int = 64,
@@ -135,6 +145,7 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
         >>> r, (u, w, phi, t, s, d) = jd.mode_shape(tube, 0.445, omega)
     """
     order = check_inputs(tube, alpha, fluid, n_layers)
+    _check_mode_arguments(omega, n_points)
     tube, alpha, omega, fluid = canonical(tube, alpha, omega, fluid)
     r, fields, _, _ = _solve_mode(tube, alpha, omega, fluid, int(n_points), int(n_layers), order)
     return r, fields
@@ -183,12 +194,13 @@ def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64, n
     """
     if fluid is None:
         raise ValueError("fluid must be a jaxdea.Fluid: the empty tube (fluid=None) has no fluid pressure")
-    if isinstance(fluid, Fluid) and fluid.coupling == "paper":
+    if isinstance(fluid, Fluid) and isinstance(fluid.coupling, str) and fluid.coupling == "paper":
         raise ValueError(
             "coupling='paper' has no fluid pressure field: the paper's model (theory.md §4(b)) loads the "
             "inner face with an Ω-dependent follower pressure P̂_f only; use coupling='acoustic'"
         )
     order = check_inputs(tube, alpha, fluid, n_layers)
+    _check_mode_arguments(omega, n_points)
     tube, alpha, omega, fluid = canonical(tube, alpha, omega, fluid)
     _, _, r, p = _solve_mode(tube, alpha, omega, fluid, int(n_points), int(n_layers), order)
     return r, p

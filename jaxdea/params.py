@@ -92,21 +92,31 @@ def canonical(*trees):
     return out if len(out) > 1 else out[0]
 
 
-def _concrete(x):
-    """The value of x as a numpy array, or None when it is traced."""
+def _concrete(x, name: str = "value"):
+    """The value of x as a float64 numpy array, or None when it is traced.
+
+    Raises:
+        ValueError: naming the parameter if x is no real number (a string, complex, an object).
+    """
     if isinstance(x, jax.core.Tracer):
         return None
+    if x is None or isinstance(x, (str, bytes)) or np.iscomplexobj(x):
+        raise ValueError(f"{name} must be a real number, got {x!r}")
     try:
         return np.asarray(x, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"expected a real number, got {x!r}") from exc
+        raise ValueError(f"{name} must be a real number, got {x!r}") from exc
 
 
-def _check(name, x, allowed, ok, allow_inf=False):
-    """Raise ValueError naming the parameter when a concrete value is outside its range."""
-    v = _concrete(x)
+def _check(name, x, allowed, ok, allow_inf=False, scalar=True):
+    """Raise ValueError naming the parameter when a concrete value is outside its range (or, with
+    ``scalar``, is no scalar: batches go through ``jax.vmap``)."""
+    v = _concrete(x, name)
     if v is None:
         return None
+    if scalar and v.ndim:
+        raise ValueError(f"{name} must be a scalar ({allowed}; batch with jax.vmap), got an array "
+                         f"of shape {v.shape}")
     finite = np.isfinite(v) | (allow_inf & (v == np.inf))
     if not np.all(finite):
         raise ValueError(f"{name} must be finite ({allowed}), got {x!r}")
@@ -114,6 +124,16 @@ def _check(name, x, allowed, ok, allow_inf=False):
         bad = v[~ok(v)] if v.ndim else v
         raise ValueError(f"{name} must be {allowed}, got {np.ravel(bad)[0]!r}")
     return v
+
+
+def validate_broadcast(kind, values: dict) -> None:
+    """Raise ValueError naming the fields when concrete array leaves do not broadcast together."""
+    shapes = {k: np.shape(v) for k, v in values.items() if v is not None}
+    try:
+        np.broadcast_shapes(*shapes.values())
+    except ValueError as exc:
+        listed = ", ".join(f"{k} {s}" for k, s in shapes.items() if s)
+        raise ValueError(f"the {kind} fields have shapes that do not broadcast: {listed}") from exc
 
 
 def gent_limit_excess(lambda_i, lambda_z, eta):
@@ -151,35 +171,51 @@ def admissible(tube: Tube, alpha=1.0, fluid: Fluid | None = None) -> jax.Array:
     return ok
 
 
-def validate_tube(tube: Tube) -> None:
+def validate_tube(tube: Tube, scalar: bool = True) -> None:
     """Validate the concrete leaves of a tube (traced leaves are skipped).
 
+    Args:
+        tube: the :class:`Tube`.
+        scalar: every concrete leaf must be a scalar (the solvers: batches go through
+            ``jax.vmap``); with False, arrays that broadcast together are allowed (elementwise
+            helpers such as :func:`jaxdea.thickness_ratio`).
+
     Raises:
-        ValueError: naming the parameter and its allowed range.
+        ValueError: naming the parameter and its allowed range; past Gent locking, stating the
+            largest I_1 - 3 in the wall against G.
     """
     if not isinstance(tube, Tube):
         raise ValueError(f"tube must be a jaxdea.Tube, got {type(tube).__name__}")
-    if tube.material not in MATERIALS:
+    if not isinstance(tube.material, str) or tube.material not in MATERIALS:
         raise ValueError(f"material must be one of {MATERIALS}, got {tube.material!r}")
-    _check("voltage", tube.voltage, "a finite real number", lambda v: np.isreal(v))
-    li = _check("lambda_i", tube.lambda_i, "> 0", lambda v: v > 0)
-    lz = _check("lambda_z", tube.lambda_z, "> 0", lambda v: v > 0)
-    eta = _check("eta", tube.eta, "in the open interval (0, 1)", lambda v: (v > 0) & (v < 1))
-    g = _check("gent", tube.gent, "> 0 (inf for neo-Hookean)", lambda v: v > 0, allow_inf=True)
-    _check("length_ratio", tube.length_ratio, "> 0", lambda v: v > 0)
+    checks = dict(
+        voltage=_check("voltage", tube.voltage, "a finite real number", lambda v: np.isreal(v),
+                       scalar=scalar),
+        lambda_i=_check("lambda_i", tube.lambda_i, "> 0", lambda v: v > 0, scalar=scalar),
+        lambda_z=_check("lambda_z", tube.lambda_z, "> 0", lambda v: v > 0, scalar=scalar),
+        eta=_check("eta", tube.eta, "in the open interval (0, 1)", lambda v: (v > 0) & (v < 1),
+                   scalar=scalar),
+        gent=_check("gent", tube.gent, "> 0 (inf for neo-Hookean)", lambda v: v > 0,
+                    allow_inf=True, scalar=scalar),
+        length_ratio=_check("length_ratio", tube.length_ratio, "> 0", lambda v: v > 0,
+                            scalar=scalar),
+    )
+    if not scalar:
+        validate_broadcast("Tube", checks)
+    li, lz, eta, g = (checks[k] for k in ("lambda_i", "lambda_z", "eta", "gent"))
     if li is None or lz is None or eta is None or g is None or tube.material != "gent":
         return
     excess = gent_limit_excess(li, lz, eta)
     if np.any(excess >= g):
         worst = float(np.max(excess))
         raise ValueError(
-            "lambda_i, lambda_z beyond the Gent locking limit: I_1 - 3 must stay below "
+            "lambda_i, lambda_z, eta beyond the Gent locking limit: I_1 - 3 must stay below "
             f"gent = {float(np.min(g))!r} everywhere in the wall, but reaches {worst:.6g}"
         )
 
 
-def validate_fluid(fluid: Fluid | None) -> None:
-    """Validate a fluid (``None`` is the empty tube).
+def validate_fluid(fluid: Fluid | None, scalar: bool = True) -> None:
+    """Validate a fluid (``None`` is the empty tube); ``scalar`` as in :func:`validate_tube`.
 
     Raises:
         ValueError: naming the parameter and its allowed range.
@@ -188,18 +224,60 @@ def validate_fluid(fluid: Fluid | None) -> None:
         return
     if not isinstance(fluid, Fluid):
         raise ValueError(f"fluid must be a jaxdea.Fluid or None, got {type(fluid).__name__}")
-    if fluid.coupling not in COUPLINGS:
+    if not isinstance(fluid.coupling, str) or fluid.coupling not in COUPLINGS:
         raise ValueError(f"coupling must be one of {COUPLINGS}, got {fluid.coupling!r}")
     order = fluid.bessel_order
-    if order is not None and (not isinstance(order, (int, np.integer)) or order < 0):
+    if order is not None and (not isinstance(order, (int, np.integer)) or isinstance(order, bool)
+                              or order < 0):
         raise ValueError(f"bessel_order must be None or an integer >= 0, got {order!r}")
-    _check("density_ratio", fluid.density_ratio, "> 0", lambda v: v > 0)
-    _check("speed_ratio", fluid.speed_ratio, "> 0", lambda v: v > 0)
+    checks = dict(
+        density_ratio=_check("density_ratio", fluid.density_ratio, "> 0", lambda v: v > 0,
+                             scalar=scalar),
+        speed_ratio=_check("speed_ratio", fluid.speed_ratio, "> 0", lambda v: v > 0,
+                           scalar=scalar),
+    )
+    if not scalar:
+        validate_broadcast("Fluid", checks)
 
 
 def validate_positive(name: str, x, allowed: str = "> 0") -> None:
     """Validate a concrete positive scalar argument such as α̂ or a guess."""
     _check(name, x, allowed, lambda v: v > 0)
+
+
+def validate_range(name: str, x, allowed: str, ok, allow_inf: bool = False, scalar: bool = True):
+    """Validate a concrete argument: a real number (an array only without ``scalar``), finite
+    (``allow_inf``: +inf too) and with ``ok(value)`` true. Returns it as a numpy array, or None when
+    traced.
+
+    Raises:
+        ValueError: naming the parameter, ``allowed`` stating the range.
+    """
+    return _check(name, x, allowed, ok, allow_inf=allow_inf, scalar=scalar)
+
+
+def validate_real(name: str, x, allowed: str = "a finite real number", scalar: bool = True):
+    """Validate a concrete finite real argument (e.g. Ω of :func:`jaxdea.mode_shape`, ΔP̂); traced
+    values pass. Returns the value as a numpy array, or None when traced."""
+    return _check(name, x, allowed, lambda v: np.isfinite(v), scalar=scalar)
+
+
+def real_value(name: str, x, scalar: bool = True):
+    """A concrete argument as a float64 numpy array, any real value (NaN and ±inf included), or
+    None when traced; ValueError naming the parameter for strings, complex numbers, objects and
+    (with ``scalar``) arrays."""
+    v = _concrete(x, name)
+    if v is not None and scalar and v.ndim:
+        raise ValueError(f"{name} must be a scalar real number (batch with jax.vmap), got an array "
+                         f"of shape {v.shape}")
+    return v
+
+
+def validate_count(name: str, value, low: int = 1) -> int:
+    """A static integer argument (n_points, n_max, …) >= ``low``; bools and floats are refused."""
+    if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < low:
+        raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    return int(value)
 
 
 def validate_layers(n_layers) -> None:
@@ -214,7 +292,9 @@ def mode_number(tube: Tube, alpha) -> int:
     Raises:
         ValueError: if α̂ is traced or is not an integer mode of the tube.
     """
-    vals = [_concrete(x) for x in (alpha, tube.eta, tube.length_ratio, tube.lambda_z)]
+    vals = [_concrete(x, name) for x, name in ((alpha, "alpha"), (tube.eta, "eta"),
+                                             (tube.length_ratio, "length_ratio"),
+                                             (tube.lambda_z, "lambda_z"))]
     if any(v is None for v in vals) or any(v.ndim for v in vals):
         raise ValueError(
             "bessel_order=None needs concrete scalar alpha and tube: pass Fluid(bessel_order=...) "

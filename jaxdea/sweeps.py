@@ -27,7 +27,16 @@ import numpy as np
 
 from .dispersion import characteristic_on_wall
 from .leaves import FLUID_LEAVES, TUBE_LEAVES, apply_parameters, check_names, get_parameter
-from .params import Fluid, Tube, as_float, require_x64, validate_fluid, validate_layers
+from .params import (
+    Fluid,
+    Tube,
+    as_float,
+    real_value,
+    require_x64,
+    validate_fluid,
+    validate_layers,
+    validate_positive,
+)
 from .roots import frequencies_unchecked, guard
 from .scalar import Status
 from .transfer import discretize
@@ -179,7 +188,9 @@ def _sweep_chunk(columns, tube, alpha, fluid, omega_max, names, n_roots, n_layer
 
 
 def _axis(name, values):
-    arr = np.asarray(values, dtype=np.float64)
+    arr = real_value(f"axis {name!r}", values, scalar=False)
+    if arr is None:
+        raise ValueError(f"axis {name!r} must be concrete values (sweep is not traceable)")
     if arr.ndim > 1:
         raise ValueError(f"axis {name!r} must be a scalar or a 1-D array, got shape {arr.shape}")
     if arr.size == 0:
@@ -225,7 +236,15 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
     require_x64()
     if not isinstance(tube, Tube):
         raise ValueError(f"tube must be a jaxdea.Tube, got {type(tube).__name__}")
-    validate_fluid(fluid)
+    validate_fluid(fluid)  # its static choices and, when concrete, its values
+    # the tube's values are not range-checked (an invalid value gives NaN and status INVALID at
+    # every point, as on an axis), but they must be real scalars
+    for name in TUBE_LEAVES:
+        real_value(name, getattr(tube, name))
+    if not isinstance(tube.material, str):
+        raise ValueError(f"material must be a str, got {tube.material!r}")
+    if progress is not None and not isinstance(progress, bool):
+        raise ValueError(f"progress must be None, True or False, got {progress!r}")
     validate_layers(n_layers)
     if batch_size is None:
         batch_size = 1 if jax.default_backend() == "cpu" else chunk_size
@@ -239,9 +258,8 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
     axes = {name: _axis(name, v) for name, v in axes.items()}
     jac_names = _jacobian_names(jacobian, fluid)
     if omega_max is not None:
+        validate_positive("omega_max", omega_max, "a finite number > 0")
         omega_max = float(omega_max)
-        if not (math.isfinite(omega_max) and omega_max > 0):
-            raise ValueError(f"omega_max must be a finite number > 0, got {omega_max!r}")
     order = _order(fluid, axes)
 
     shape = tuple(len(v) for v in axes.values())
@@ -284,7 +302,13 @@ def _jacobian_names(jacobian, fluid):
         return None
     if jacobian is True:
         return tuple(n for n in SENSITIVITY if fluid is not None or n not in FLUID_LEAVES)
-    names = (jacobian,) if isinstance(jacobian, str) else tuple(jacobian)
+    try:
+        names = (jacobian,) if isinstance(jacobian, str) else tuple(jacobian)
+    except TypeError:
+        names = None
+    if names is None or not all(isinstance(n, str) for n in names):
+        raise ValueError("jacobian must be None, True, a parameter name or a sequence of names, "
+                         f"got {jacobian!r}")
     check_names(names, fluid, allow_n=False)
     if "alpha" in names:
         raise ValueError("jacobian: dΩ/dα̂ is the group velocity, returned with every jacobian; "

@@ -80,7 +80,16 @@ import numpy as np
 
 from .dispersion import characteristic_on_wall, check_inputs
 from .leaves import FLUID_LEAVES, check_names, get_parameter, set_parameter
-from .params import Fluid, Tube, as_float, canonical, validate_fluid, validate_positive, validate_tube
+from .params import (
+    Fluid,
+    Tube,
+    as_float,
+    canonical,
+    validate_fluid,
+    validate_positive,
+    validate_real,
+    validate_tube,
+)
 from .roots import scan_step
 from .transfer import discretize
 
@@ -396,14 +405,7 @@ def _trace_branch(tube, alpha, omega, fluid, stop, max_step, along, max_points, 
 
 
 def _validate_finite(name, x):
-    if isinstance(x, jax.core.Tracer):
-        return
-    try:
-        v = np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a finite real number, got {x!r}") from exc
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"{name} must be a finite real number, got {x!r}")
+    validate_real(name, x, "a finite real number")
 
 
 def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along: str = "alpha",

@@ -141,7 +141,8 @@ def transfer_matrix(wall: Wall, omega, alpha, method: str = "expm"):
     def multiply(acc, t):
         return t @ acc, None
 
-    acc, _ = jax.lax.scan(multiply, jnp.eye(6), layer_exponentials(wall, omega, alpha, method))
+    exps = layer_exponentials(wall, omega, alpha, method)
+    acc, _ = jax.lax.scan(multiply, jnp.eye(6, dtype=exps.dtype), exps)  # complex for complex Ω
     return acc
 
 
@@ -149,13 +150,16 @@ def orthonormalize(y):
     """Y = Q R for a 6×3 Y: Q with orthonormal columns, R upper triangular with R_jj > 0.
 
     Classical Gram–Schmidt applied twice ("CGS2", stable to rounding). Returns (Q, log det R).
+    A complex Y (complex Ω, :mod:`jaxdea.counting`) uses the Hermitian projection u (u^H v), so
+    Q^H Q = I and R_jj = ‖v_j‖ is still real and positive: det R > 0 leaves arg det unchanged.
     """
+    project = jnp.vdot if jnp.iscomplexobj(y) else jnp.dot  # real Y: the real path, unchanged
     cols, logdet = [], 0.0
     for j in range(y.shape[-1]):
         v = y[:, j]
         for _ in range(2):
             for u in cols:
-                v = v - jnp.dot(u, v) * u
+                v = v - project(u, v) * u
         norm = jnp.linalg.norm(v)
         logdet = logdet + jnp.log(norm)
         cols.append(v / norm)
@@ -165,10 +169,14 @@ def orthonormalize(y):
 def propagate_basis(wall: Wall, omega, alpha, basis, method: str = "taylor"):
     """Carry the 6×3 ``basis`` Y(r̂_i) across the wall with re-orthonormalisation.
 
+    A complex ``omega`` (complex T_k) promotes the basis to complex; log_scale stays real.
+
     Returns:
         (Q, log_scale): Q spans A·basis, and A·basis = Q·R with log det R = log_scale (R's product is
         kept only as its log-determinant, the scale factor of the characteristic function).
     """
+    if jnp.iscomplexobj(omega) and not jnp.iscomplexobj(basis):
+        basis = basis.astype(jnp.result_type(basis.dtype, omega))
     q0, log0 = orthonormalize(basis)
 
     def step(carry, t):

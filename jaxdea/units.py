@@ -49,7 +49,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .params import Fluid, Tube, require_x64
+from .params import Fluid, Tube, require_x64, validate_broadcast, validate_fluid, validate_tube
 
 VACUUM_PERMITTIVITY = 8.8541878188e-12
 """ε_0 in F/m (CODATA 2022)."""
@@ -88,6 +88,39 @@ def _positive(name: str, x, unit: str = ""):
     return _checked(name, x, f"> 0{' (' + unit + ')' if unit else ''}", lambda v: v > 0)
 
 
+def _positive_or_nan(name: str, x, unit: str = ""):
+    """x as a float64 array: concrete values must be NaN (a NaN-padded result passes through) or
+    finite and > 0 (the argument of a reciprocal conversion: 0 or a sign would give a meaningless
+    wavelength)."""
+    out = _number(name, x)
+    if isinstance(out, jax.core.Tracer):
+        return out
+    v = np.asarray(out)
+    bad = ~np.isnan(v) & ~(np.isfinite(v) & (v > 0))
+    if np.any(bad):
+        raise ValueError(f"{name} must be finite and > 0{' (' + unit + ')' if unit else ''} "
+                         f"(or NaN), got {np.ravel(v[bad] if v.ndim else v)[0]!r}")
+    return out
+
+
+def _check_scales(scales) -> None:
+    if not isinstance(scales, Scales):
+        raise ValueError(f"scales must be a jaxdea.units.Scales, got {type(scales).__name__}")
+
+
+def _derived(name: str, value, inputs: str, allowed: str, ok) -> None:
+    """A concrete parameter derived from SI inputs (e.g. η = R_i/R_o) must be in its range after
+    rounding; the ValueError names the inputs it came from."""
+    if isinstance(value, jax.core.Tracer):
+        return
+    v = np.asarray(value)
+    with np.errstate(invalid="ignore"):
+        good = ok(v)
+    if not np.all(good):
+        bad = np.ravel(v[~good] if v.ndim else v)[0]
+        raise ValueError(f"{inputs} give {name} = {bad!r} in float64, which must be {allowed}")
+
+
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class Scales:
@@ -114,11 +147,16 @@ class Scales:
     inner_radius: float
 
     def _values(self):
-        """(μ, ρ_s, ε, R_i) as float64 arrays, validated when concrete."""
-        return (_positive("shear_modulus", self.shear_modulus, "Pa"),
-                _positive("density", self.density, "kg/m^3"),
-                _positive("permittivity", self.permittivity, "F/m"),
-                _positive("inner_radius", self.inner_radius, "m"))
+        """(μ, ρ_s, ε, R_i) as float64 arrays, validated when concrete (positive, finite, and
+        array fields of shapes that broadcast together)."""
+        values = (_positive("shear_modulus", self.shear_modulus, "Pa"),
+                  _positive("density", self.density, "kg/m^3"),
+                  _positive("permittivity", self.permittivity, "F/m"),
+                  _positive("inner_radius", self.inner_radius, "m"))
+        names = ("shear_modulus", "density", "permittivity", "inner_radius")
+        validate_broadcast("Scales", {k: None if isinstance(v, jax.core.Tracer) else v
+                                      for k, v in zip(names, values, strict=True)})
+        return values
 
     def replace(self, **changes) -> Scales:
         """A copy with some fields changed."""
@@ -178,12 +216,12 @@ class Scales:
         return _number("alpha", alpha) * self._values()[3]
 
     def wavelength_to_si(self, alpha):
-        """The axial wavelength 2π/α = 2π R_i/α̂ in m of a dimensionless α̂."""
-        return _TWO_PI / self.wavenumber_to_si(alpha)
+        """The axial wavelength 2π/α = 2π R_i/α̂ in m of a dimensionless α̂ > 0 (NaN stays NaN)."""
+        return _TWO_PI / self.wavenumber_to_si(_positive_or_nan("alpha", alpha))
 
     def wavelength_from_si(self, wavelength):
-        """α̂ = 2π R_i/Λ from a wavelength Λ in m."""
-        return _TWO_PI * self._values()[3] / _number("wavelength", wavelength)
+        """α̂ = 2π R_i/Λ from a wavelength Λ > 0 in m (NaN stays NaN)."""
+        return _TWO_PI * self._values()[3] / _positive_or_nan("wavelength", wavelength, "m")
 
     def speed_to_si(self, speed):
         """A speed c = ĉ c_s in m/s: a phase speed Ω/α̂ or a group velocity dΩ/dα̂."""
@@ -251,8 +289,9 @@ def tube_from_si(scales: Scales, outer_radius, length, voltage=0.0, lambda_i=1.0
     """The dimensionless :class:`~jaxdea.Tube` of a tube given in SI units (theory.md §0).
 
     η = R_i/R_o, length_ratio = L/R_o, V̂ = sqrt(ε/μ) V/R_i; the stretches and G are dimensionless
-    already and are passed through (validated here only as positive and finite; the Gent locking
-    limit is checked by the solvers).
+    already and are passed through. Concrete inputs are validated as the solvers validate a Tube:
+    positive and finite, the material, and the Gent locking limit of the resulting wall (the
+    message states the largest I_1 - 3 against G).
 
     Args:
         scales: the :class:`Scales` (R_i is ``scales.inner_radius``).
@@ -268,28 +307,41 @@ def tube_from_si(scales: Scales, outer_radius, length, voltage=0.0, lambda_i=1.0
         The :class:`~jaxdea.Tube`.
 
     Raises:
-        ValueError: naming the parameter, for concrete values out of range (e.g. R_o ≤ R_i).
+        ValueError: naming the parameter, for concrete values out of range (e.g. R_o ≤ R_i, a
+            wall past Gent locking).
 
     Example:
         >>> tube = tube_from_si(vhb, outer_radius=5e-3 / 0.85, length=0.0588, voltage=5e3)
     """
+    _check_scales(scales)
+    if not isinstance(material, str):
+        raise ValueError(f"material must be a str, got {material!r}")
     _, _, _, ri = scales._values()
     r_o = _positive("outer_radius", outer_radius, "m")
+    length = _positive("length", length, "m")
+    v = _checked("voltage", voltage, "a real number (V)", lambda x: np.isreal(x))
+    lambda_i = _positive("lambda_i", lambda_i)
+    lambda_z = _positive("lambda_z", lambda_z)
+    gent = _checked("gent", gent, "> 0 (inf for neo-Hookean)", lambda x: x > 0, allow_inf=True)
+    concrete = lambda x: None if isinstance(x, jax.core.Tracer) else x  # noqa: E731
+    validate_broadcast("tube_from_si", dict(
+        inner_radius=concrete(ri), outer_radius=concrete(r_o), length=concrete(length),
+        voltage=concrete(v), lambda_i=concrete(lambda_i), lambda_z=concrete(lambda_z),
+        gent=concrete(gent)))
     if not isinstance(r_o, jax.core.Tracer) and not isinstance(ri, jax.core.Tracer):
         if np.any(np.asarray(r_o) <= np.asarray(ri)):
             raise ValueError(f"outer_radius must be > inner_radius = {float(np.min(ri))!r} m, "
                              f"got {outer_radius!r}")
-    length = _positive("length", length, "m")
-    v = _checked("voltage", voltage, "a real number (V)", lambda x: np.isreal(x))
-    return Tube(
-        voltage=scales.voltage_from_si(v),
-        lambda_i=_positive("lambda_i", lambda_i),
-        lambda_z=_positive("lambda_z", lambda_z),
-        eta=ri / r_o,
-        gent=_checked("gent", gent, "> 0 (inf for neo-Hookean)", lambda x: x > 0, allow_inf=True),
-        length_ratio=length / r_o,
-        material=material,
-    )
+    eta, length_ratio, v_hat = ri / r_o, length / r_o, scales.voltage_from_si(v)
+    _derived("eta", eta, "inner_radius and outer_radius", "in the open interval (0, 1)",
+             lambda x: (x > 0) & (x < 1))
+    _derived("length_ratio", length_ratio, "length and outer_radius", "finite and > 0",
+             lambda x: np.isfinite(x) & (x > 0))
+    _derived("voltage", v_hat, "voltage and the scales", "finite", np.isfinite)
+    tube = Tube(voltage=v_hat, lambda_i=lambda_i, lambda_z=lambda_z, eta=eta, gent=gent,
+                length_ratio=length_ratio, material=material)
+    validate_tube(tube, scalar=False)  # the material, and Gent locking of the wall
+    return tube
 
 
 def tube_to_si(scales: Scales, tube: Tube) -> TubeSI:
@@ -297,6 +349,8 @@ def tube_to_si(scales: Scales, tube: Tube) -> TubeSI:
 
     ``tube_from_si(scales, **tube_to_si(scales, tube)._asdict())`` gives back ``tube``.
     """
+    _check_scales(scales)
+    validate_tube(tube, scalar=False)
     _, _, _, ri = scales._values()
     eta = _checked("eta", tube.eta, "in the open interval (0, 1)", lambda v: (v > 0) & (v < 1))
     r_o = ri / eta
@@ -327,17 +381,27 @@ def fluid_from_si(scales: Scales, fluid_density, sound_speed, coupling: str = "a
     Example:
         >>> water = fluid_from_si(vhb, fluid_density=1000.0, sound_speed=1480.0)
     """
+    _check_scales(scales)
     _, rho_s, _, _ = scales._values()
-    return Fluid(
-        density_ratio=_positive("fluid_density", fluid_density, "kg/m^3") / rho_s,
-        speed_ratio=scales.speed_from_si(_positive("sound_speed", sound_speed, "m/s")),
-        coupling=coupling,
-        bessel_order=bessel_order,
-    )
+    density_ratio = _positive("fluid_density", fluid_density, "kg/m^3") / rho_s
+    speed_ratio = scales.speed_from_si(_positive("sound_speed", sound_speed, "m/s"))
+    positive = lambda x: np.isfinite(x) & (x > 0)  # noqa: E731
+    _derived("density_ratio", density_ratio, "fluid_density and density", "finite and > 0",
+             positive)
+    _derived("speed_ratio", speed_ratio, "sound_speed and the scales (shear_modulus, density)",
+             "finite and > 0", positive)
+    fluid = Fluid(density_ratio=density_ratio, speed_ratio=speed_ratio, coupling=coupling,
+                  bessel_order=bessel_order)
+    validate_fluid(fluid, scalar=False)  # coupling, bessel_order, shapes
+    return fluid
 
 
 def fluid_to_si(scales: Scales, fluid: Fluid) -> FluidSI:
     """ρ_f = ρ̂_f ρ_s and c_f = ĉ_f c_s of a dimensionless fluid (inverse of :func:`fluid_from_si`)."""
+    _check_scales(scales)
+    if fluid is None or not isinstance(fluid, Fluid):
+        raise ValueError(f"fluid must be a jaxdea.Fluid, got {type(fluid).__name__}")
+    validate_fluid(fluid, scalar=False)
     _, rho_s, _, _ = scales._values()
     return FluidSI(fluid_density=_number("density_ratio", fluid.density_ratio) * rho_s,
                    sound_speed=scales.speed_to_si(fluid.speed_ratio))
