@@ -3,7 +3,9 @@
 Root isolation (:func:`solve_frequencies`). f(Ω) is scanned upwards from Ω = 0 in chunks of
 ``CHUNK`` points: a first geometric chunk Ω = Δ·2^{-62} … Δ (roots near zero, no fixed lower limit),
 then uniform steps Δ. Δ resolves the oscillation of f: Δ = min(π c_min/ĥ, π ĉ_f/r̂_i)/16, with c_min
-the slowest shear speed in the wall. Each grid interval [a, b] is classified with the values *and*
+the slowest shear speed in the wall. Above the cutoffs of the shear waves along z (Ω_c = c_z α̂) and
+of the fluid (ĉ_f α̂), where thickness resonances crowd, the steps are uniform in the radial phase
+instead (:func:`cutoff_steps`). Each grid interval [a, b] is classified with the values *and*
 autodiff slopes at its ends (Hermite data):
 
 * a sign change of f → one root, refined by safeguarded Newton;

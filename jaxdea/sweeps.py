@@ -238,9 +238,18 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         raise ValueError(f"tube must be a jaxdea.Tube, got {type(tube).__name__}")
     validate_fluid(fluid)  # its static choices and, when concrete, its values
     # the tube's values are not range-checked (an invalid value gives NaN and status INVALID at
-    # every point, as on an axis), but they must be real scalars
+    # every point, as on an axis), but they must be real scalars; fields set by an axis are not
+    # used (placeholders NaN)
+    overridden = set(axes) | ({"eta"} if "thickness_ratio" in axes else set())
+    unused = {}
     for name in TUBE_LEAVES:
-        real_value(name, getattr(tube, name))
+        try:
+            real_value(name, getattr(tube, name))
+        except ValueError:
+            if name not in overridden:
+                raise
+            unused[name] = math.nan
+    tube = tube.replace(**unused)
     if not isinstance(tube.material, str):
         raise ValueError(f"material must be a str, got {tube.material!r}")
     if progress is not None and not isinstance(progress, bool):
