@@ -121,6 +121,9 @@ def _derived(name: str, value, inputs: str, allowed: str, ok) -> None:
         raise ValueError(f"{inputs} give {name} = {bad!r} in float64, which must be {allowed}")
 
 
+_FIELDS = ("shear_modulus", "density", "permittivity", "inner_radius")
+
+
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class Scales:
@@ -153,10 +156,32 @@ class Scales:
                   _positive("density", self.density, "kg/m^3"),
                   _positive("permittivity", self.permittivity, "F/m"),
                   _positive("inner_radius", self.inner_radius, "m"))
-        names = ("shear_modulus", "density", "permittivity", "inner_radius")
         validate_broadcast("Scales", {k: None if isinstance(v, jax.core.Tracer) else v
-                                      for k, v in zip(names, values, strict=True)})
+                                      for k, v in zip(_FIELDS, values, strict=True)})
         return values
+
+    def _argument(self, name: str, x, positive: bool = False):
+        """The argument of a conversion as a float64 array (ValueError naming it if it is no real
+        number, if ``positive`` and a concrete value is neither > 0 nor NaN, or if its shape does
+        not broadcast with the fields)."""
+        out = _positive_or_nan(name, x) if positive else _number(name, x)
+        if isinstance(out, jax.core.Tracer):
+            return out
+        shapes = {}
+        for field in _FIELDS:
+            value = getattr(self, field)
+            if not isinstance(value, jax.core.Tracer):
+                try:
+                    shapes[field] = np.shape(np.asarray(value, dtype=np.float64))
+                except (TypeError, ValueError):
+                    pass  # not a number: refused by _values with its name
+        try:
+            np.broadcast_shapes(np.shape(out), *shapes.values())
+        except ValueError as exc:
+            fields = ", ".join(f"{k} {v}" for k, v in shapes.items() if v)
+            raise ValueError(f"{name} of shape {np.shape(out)} does not broadcast with the Scales "
+                             f"fields ({fields})") from exc
+        return out
 
     def replace(self, **changes) -> Scales:
         """A copy with some fields changed."""
@@ -183,20 +208,20 @@ class Scales:
     # lengths
     def length_to_si(self, length):
         """A length ℓ = ℓ̂ R_i in m (e.g. a radius r̂ of :func:`jaxdea.mode_shape` or ū)."""
-        return _number("length", length) * self._values()[3]
+        return self._argument("length", length) * self._values()[3]
 
     def length_from_si(self, length):
         """ℓ̂ = ℓ/R_i from a length in m."""
-        return _number("length", length) / self._values()[3]
+        return self._argument("length", length) / self._values()[3]
 
     # frequencies
     def omega_to_si(self, omega):
         """The angular frequency ω = Ω c_s/R_i in rad/s."""
-        return _number("omega", omega) / self.time_scale
+        return self._argument("omega", omega) / self.time_scale
 
     def omega_from_si(self, omega):
         """Ω = ω R_i/c_s from an angular frequency ω in rad/s."""
-        return _number("omega", omega) * self.time_scale
+        return self._argument("omega", omega) * self.time_scale
 
     def omega_to_hz(self, omega):
         """The frequency f = Ω c_s/(2π R_i) in Hz of a dimensionless Ω."""
@@ -204,59 +229,59 @@ class Scales:
 
     def hz_to_omega(self, frequency):
         """Ω = 2π f R_i/c_s from a frequency f in Hz."""
-        return _TWO_PI * _number("frequency", frequency) * self.time_scale
+        return _TWO_PI * self._argument("frequency", frequency) * self.time_scale
 
     # wavenumbers and speeds
     def wavenumber_to_si(self, alpha):
         """The axial wavenumber α = α̂/R_i in rad/m."""
-        return _number("alpha", alpha) / self._values()[3]
+        return self._argument("alpha", alpha) / self._values()[3]
 
     def wavenumber_from_si(self, alpha):
         """α̂ = α R_i from a wavenumber α in rad/m."""
-        return _number("alpha", alpha) * self._values()[3]
+        return self._argument("alpha", alpha) * self._values()[3]
 
     def wavelength_to_si(self, alpha):
         """The axial wavelength 2π/α = 2π R_i/α̂ in m of a dimensionless α̂ > 0 (NaN stays NaN)."""
-        return _TWO_PI / self.wavenumber_to_si(_positive_or_nan("alpha", alpha))
+        return _TWO_PI / self.wavenumber_to_si(self._argument("alpha", alpha, positive=True))
 
     def wavelength_from_si(self, wavelength):
         """α̂ = 2π R_i/Λ from a wavelength Λ > 0 in m (NaN stays NaN)."""
-        return _TWO_PI * self._values()[3] / _positive_or_nan("wavelength", wavelength, "m")
+        return _TWO_PI * self._values()[3] / self._argument("wavelength", wavelength, positive=True)
 
     def speed_to_si(self, speed):
         """A speed c = ĉ c_s in m/s: a phase speed Ω/α̂ or a group velocity dΩ/dα̂."""
-        return _number("speed", speed) * self.shear_speed
+        return self._argument("speed", speed) * self.shear_speed
 
     def speed_from_si(self, speed):
         """ĉ = c/c_s from a speed in m/s."""
-        return _number("speed", speed) / self.shear_speed
+        return self._argument("speed", speed) / self.shear_speed
 
     # stresses and electrical quantities
     def pressure_to_si(self, pressure):
         """A pressure or stress P = P̂ μ in Pa (e.g. :func:`jaxdea.pressure_difference`)."""
-        return _number("pressure", pressure) * self._values()[0]
+        return self._argument("pressure", pressure) * self._values()[0]
 
     def pressure_from_si(self, pressure):
         """P̂ = P/μ from a pressure or stress in Pa."""
-        return _number("pressure", pressure) / self._values()[0]
+        return self._argument("pressure", pressure) / self._values()[0]
 
     def voltage_to_si(self, voltage):
         """The voltage V = V̂ R_i sqrt(μ/ε) in V."""
-        return _number("voltage", voltage) * self.voltage_scale
+        return self._argument("voltage", voltage) * self.voltage_scale
 
     def voltage_from_si(self, voltage):
         """V̂ = sqrt(ε/μ) V/R_i from a voltage in V."""
-        return _number("voltage", voltage) / self.voltage_scale
+        return self._argument("voltage", voltage) / self.voltage_scale
 
     def displacement_field_to_si(self, displacement):
         """An electric displacement D = D̂ sqrt(με) in C/m²."""
         mu, _, eps, _ = self._values()
-        return _number("displacement", displacement) * jnp.sqrt(mu * eps)
+        return self._argument("displacement", displacement) * jnp.sqrt(mu * eps)
 
     def displacement_field_from_si(self, displacement):
         """D̂ = D/sqrt(με) from an electric displacement in C/m²."""
         mu, _, eps, _ = self._values()
-        return _number("displacement", displacement) / jnp.sqrt(mu * eps)
+        return self._argument("displacement", displacement) / jnp.sqrt(mu * eps)
 
 
 class TubeSI(NamedTuple):

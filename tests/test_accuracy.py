@@ -56,10 +56,10 @@ def test_amplified_error_near_the_critical_voltage_is_visible():
     tube = jd.Tube(lambda_i=1.1, lambda_z=1.2)
     alpha = jd.axial_wavenumber(tube, 1)
     v_cr = float(jd.critical_voltage(tube, alpha))
-    est = frequencies_with_error(tube.replace(voltage=0.999 * v_cr), alpha, n_roots=2)
+    est = frequencies_with_error(tube.replace(voltage=0.999 * v_cr), alpha, n_roots=3)
     assert np.all(est.status == jd.Status.CONVERGED)
     rel = est.error / est.omega
-    assert rel[0] > 1e3 * rel[1]
+    assert rel[0] > 1e3 * max(rel[1], rel[2])
     change = np.abs(est.levels[0] - est.omega) / est.omega  # the N = 30 error, ≈ 3e-3 for root 1
     assert change[0] > 1e-3 and change[0] > 300 * change[1]
 

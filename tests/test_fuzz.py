@@ -30,7 +30,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import jaxdea as jd
@@ -40,6 +40,7 @@ SMALL = 25
 LARGE = 1000
 PROFILE = dict(deadline=None, suppress_health_check=list(HealthCheck))
 N_LAYERS = 30
+TUBE = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
 
 # ------------------------------------------------------------------------------------ strategies
 EXTREMES = (0.0, -0.0, 5e-324, -5e-324, 1e-310, 1e-300, -1e-300, 1e300, -1e300,
@@ -57,6 +58,11 @@ FLUID_RANGES = dict(density_ratio=(0.01, 2.0), speed_ratio=(0.1, 3.0))
 TUBE_FIELDS = tuple(TUBE_RANGES)
 FLUID_FIELDS = tuple(FLUID_RANGES)
 BAD_COUNTS = (0, -1, 2.5, True, "3", None, np.ones(2))
+
+
+def _is(value, n):
+    """value is exactly the int n (not a bool, a float or an array)."""
+    return type(value) is int and value == n
 
 
 @st.composite
@@ -249,6 +255,8 @@ def fuzz(strategy, small=SMALL):
 
         for fn, suffix in ((test_small, ""), (test_large, "_slow")):
             fn.__name__ = fn.__qualname__ = f"test_{check.__name__}{suffix}"
+            # one example database entry per test (the wrappers share their source code)
+            fn.hypothesis.inner_test._hypothesis_internal_add_digest = fn.__name__.encode()
         return test_small, test_large
 
     return make
@@ -305,8 +313,7 @@ def _paper_mode_problem(fluid, values, alpha):
 # ------------------------------------------------------------------------------ characteristic
 @st.composite
 def characteristic_cases(draw):
-    values = draw(faulty(dict(TUBE_RANGES, omega=(-20.0, 20.0), alpha=(0.01, 10.0)),
-                         values=bad_value.filter(lambda v: True)))
+    values = draw(faulty(dict(TUBE_RANGES, omega=(-20.0, 20.0), alpha=(0.01, 10.0))))
     fluid, extra, fluid_values = draw(fluids())
     if fluid is not None and fluid.coupling == "paper" and fluid.bessel_order is None \
             and draw(st.booleans()):
@@ -500,7 +507,7 @@ def critical_voltages_cases(draw):
 def critical_voltages(case):
     values, n_max, wrapper = case
     problems, ambiguous = _problems(values)
-    if n_max != 2:
+    if not _is(n_max, 2):
         problems.add("n_max")
     tube = _tube(values)
     out = run(lambda: jd.solve_critical_voltages(tube, n_max), problems, ambiguous)
@@ -537,18 +544,18 @@ def mode(case):
     values, fluid, extra, fluid_values, n_points, pressure = case
     problems, ambiguous = _problems(values)
     problems |= extra | _problems(fluid_values)[0]
-    if n_points != N_POINTS:
+    if not _is(n_points, N_POINTS):
         problems.add("n_points")
+    tube, alpha, omega = _tube(values), values["alpha"], values["omega"]
     if pressure:
         if fluid is None:
             problems.add("fluid")
-        elif fluid.coupling == "paper":
+        elif isinstance(fluid.coupling, str) and fluid.coupling == "paper":
             problems.add("paper")
-        call = lambda: jd.fluid_pressure(tube, values["alpha"], values["omega"], fluid, n_points)  # noqa: E731
+        out = run(lambda: jd.fluid_pressure(tube, alpha, omega, fluid, n_points), problems,
+                  ambiguous)
     else:
-        call = lambda: jd.mode_shape(tube, values["alpha"], values["omega"], fluid, n_points)  # noqa: E731
-    tube = _tube(values)
-    out = run(call, problems, ambiguous)
+        out = run(lambda: jd.mode_shape(tube, alpha, omega, fluid, n_points), problems, ambiguous)
     if out is REJECTED:
         return
     assert not problems or ambiguous, f"invalid input {problems} accepted"
@@ -623,7 +630,9 @@ def static(case):
         assert not problems or ambiguous, f"invalid input {problems} accepted: {out}"
         assert 0 < float(out.eta) < 1
         h = float(jd.thickness_ratio(out))
-        np.testing.assert_allclose(h, _scalar(values["h_over_Ri"]), rtol=1e-9)
+        h0, li, lz = (_scalar(values[k]) for k in ("h_over_Ri", "lambda_i", "lambda_z"))
+        # η⁻² − 1 = λ_z h (2λ_i + h) carries the thickness: rounding of η is amplified for thin walls
+        np.testing.assert_allclose(h, h0, rtol=1e-10 + 4e-16 * (1 + 1 / (lz * h0 * (2 * li + h0))))
         return
     problems, ambiguous = _problems(tube_values)
     out = run(lambda: getattr(jd, which)(tube), problems, ambiguous)
@@ -631,11 +640,11 @@ def static(case):
         return
     assert not problems or ambiguous, f"invalid input {problems} accepted: {out}"
     x = float(out)
-    if which == "thickness_ratio":
+    if which == "thickness_ratio":  # r̂_o = r̂_i + h (compared without the cancellation)
         li, lz, eta = (_scalar(values[k]) for k in ("lambda_i", "lambda_z", "eta"))
-        np.testing.assert_allclose(x, math.sqrt(li**2 + (eta**-2 - 1) / lz) - li, rtol=1e-12)
-    else:
-        assert math.isfinite(x), f"pressure difference {x} for {values}"
+        np.testing.assert_allclose(x + li, math.sqrt(li**2 + (eta**-2 - 1) / lz), rtol=1e-14)
+    elif not math.isfinite(x):  # V̂² overflows only for absurd voltages
+        assert not _moderate(values, "voltage", limit=1e100), f"pressure difference {x} for {values}"
 
 
 test_static, test_static_slow = fuzz(static_cases())(static)
@@ -873,7 +882,7 @@ def unit_conversion(case):
         except ValueError:
             problems.add(name)
     s = units.Scales(**values)
-    out = run(lambda: getattr(s, method)(x), problems | ({"Scales"} if problems else set()))
+    out = run(lambda: getattr(s, method)(x), problems)
     if out is REJECTED:
         return
     assert not problems, f"invalid input {problems} accepted: {out}"
@@ -916,7 +925,11 @@ def si_constructors(case):
         with np.errstate(all="ignore"):
             if np.any(arrays["outer_radius"] <= VHB.inner_radius):
                 problems.add("outer_radius")
-            elif material == "gent":
+            else:
+                ratio = arrays["length"] / arrays["outer_radius"]
+                if not np.all(np.isfinite(ratio) & (ratio > 0)):
+                    problems |= {"length", "outer_radius"}
+            if not problems and material == "gent":
                 eta = VHB.inner_radius / arrays["outer_radius"]
                 excess = np.vectorize(gent_excess)(arrays["lambda_i"], arrays["lambda_z"], eta)
                 if np.any(excess >= arrays["gent"]):
@@ -931,6 +944,12 @@ def si_constructors(case):
                                        np.shape(getattr(back, name))), rtol=1e-12, err_msg=name)
     rules = dict(fluid_density=POSITIVE, sound_speed=POSITIVE)
     problems, arrays = _array_problems(fluid_values, rules)
+    if not problems:
+        with np.errstate(all="ignore"):
+            for name, ratio in (("fluid_density", arrays["fluid_density"] / VHB.density),
+                                ("sound_speed", arrays["sound_speed"] / float(VHB.shear_speed))):
+                if not np.all(np.isfinite(ratio) & (ratio > 0)):
+                    problems.add(name)
     if coupling not in ("acoustic", "paper"):
         problems.add("coupling")
     out = run(lambda: units.fluid_from_si(VHB, **fluid_values, coupling=coupling), problems)
@@ -980,23 +999,30 @@ def traced(columns):
     stretch, status = jax.vmap(jd.inner_stretch)(tubes, jnp.zeros(BATCH))
     _, fields = jax.vmap(lambda t, a: jd.mode_shape(t, a, 1.0, n_points=N_POINTS))(tubes, alpha)
     for i in range(BATCH):
-        row = {k: columns[k][i] for k in columns}
+        row = {k: float(columns[k][i]) for k in columns}
         bad, ambiguous = _problems(row)
+        tube_bad, _ = _problems(_fields(row, TUBE_FIELDS))
         if ambiguous:
             continue
+        if tube_bad:  # the static state alone
+            assert np.isnan(dp[i]) and np.isnan(h[i]), (row, dp[i], h[i])
+        placeholder, _ = _problems(_fields(row, TUBE_FIELDS) | dict(lambda_i=1.0))
+        if placeholder:  # inner_stretch ignores λ_i
+            assert status[i] == jd.Status.INVALID and np.isnan(stretch[i])
         if bad:
             assert np.all(np.asarray(roots.status[i]) == jd.Status.INVALID)
             assert np.all(np.isnan(np.asarray(roots.omega[i])))
             assert cv.status[i] == jd.Status.INVALID and np.isnan(cv.omega[i])
-            assert np.isnan(dp[i]) and np.isnan(h[i]) and np.all(np.isnan(np.asarray(fields[i])))
-            placeholder, _ = _problems(row | dict(lambda_i=1.0, alpha=1.0))
-            if placeholder:  # inner_stretch ignores λ_i
-                assert status[i] == jd.Status.INVALID and np.isnan(stretch[i])
+            assert np.all(np.isnan(np.asarray(fields[i])))
             continue
-        t = _valid_tube(row)
+        t, a = _valid_tube(row), row["alpha"]
         if _alpha_in_scan_range(row):
-            assert_roots(t, float(row["alpha"]), None, jd.Roots(roots.omega[i], roots.status[i]))
-        assert np.isfinite(dp[i]) and np.isfinite(h[i])
+            assert_roots(t, a, None, jd.Roots(roots.omega[i], roots.status[i]))
+        if cv.status[i] == jd.Status.CONVERGED:
+            assert_critical(t, a, float(cv.omega[i]))
+        if _moderate(row, "voltage", limit=1e100):
+            assert np.isfinite(dp[i])
+        assert np.isfinite(h[i])
 
 
 test_traced, test_traced_slow = fuzz(batch_cases(), small=10)(traced)
@@ -1008,6 +1034,7 @@ def locked_tubes(draw):
     """A wall past Gent locking: G drawn below max(I_1) - 3 (by at least 1e-6 relative)."""
     li, lz, eta = draw(st.floats(0.3, 4.0)), draw(st.floats(0.4, 3.0)), draw(st.floats(0.2, 0.95))
     excess = gent_excess(li, lz, eta)
+    assume(excess > 1e-3)
     gent = excess * draw(st.floats(1e-3, 1 - 1e-6))
     return jd.Tube(voltage=0.1, lambda_i=li, lambda_z=lz, eta=eta, gent=gent), excess
 
@@ -1055,14 +1082,16 @@ def locked(case):
         for fn in (jd.inner_stretch, jd.pull_in):
             with pytest.raises(ValueError, match=LOCK_MESSAGE):
                 fn(tube, 0.0)
-    # a trace towards a locked stretch is refused, naming the limit
-    free = tube.replace(gent=1e6)
-    with pytest.raises(ValueError, match=LOCK_MESSAGE):
-        jd.trace_branch(free.replace(lambda_i=1.0, lambda_z=1.0, eta=0.85, gent=float(tube.gent) + 1),
-                        0.445, 0.7, along="gent", stop=float(tube.gent) * 1e-9)
 
 
 test_locked, test_locked_slow = fuzz(locked_tubes(), small=20)(locked)
+
+
+@pytest.mark.parametrize("along, stop", [("lambda_i", 12.0), ("gent", 0.05), ("eta", 0.01)])
+def test_trace_towards_a_locked_wall_is_refused(along, stop):
+    with pytest.raises(ValueError, match=LOCK_MESSAGE) as info:
+        jd.trace_branch(TUBE, 0.445, 0.7, along=along, stop=stop)
+    assert f"stop = {stop!r}" in str(info.value)
 
 
 def test_locked_points_of_a_sweep_are_invalid():
@@ -1074,7 +1103,6 @@ def test_locked_points_of_a_sweep_are_invalid():
 
 
 # --------------------------------------------------- known bugs in modules this file does not own
-TUBE = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
 NOT_A_NUMBER = [math.nan, math.inf, -math.inf, None, "x", 1j, [1.0, 2.0], np.ones((2, 2))]
 
 
