@@ -19,6 +19,7 @@ from .base_state import (
     thickness_ratio,
     with_thickness_ratio,
 )
+from .counting import CountStatus, RootCount, count_roots
 from .dispersion import characteristic
 from .modes import fluid_pressure, mode_shape
 from .params import Fluid, Tube, as_float, require_x64
@@ -50,14 +51,17 @@ def axial_wavenumber(tube: Tube, n):
 __all__ = [
     "Branch",
     "BranchEnd",
+    "CountStatus",
     "Estimate",
     "Fluid",
+    "RootCount",
     "Roots",
     "Status",
     "SweepResult",
     "Tube",
     "axial_wavenumber",
     "characteristic",
+    "count_roots",
     "critical_voltage",
     "critical_voltages",
     "fluid_pressure",

@@ -1,0 +1,305 @@
+"""Root counting by the argument principle: how many frequencies lie in an interval (certificate).
+
+:func:`count_roots` returns the number of zeros of the characteristic function of the same
+discretisation (same ``n_layers`` laminate) in (ω_lo, ω_hi), independently of the scan of
+:mod:`jaxdea.roots`, so that ``frequencies`` can be checked: the two agree when the scan missed
+nothing.
+
+Method. F(Ω) = det(B A S)(Ω) (theory.md §4) is entire in Ω: the state matrix is polynomial in Ω, the
+laminate exponentials are entire, and the fluid couplings enter through N_ν, D_ν, entire in
+s = χ̂² r̂_i² = (Ω²/ĉ_f² − α̂²) r̂_i² (:mod:`jaxdea.bessel`). By the argument principle the number of
+zeros inside a closed contour Γ is
+
+    Z = (1/2π) Δ_Γ arg F,
+
+the total change of arg F once around Γ. Γ is the rectangle [ω_lo, ω_hi] × [−δ, δ] of the complex Ω
+plane; for ω_lo = 0 its left side is the wedge |Im Ω| = Re Ω ≤ δ through Ω = 0, which separates
+each root Ω₁ > 0 from its mirror −Ω₁ (F is even) and keeps the imaginary axis outside. F has real
+coefficients, F(Ω̄) = conj F(Ω), so the lower half mirrors the upper one and
+
+    Z = (1/π) Δ arg F along ω_hi → ω_hi + iδ → ω_lo + s + iδ → ω_lo   (s = δ if ω_lo = 0, else 0)
+
+(the upper half of Γ, from the real axis back to it; ``symmetric=False`` integrates all of Γ, twice
+the work, the same count). arg F is evaluated stably for any α̂ĥ: the complex 6×3 basis is
+propagated and re-orthonormalised after every sublayer (Gram–Schmidt with conjugates,
+:func:`jaxdea.transfer.orthonormalize`); R_k has a real positive diagonal, so
+arg det(B A S) = arg det(B Q_N) and |det(B Q_N)| ≤ 1. The Bessel pair for complex s carries a
+positive factor too (:func:`jaxdea.bessel.coupling_pair`), which leaves the argument exact.
+
+The zeros of the conservative problem in Ω² are real and F is even in Ω, so the zeros near the real
+Ω axis are real; zeros at Ω² < 0 (unstable modes beyond V̂_cr) lie on the imaginary axis, outside Γ.
+A non-real zero inside the box would be counted, with its conjugate, making the count larger than
+the number of real roots that the scan looks for: the laminate is not exactly self-adjoint and the
+paper's follower-pressure coupling is not conservative, so such zeros are possible in principle;
+the box is thin (below) to make them unlikely, and none was met in the tests.
+
+Box and sampling. Δ = min(``scan_step``, (ω_hi − ω_lo)/16) (a sixteenth of the shortest oscillation
+of f, :func:`jaxdea.roots.scan_step`), δ = Δ/2 (``height`` overrides). The contour is sampled
+adaptively by bisection: a segment [a, b] with midpoint m is accepted when it is at most Δ long and
+the principal increments Δ₁ = arg(F_m/F_a), Δ₂ = arg(F_b/F_m) satisfy |Δ₁|, |Δ₂| ≤ π/4 and
+|Δ₁ − Δ₂| ≤ π/8 (the phase is nearly linear across it); otherwise both halves are refined. Samples
+are therefore at most δ apart and consecutive phases differ by at most π/4.
+
+Guarantee and limits. The count is exact when every accepted increment is the true one, i.e. arg F
+does not turn by an extra multiple of 2π between samples. A real zero lies at least δ from the top
+side, where it turns arg F by at most 2 arctan(1/2) ≈ 0.93 rad between samples δ apart; hiding a
+full turn needs about six zeros within ~δ of one point of the contour, or a zero much closer to the
+contour than the spacing of the samples around it (only at the ends: a root at ω_lo or ω_hi). That
+case is refined down to segments of h_min = 1e-11 max(ω_hi, δ): a root farther than ~10 h_min from
+an end is counted on its correct side (tested at 1e-10 relative), and a root within about h_min of
+an end (within rounding of it: whether it lies inside is undecidable) stops the count with status
+``ZERO_ON_CONTOUR``: move the end by more than h_min. The same holds at the vertex Ω = 0 of the
+wedge (V̂ = V̂_cr to rounding). This is a sampling certificate, not interval arithmetic: like the
+scan it assumes that F does not vary on scales far below the sample spacing without showing it at
+the samples. Any failure is reported, never a count: a non-finite value (``NOT_FINITE``), the
+evaluation or buffer budget (``BUDGET_EXHAUSTED``), inputs out of range under jit (``INVALID``);
+``count`` is −1 then.
+
+Implementation. One ``lax.while_loop`` over a fixed-size stack of pending segments: each iteration
+evaluates arg F at the midpoints of up to ``LANES`` segments (one vmapped evaluator, one compiled
+program per static configuration), accumulates accepted increments and pushes the halves of the
+rest (depth first, so the stack stays ≈ ``LANES`` × depth). jit- and vmap-compatible. Cost: one
+complex evaluation per δ of contour plus a few per root near the top side; 125–1900 evaluations
+(0.1–4 s after compilation on two CPU cores) for the cases of tests/test_counting.py.
+"""
+
+import enum
+import functools
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .dispersion import characteristic_on_wall, check_inputs
+from .params import Fluid, Tube, as_float, canonical, validate_positive
+from .roots import guard, scan_step
+from .transfer import discretize
+
+LANES = 64  # midpoints evaluated per iteration (one vmapped call)
+STACK = 4096  # pending segments held at most
+MAX_PHASE = np.pi / 4  # bound on the phase increment between consecutive samples
+MAX_CURVATURE = np.pi / 8  # bound on |Δ₁ − Δ₂| within an accepted segment
+MIN_RELATIVE_LENGTH = 1e-11  # h_min / max(ω_hi, δ)
+STEPS_PER_BOX = 16  # Δ ≤ (ω_hi − ω_lo)/16
+
+
+class CountStatus(enum.IntEnum):
+    """Status of :func:`count_roots` (int32 arrays; NOT_FINITE and INVALID as in :class:`Status`)."""
+
+    CERTIFIED = 0  # the phase was resolved everywhere on the contour: the count is exact
+    ZERO_ON_CONTOUR = 1  # a zero on or within h_min of the contour (a root at ω_lo or ω_hi)
+    NOT_FINITE = 2  # a non-finite value of the characteristic function on the contour
+    BUDGET_EXHAUSTED = 3  # max_evaluations or the segment stack ran out before the phase was resolved
+    INVALID = 4  # inputs outside their allowed range (met under jit/vmap)
+
+
+class RootCount(NamedTuple):
+    """(count, status): zeros in (ω_lo, ω_hi), −1 unless status is CERTIFIED."""
+
+    count: jax.Array
+    status: jax.Array
+
+
+def _contour(lo, hi, height, symmetric: bool):
+    """Corners of the sides (start, end) in order, and the count's divisor (π or 2π).
+
+    Upper half (symmetric): ω_hi → ω_hi + iδ → ω_lo + s + iδ → ω_lo, with s = δ for ω_lo = 0 (the
+    45° wedge |Im Ω| = Re Ω through Ω = 0, which keeps the imaginary axis outside) and s = 0 else;
+    full: the mirror image added, counter-clockwise from ω_lo. Returns (starts, ends, divisor,
+    pieces): ``pieces`` is the static number of initial segments per side (LANES points in all).
+    """
+    corner = lo + jnp.where(lo == 0, height, 0.0)
+    top_right, top_left = hi + 1j * height, corner + 1j * height
+    if symmetric:
+        starts, ends = [hi + 0j, top_right, top_left], [top_right, top_left, lo + 0j]
+        return jnp.stack(starts), jnp.stack(ends), np.pi, (2, LANES - 7, 2)
+    low_left, low_right = jnp.conj(top_left), jnp.conj(top_right)
+    starts = [low_left, low_right, top_right, top_left, lo + 0j]
+    ends = [low_right, top_right, top_left, lo + 0j, low_left]
+    return jnp.stack(starts), jnp.stack(ends), 2.0 * np.pi, (28, 2, 27, 1, 1)
+
+
+def _initial_points(pieces):
+    """(side, τ) of the initial samples: side k cut into pieces[k] equal parts, ends included."""
+    side = np.concatenate([np.full(p + 1, k) for k, p in enumerate(pieces)])
+    tau = np.concatenate([np.linspace(0.0, 1.0, p + 1) for p in pieces])
+    assert side.size == LANES
+    return jnp.asarray(side, jnp.int32), jnp.asarray(tau)
+
+
+def _phase_count(phasor, lo, hi, height, symmetric, max_evaluations):
+    """Winding count of the function whose unit phasor F/|F| (and a finiteness flag) is
+    ``phasor(z)`` for z of shape (LANES,), over the contour of :func:`_contour` (module docstring).
+
+    Returns:
+        (count, status, evaluations).
+    """
+    starts, ends, divisor, pieces = _contour(lo, hi, height, symmetric)
+    lengths = jnp.abs(ends - starts)
+    h_max = 2.0 * height
+    h_min = MIN_RELATIVE_LENGTH * jnp.maximum(jnp.abs(hi), height)
+    side0, tau0 = _initial_points(pieces)
+    lane = jnp.arange(LANES)
+
+    def point(side, tau):
+        return starts[side] * (1.0 - tau) + ends[side] * tau  # exact at τ = 0 and τ = 1
+
+    def body(state):
+        ta, tb, sd, ua, ub, n, total, evals, status, first = state
+        start = jnp.maximum(n - LANES, 0)
+        take = lambda v: jax.lax.dynamic_slice_in_dim(v, start, LANES)  # noqa: E731
+        pa, pb, ps, pua, pub = (take(v) for v in (ta, tb, sd, ua, ub))
+        valid = jnp.where(first, True, start + lane < n)
+        tm = 0.5 * (pa + pb)
+        side = jnp.where(first, side0, ps)
+        tau = jnp.where(first, tau0, jnp.where(valid, tm, 0.0))
+        um, finite = phasor(point(side, tau))
+        bad = valid & ~finite
+        zero = valid & finite & (um == 0)
+        um = jnp.where(finite & (um != 0), um, 1.0)
+
+        # refinement of the popped segments [a, b] at their midpoints m
+        d1 = jnp.angle(um * jnp.conj(pua))
+        d2 = jnp.angle(pub * jnp.conj(um))
+        length = (pb - pa) * lengths[ps]
+        accept = (valid & ~first & (length <= h_max) & (jnp.abs(d1) <= MAX_PHASE)
+                  & (jnp.abs(d2) <= MAX_PHASE) & (jnp.abs(d1 - d2) <= MAX_CURVATURE))
+        split = valid & ~first & ~accept
+        too_short = split & (0.5 * length < h_min)
+        total = total + jnp.sum(jnp.where(accept, d1 + d2, 0.0))
+
+        # segments to push: halves of the split ones, or (first pass) consecutive initial samples
+        init_ok = jnp.concatenate([side0[1:] == side0[:-1], jnp.zeros(LANES + 1, bool)])
+        rotate = lambda v: jnp.concatenate([v[1:], v[:1]])  # noqa: E731
+        first_segments = (tau0, rotate(tau0), side0, um, rotate(um))
+        halves = (jnp.concatenate([pa, tm]), jnp.concatenate([tm, pb]), jnp.concatenate([ps, ps]),
+                  jnp.concatenate([pua, um]), jnp.concatenate([um, pub]))
+        pad = lambda v: jnp.concatenate([v, v])  # noqa: E731
+        new = [jnp.where(first, pad(f), h) for f, h in zip(first_segments, halves, strict=True)]
+        push = jnp.where(first, init_ok, jnp.concatenate([split, split]))
+        base = jnp.where(first, 0, start)
+        slot = jnp.where(push, base + jnp.cumsum(push) - 1, STACK)  # STACK: dropped
+        n_new = base + jnp.sum(push)
+        ta, tb, sd, ua, ub = (buf.at[slot].set(v, mode="drop")
+                              for buf, v in zip((ta, tb, sd, ua, ub), new, strict=True))
+
+        status = jnp.where(n_new > STACK, CountStatus.BUDGET_EXHAUSTED, status)
+        status = jnp.where(jnp.any(zero | too_short), CountStatus.ZERO_ON_CONTOUR, status)
+        status = jnp.where(jnp.any(bad), CountStatus.NOT_FINITE, status)
+        evals = evals + jnp.sum(valid)
+        return ta, tb, sd, ua, ub, n_new, total, evals, status, jnp.asarray(False)
+
+    def cond(state):
+        n, evals, status, first = state[5], state[7], state[8], state[9]
+        return (status == CountStatus.CERTIFIED) & (first | ((n > 0) & (evals < max_evaluations)))
+
+    zeros = jnp.zeros(STACK)
+    init = (zeros, zeros, jnp.zeros(STACK, jnp.int32), zeros + 0j, zeros + 0j, jnp.asarray(0),
+            jnp.asarray(0.0), jnp.asarray(0), jnp.asarray(CountStatus.CERTIFIED, jnp.int32),
+            jnp.asarray(True))
+    state = jax.lax.while_loop(cond, body, init)
+    n, total, evals, status = state[5], state[6], state[7], state[8]
+    status = jnp.where((status == CountStatus.CERTIFIED) & (n > 0), CountStatus.BUDGET_EXHAUSTED, status)
+    winding = total / divisor
+    count = jnp.round(winding)
+    # the accepted samples close the contour, so the winding is an integer up to rounding
+    status = jnp.where((status == CountStatus.CERTIFIED) & (jnp.abs(winding - count) > 1e-6),
+                       CountStatus.ZERO_ON_CONTOUR, status)
+    count = jnp.where(status == CountStatus.CERTIFIED, count, -1).astype(jnp.int32)
+    return count, status.astype(jnp.int32), evals
+
+
+def default_height(wall, fluid, lo, hi):
+    """δ = min(scan_step, (ω_hi − ω_lo)/16)/2 (module docstring)."""
+    return 0.5 * jnp.minimum(scan_step(wall, fluid), (hi - lo) / STEPS_PER_BOX)
+
+
+def count_roots_unchecked(tube, alpha, omega_lo, omega_hi, fluid, n_layers: int, order: int,
+                          height=None, max_evaluations=65536, symmetric: bool = True):
+    """(count, status, evaluations) for one case (traceable; see :func:`count_roots`).
+
+    Inputs outside their range give count −1 with status INVALID (no exception).
+    """
+    lo, hi = as_float(omega_lo), as_float(omega_hi)
+    ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
+    ok &= jnp.isfinite(lo) & jnp.isfinite(hi) & (lo >= 0) & (hi > lo)
+    lo, hi = jnp.where(ok, lo, 0.0), jnp.where(ok, hi, 1.0)
+    wall = discretize(tube, n_layers)
+    delta = default_height(wall, fluid, lo, hi) if height is None else as_float(height)
+    ok &= jnp.isfinite(delta) & (delta > 0) & (delta < hi - lo)
+    delta = jnp.where(ok, delta, 1.0)
+
+    def phasor(z):
+        f = jax.vmap(lambda om: characteristic_on_wall(wall, om, alpha, fluid, order))(z)
+        size = jnp.abs(f)
+        finite = jnp.isfinite(size)
+        return jnp.where(size > 0, f / jnp.where(size > 0, size, 1.0), 0.0), finite
+
+    count, status, evals = _phase_count(phasor, lo, hi, delta, symmetric, max_evaluations)
+    return (jnp.where(ok, count, -1).astype(jnp.int32),
+            jnp.where(ok, status, CountStatus.INVALID).astype(jnp.int32), evals)
+
+
+@functools.partial(jax.jit, static_argnames=("n_layers", "order", "symmetric", "default"))
+def _count_roots(tube, alpha, omega_lo, omega_hi, fluid, height, max_evaluations, n_layers, order,
+                 symmetric, default):
+    return count_roots_unchecked(tube, alpha, omega_lo, omega_hi, fluid, n_layers, order,
+                                 None if default else height, max_evaluations, symmetric)
+
+
+def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = None,
+                n_layers: int = 30, height=None, max_evaluations: int = 65536,
+                symmetric: bool = True) -> RootCount:
+    """The number of frequencies in (omega_lo, omega_hi), by the argument principle.
+
+    Counts the zeros of det(B A S)(Ω), the characteristic function of the ``n_layers`` laminate
+    (theory.md §4), inside the box [ω_lo, ω_hi] × [−δ, δ] of the complex Ω plane:
+    Z = (1/2π) Δ_Γ arg det(B A S) (module docstring: method, guarantee and limits). With the same
+    ``n_layers``, ``count`` equals the number of roots :func:`jaxdea.frequencies` returns in the
+    interval when the scan misses none.
+
+    Args:
+        tube: the :class:`~jaxdea.Tube`.
+        alpha: α̂ = α R_i > 0.
+        omega_lo, omega_hi: the interval, 0 ≤ ω_lo < ω_hi (open: its ends must not be roots).
+        fluid: a :class:`~jaxdea.Fluid` or None (empty tube).
+        n_layers: sublayers N (static).
+        height: half-height δ of the box; None: min(scan_step, (ω_hi − ω_lo)/16)/2.
+        max_evaluations: budget of complex evaluations of the characteristic function (traced: a
+            new value does not recompile).
+        symmetric: integrate the upper half of the box only, using F(Ω̄) = conj F(Ω) (static; False
+            integrates the whole rectangle: twice the cost, the same count).
+
+    Returns:
+        :class:`RootCount` (count, status): int32 arrays; count −1 unless status is
+        ``CountStatus.CERTIFIED``.
+
+    Raises:
+        ValueError: for concrete inputs out of range, naming the parameter.
+
+    Example:
+        >>> count_roots(Tube(), 0.445, 0.5, 3.0)  # RootCount(count=2, status=0)
+    """
+    order = check_inputs(tube, alpha, fluid, n_layers)
+    validate_positive("omega_hi", omega_hi)
+    lo, hi = (np.asarray(v, dtype=np.float64) if not isinstance(v, jax.core.Tracer) else None
+              for v in (omega_lo, omega_hi))
+    if lo is not None and (lo.ndim or not np.isfinite(lo) or lo < 0):
+        raise ValueError(f"omega_lo must be a finite real number >= 0, got {omega_lo!r}")
+    if lo is not None and hi is not None and not hi > lo:
+        raise ValueError(f"omega_hi must be > omega_lo = {float(lo)!r}, got {omega_hi!r}")
+    if height is not None:
+        validate_positive("height", height, "> 0 (the half-height δ of the box)")
+        if lo is not None and hi is not None and not float(height) < float(hi - lo):
+            raise ValueError(f"height must be < omega_hi - omega_lo = {float(hi - lo)!r}, got {height!r}")
+    if (not isinstance(max_evaluations, (int, np.integer)) or isinstance(max_evaluations, bool)
+            or max_evaluations < LANES):
+        raise ValueError(f"max_evaluations must be an integer >= {LANES}, got {max_evaluations!r}")
+    tube, alpha, fluid, omega_lo, omega_hi = canonical(tube, alpha, fluid, omega_lo, omega_hi)
+    default = height is None
+    height = as_float(1.0 if default else height)
+    count, status, _ = _count_roots(tube, alpha, omega_lo, omega_hi, fluid, height,
+                                    jnp.asarray(max_evaluations), int(n_layers), order,
+                                    bool(symmetric), default)
+    return RootCount(count, status)
