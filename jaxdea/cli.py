@@ -1,10 +1,18 @@
-"""Command line: ``jaxdea table`` prints the lowest frequencies of the paper's tube."""
+"""Command line: ``jaxdea sweep CONFIG`` (user-defined sweeps to CSV/NPZ and a plot), ``jaxdea figures``
+(the paper's figures) and ``jaxdea table`` (the lowest frequencies of the paper's tube).
+
+:func:`main` takes the arguments as a list and returns the exit status (0: done, 2: bad usage or a
+bad configuration, reported in one line on stderr without a traceback).
+"""
 
 import argparse
+import itertools
 import sys
 import time
+from pathlib import Path
 
 import jax
+import numpy as np
 
 TABLE_HELP = """Lowest three frequencies Ω of the paper's tube (η = 0.85, λ_z = 1.2, G = 97.2) for
 λ_i = 0.9 and 1.1, V̂ = 0 and 0.2, axial modes n = 1..3: empty, filled with the consistent
@@ -30,7 +38,8 @@ def paper_table(n_layers=30, n_modes=3, n_roots=3):
 
 
 def _table(args):
-    jax.config.update("jax_enable_x64", True)
+    if args.n_layers < 1:
+        return _error("table", "--n-layers must be >= 1")
     t0 = time.perf_counter()
     rows = paper_table(n_layers=args.n_layers)
     header = f"{'model':>8} {'λ_i':>5} {'V̂':>5} {'n':>2} {'α̂':>8}   Ω_1 … Ω_3"
@@ -45,15 +54,198 @@ def _table(args):
     return 0
 
 
+# axis labels (matplotlib mathtext): the symbol, and the dimensionless quantity it stands for
+SYMBOLS = {
+    "voltage": r"$\hat V$", "lambda_i": r"$\lambda_i$", "lambda_z": r"$\lambda_z$", "eta": r"$\eta$",
+    "gent": r"$G$", "length_ratio": r"$L/R_o$", "thickness_ratio": r"$h/R_i$",
+    "density_ratio": r"$\hat\rho_f$", "speed_ratio": r"$\hat c_f$", "alpha": r"$\hat\alpha$", "n": r"$n$",
+}
+LABELS = {
+    "voltage": r"voltage $\hat V = V\sqrt{\varepsilon/\mu}\,/R_i$",
+    "lambda_i": r"inner circumferential stretch $\lambda_i = r_i/R_i$",
+    "lambda_z": r"axial stretch $\lambda_z = l/L$",
+    "eta": r"radius ratio $\eta = R_i/R_o$",
+    "gent": r"Gent constant $G$",
+    "length_ratio": r"length ratio $L/R_o$",
+    "thickness_ratio": r"deformed wall thickness $h/R_i$",
+    "density_ratio": r"density ratio $\hat\rho_f = \rho_f/\rho_s$",
+    "speed_ratio": r"sound speed ratio $\hat c_f = c_f/c_s$",
+    "alpha": r"axial wavenumber $\hat\alpha = \alpha R_i$",
+    "n": r"axial mode number $n$ ($\hat\alpha = 2n\pi\eta/(\lambda_z L/R_o)$)",
+}
+OMEGA_LABEL = r"frequency $\Omega = \omega R_i/c_s$,  $c_s = \sqrt{\mu/\rho_s}$"
+LINE_STYLES = ("-", "--", ":", "-.")
+
+
+def plot_sweep(result, x_name, path, title=None):
+    """Ω of a :class:`jaxdea.SweepResult` against the axis ``x_name``, one line per root and per
+    combination of the other axes' values (colour: the combination, line style: the root), as PNG.
+
+    Returns:
+        The matplotlib Figure (not shown; no pyplot state is touched).
+    """
+    from matplotlib import colormaps
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.ticker import MaxNLocator
+
+    names = list(result.axes)
+    x = np.asarray(result.axes[x_name])
+    others = [k for k in names if k != x_name]
+    k_roots = result.omega.shape[-1]
+    omega = np.moveaxis(result.omega, names.index(x_name), 0).reshape(len(x), -1, k_roots)
+    combos = list(itertools.product(*(range(len(result.axes[k])) for k in others)))
+    varying = [k for k in others if len(result.axes[k]) > 1]
+    cmap = colormaps["tab10" if len(combos) <= 10 else "viridis"]
+    color = (lambda c: cmap(c)) if len(combos) <= 10 else (lambda c: cmap(c / (len(combos) - 1)))
+
+    fig = Figure(figsize=(8, 5), layout="constrained")
+    ax = fig.add_subplot()
+    handles = []
+    for c, combo in enumerate(combos):
+        values = dict(zip(others, combo, strict=True))
+        for j in range(k_roots):
+            ax.plot(x, omega[:, c, j], color=color(c), linestyle=LINE_STYLES[j % len(LINE_STYLES)],
+                    marker="o", markersize=3 if len(x) > 1 else 5)
+        if varying:
+            label = ", ".join(f"{SYMBOLS[k]} = {result.axes[k][values[k]]:g}" for k in varying)
+            handles.append(Line2D([], [], color=color(c), label=label))
+    handles += [Line2D([], [], color="k", linestyle=LINE_STYLES[j % len(LINE_STYLES)],
+                       label=rf"$\Omega_{{{j + 1}}}$") for j in range(k_roots)]
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small",
+              frameon=False)
+    ax.set_xlabel(LABELS[x_name])
+    if x_name == "n":
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_ylabel(OMEGA_LABEL)
+    ax.set_title(title or _auto_title(result, others), fontsize="medium")
+    ax.grid(alpha=0.3)
+    fig.savefig(path, dpi=120)
+    return fig
+
+
+def _auto_title(result, others):
+    """Two lines: the fluid (or none), then the fixed parameters (not swept, or axes of one value)."""
+    settings = result.settings
+    fluid = settings.get("fluid")
+    case = "empty tube" if fluid is None else (
+        f"filled, {settings['coupling']} coupling, {SYMBOLS['density_ratio']} = "
+        f"{fluid['density_ratio']:g}, {SYMBOLS['speed_ratio']} = {fluid['speed_ratio']:g}")
+    hidden = {*result.axes, "length_ratio", *(("eta",) if "thickness_ratio" in result.axes else ())}
+    fixed = {k: v for k, v in settings["tube"].items() if k not in hidden and np.isfinite(v)}
+    fixed.update({k: float(result.axes[k][0]) for k in others if len(result.axes[k]) == 1})
+    values = ", ".join(f"{SYMBOLS[k]} = {v:g}" for k, v in fixed.items())
+    return f"{result.omega.shape[-1]} lowest frequencies, {case}\n{values}"
+
+
+def _error(command, message):
+    print(f"jaxdea {command}: error: {message}", file=sys.stderr)
+    return 2
+
+
+def _sweep(args):
+    from . import Fluid, Status, Tube, sweep
+    from .config import load_config
+
+    try:
+        cfg = load_config(args.config)
+    except ValueError as exc:
+        return _error("sweep", exc)
+    out = Path(args.out) if args.out is not None else Path(args.config).parent / (cfg.out_dir or "")
+    t0 = time.perf_counter()
+    try:
+        tube = Tube(**cfg.tube)
+        fluid = None if cfg.fluid is None else Fluid(**cfg.fluid)
+        result = sweep(tube, fluid, progress=False if args.quiet else None, **cfg.sweep_arguments())
+    except ValueError as exc:
+        return _error("sweep", exc)
+    seconds = time.perf_counter() - t0
+    paths = [out / f"{cfg.name}.{ext}" for ext in (*cfg.formats, *(("png",) if cfg.plot else ()))]
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        for path in paths:
+            if path.suffix == ".png":
+                plot_sweep(result, cfg.plot_axis, path, cfg.title)
+            else:
+                getattr(result, f"to_{path.suffix[1:]}")(path)
+    except OSError as exc:
+        return _error("sweep", f"cannot write into {out}: {exc.strerror or exc}")
+    if not args.quiet:
+        converged = int(np.sum(result.status == Status.CONVERGED))
+        grid = " x ".join(f"{k}[{len(v)}]" for k, v in result.axes.items())
+        print(f"sweep {grid}: {result.omega.shape[-1]} roots per point, {converged}/{result.status.size} "
+              f"converged ({seconds:.1f} s)")
+    for path in paths:
+        print(path)
+    return 0
+
+
+def _figures(args):
+    from jaxdea.figures import make_figures
+
+    for path in make_figures(out=Path(args.out), quick=args.quick, progress=not args.quiet):
+        print(path)
+    return 0
+
+
+DESCRIPTION = """Axisymmetric dispersion of pre-stretched, voltage-driven (fluid-filled) dielectric
+elastomer tubes, with exact gradients (JAX). All quantities are dimensionless: lengths / R_i, the
+frequency Ω = ω R_i/c_s with c_s = sqrt(μ/ρ_s), the voltage V̂ = V sqrt(ε/μ)/R_i."""
+EXAMPLES = """examples:
+  jaxdea sweep examples/sweep.toml            Ω over a grid of V̂ and n: CSV, NPZ and a plot
+  jaxdea figures --out figures                the paper's figures, PNG plus CSV
+  jaxdea table --n-layers 30                  the lowest frequencies of the paper's tube
+  jaxdea COMMAND --help                       the options of a command"""
+SWEEP_HELP = """Solve the lowest frequencies Ω over a grid of parameters described by CONFIG, a TOML or
+JSON file, and write NAME.csv (one row per grid point: axes, α̂, Ω_k, status_k and, with the
+jacobian, dΩ_k/dα̂ and dΩ_k/dθ), NAME.npz (jaxdea.SweepResult.from_npz reads it back) and NAME.png (Ω
+against the first axis that has more than one value). An error in CONFIG is reported with the
+offending key and what is allowed there (exit status 2)."""
+FIGURES_HELP = """Regenerate the analogues of the paper's Figs. 2-10 (dispersion against V̂, the axial mode
+number, ĉ_f, ρ̂_f and h/R_i, empty and fluid-filled, consistent acoustic model beside the paper's
+coupling) and the static response, each as a PNG plus the CSV behind it."""
+
+
 def build_parser():
-    parser = argparse.ArgumentParser(
-        prog="jaxdea",
-        description="Axisymmetric dispersion of pre-stretched, voltage-driven (fluid-filled) "
-        "dielectric elastomer tubes, with exact gradients (JAX).",
-    )
-    sub = parser.add_subparsers(dest="command", required=True)
-    table = sub.add_parser("table", help="print the lowest frequencies of the paper's tube",
-                           description=TABLE_HELP)
+    formatter = argparse.RawDescriptionHelpFormatter
+    parser = argparse.ArgumentParser(prog="jaxdea", description=DESCRIPTION, epilog=EXAMPLES,
+                                     formatter_class=formatter)
+    parser.add_argument("--quiet", action="store_true",
+                        help="no progress bars or status lines (written paths are still printed)")
+    # --quiet is accepted after the command too; SUPPRESS keeps a global --quiet from being reset
+    quiet = argparse.ArgumentParser(add_help=False)
+    quiet.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
+                       help="no progress bars or status lines (written paths are still printed)")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    from .config import FORMAT
+
+    sweep = sub.add_parser(
+        "sweep", parents=[quiet], formatter_class=formatter, description=SWEEP_HELP,
+        help="a user-defined sweep from a TOML/JSON config: CSV, NPZ and a plot",
+        epilog=f"config format (keys; all optional except [axes]):\n{FORMAT}\nexamples:\n"
+        "  jaxdea sweep examples/sweep.toml\n"
+        "  jaxdea sweep --out results --quiet my_sweep.json")
+    sweep.add_argument("config", metavar="CONFIG", help="the sweep configuration (.toml or .json)")
+    sweep.add_argument("--out", metavar="DIR", default=None,
+                       help="output folder (default: output.dir of CONFIG, relative to CONFIG's "
+                       "folder, else CONFIG's folder)")
+    sweep.set_defaults(run=_sweep)
+
+    figures = sub.add_parser(
+        "figures", parents=[quiet], formatter_class=formatter, description=FIGURES_HELP,
+        help="regenerate the paper's figures (PNG plus CSV)",
+        epilog="examples:\n  jaxdea figures\n  jaxdea figures --out /tmp/figs --quick")
+    figures.add_argument("--out", metavar="DIR", default="figures",
+                         help="output folder (default: figures)")
+    figures.add_argument("--quick", action="store_true",
+                         help="coarse grids and few sublayers: a fast preview, not for publication")
+    figures.set_defaults(run=_figures)
+
+    table = sub.add_parser("table", parents=[quiet], formatter_class=formatter,
+                           help="print the lowest frequencies of the paper's tube",
+                           description=TABLE_HELP,
+                           epilog="example:\n  jaxdea table --n-layers 60")
     table.add_argument("--n-layers", type=int, default=30,
                        help="number of sublayers N of the laminate (default 30; error ~ N^-2)")
     table.set_defaults(run=_table)
@@ -61,11 +253,12 @@ def build_parser():
 
 
 def main(argv=None):
-    """Entry point of the ``jaxdea`` command."""
-    args = build_parser().parse_args(argv)
-    if getattr(args, "n_layers", 1) < 1:
-        print("jaxdea: error: --n-layers must be >= 1", file=sys.stderr)
-        return 2
+    """Entry point of the ``jaxdea`` command: the exit status (0 done, 2 bad usage or config)."""
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # --help (0) or a usage error (2, message already printed)
+        return 0 if exc.code is None else int(exc.code)
+    jax.config.update("jax_enable_x64", True)
     return args.run(args)
 
 

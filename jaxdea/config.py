@@ -1,0 +1,325 @@
+"""Configuration of ``jaxdea sweep``: a TOML or JSON document → validated sweep settings.
+
+:func:`parse_config` is pure (a dict in, a :class:`SweepConfig` out) and checks every key and value
+before anything is computed; an error is a ValueError that names the offending key (``tube.eta``,
+``axes.voltage.num``, ``fluid.coupling``, …) and what is allowed there. :func:`load_config` reads the
+file (by its suffix: ``.toml`` with :mod:`tomllib`, ``.json`` with :mod:`json`). :data:`FORMAT` lists
+the keys (it is the reference printed by ``jaxdea sweep --help``); ``examples/sweep.toml`` is an
+example.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from .leaves import FLUID_LEAVES, NAMES, TUBE_LEAVES
+from .params import COUPLINGS, MATERIALS
+
+TOP_KEYS = ("tube", "fluid", "axes", "solver", "output")
+TUBE_KEYS = (*TUBE_LEAVES, "thickness_ratio", "material")
+FLUID_KEYS = (*FLUID_LEAVES, "coupling", "bessel_order")
+SOLVER_KEYS = ("n_roots", "n_layers", "jacobian", "omega_max")
+OUTPUT_KEYS = ("dir", "name", "formats", "plot", "title")
+LINSPACE_KEYS = ("start", "stop", "num")
+FORMATS = ("csv", "npz")
+
+FORMAT = f"""\
+[tube]    fixed parameters (numbers; defaults: those of jaxdea.Tube): voltage V̂, lambda_i λ_i,
+          lambda_z λ_z, eta η = R_i/R_o or thickness_ratio h/R_i, gent G (inf: neo-Hookean),
+          length_ratio L/R_o; material = {' | '.join(f'"{m}"' for m in MATERIALS)}
+[fluid]   optional (leave it out for an empty tube): density_ratio ρ̂_f, speed_ratio ĉ_f (numbers),
+          coupling = {' | '.join(f'"{c}"' for c in COUPLINGS)}, bessel_order = ν (integer >= 0; paper only,
+          default ν = n)
+[axes]    the grid, in order: NAME = [v1, v2, ...] | {{start = a, stop = b, num = k}} | v (fixed);
+          NAME one of {', '.join((*TUBE_LEAVES, 'thickness_ratio'))},
+          {', '.join((*FLUID_LEAVES, 'alpha', 'n'))};
+          exactly one of alpha (α̂) and n (axial mode numbers, integers >= 1); a parameter is fixed
+          in [tube]/[fluid] or swept here, not both; the plot's x axis is the first axis with more
+          than one value
+[solver]  n_roots = 3 (K lowest roots per point), n_layers = 30 (sublayers N),
+          jacobian = false | true | [names] (dΩ/dθ and dΩ/dα̂ too), omega_max = a number
+          (default: automatic)
+[output]  name = the config file's stem, formats = {json.dumps(list(FORMATS))}, plot = true (NAME.png),
+          dir = the config file's folder (relative to it; --out overrides), title = a plot title
+"""
+
+# allowed values of each parameter: (description, test on a float64 array); +inf only for gent
+RANGES = {
+    "voltage": ("a finite number", lambda v: np.isfinite(v)),
+    "lambda_i": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
+    "lambda_z": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
+    "eta": ("in the open interval (0, 1)", lambda v: (v > 0) & (v < 1)),
+    "gent": ("> 0 (inf for neo-Hookean)", lambda v: v > 0),
+    "length_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
+    "thickness_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
+    "density_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
+    "speed_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
+    "alpha": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
+    "n": ("integers >= 1 (axial mode numbers)", lambda v: np.isfinite(v) & (v >= 1) & (v == np.round(v))),
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepConfig:
+    """Validated settings of ``jaxdea sweep``.
+
+    Attributes:
+        tube: keyword arguments of :class:`jaxdea.Tube` (only the keys given).
+        fluid: keyword arguments of :class:`jaxdea.Fluid`, or None for an empty tube.
+        axes: ``{name: 1-D float64 array}`` in grid order (a fixed ``tube.thickness_ratio`` comes
+            last, as an axis of length 1).
+        n_roots: K, roots per point.
+        n_layers: sublayers N.
+        jacobian: False, True or a tuple of parameter names (``jaxdea.sweep``'s ``jacobian``).
+        omega_max: upper end of each root search, or None (automatic).
+        out_dir: output folder as written in the config (relative to the config file), or None.
+        name: file stem of the outputs.
+        formats: a subset of ("csv", "npz").
+        plot: write ``name.png``.
+        title: plot title, or None.
+    """
+
+    tube: dict
+    fluid: dict | None
+    axes: dict
+    n_roots: int = 3
+    n_layers: int = 30
+    jacobian: bool | tuple = False
+    omega_max: float | None = None
+    out_dir: str | None = None
+    name: str = "sweep"
+    formats: tuple = FORMATS
+    plot: bool = True
+    title: str | None = None
+
+    @property
+    def plot_axis(self) -> str:
+        """The plot's abscissa: the first axis with more than one value (else the first axis)."""
+        return next((k for k, v in self.axes.items() if v.size > 1), next(iter(self.axes)))
+
+    def sweep_arguments(self) -> dict:
+        """Keyword arguments of :func:`jaxdea.sweep` besides ``tube`` and ``fluid``."""
+        return dict(n_roots=self.n_roots, n_layers=self.n_layers,
+                    jacobian=self.jacobian if self.jacobian else None, omega_max=self.omega_max,
+                    **self.axes)
+
+
+def _fail(message: str):
+    raise ValueError(f"sweep config: {message}")
+
+
+def _table(data, key: str, allowed: tuple) -> dict:
+    """The table at ``key`` (a dict), with every key in ``allowed``."""
+    if not isinstance(data, dict):
+        _fail(f"{key!r} must be a table (key = value pairs), got {data!r}" if key
+              else f"the document must be a table (key = value pairs), got {type(data).__name__}")
+    for k in data:
+        if k not in allowed:
+            _fail(f"unknown key '{f'{key}.{k}' if key else k}'; allowed: {', '.join(allowed)}")
+    return data
+
+
+def _is_number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _integer(key: str, x, low: int) -> int:
+    if not isinstance(x, int) or isinstance(x, bool) or x < low:
+        _fail(f"{key!r} must be an integer >= {low}, got {x!r}")
+    return int(x)
+
+
+def _choice(key: str, x, allowed: tuple) -> str:
+    if x not in allowed:
+        _fail(f"{key!r} must be one of {', '.join(allowed)}, got {x!r}")
+    return x
+
+
+def _values(key: str, name: str, spec) -> np.ndarray:
+    """An axis (or a fixed value) as a 1-D float64 array, checked against RANGES[name]."""
+    if isinstance(spec, dict):
+        _table(spec, key, LINSPACE_KEYS)
+        for k in LINSPACE_KEYS:
+            if k not in spec:
+                _fail(f"{key!r} as a linspace needs start, stop and num; '{key}.{k}' is missing")
+        for k in ("start", "stop"):
+            if not _is_number(spec[k]) or not math.isfinite(spec[k]):
+                _fail(f"'{key}.{k}' must be a finite number, got {spec[k]!r}")
+        values = np.linspace(spec["start"], spec["stop"], _integer(f"{key}.num", spec["num"], 1))
+    elif isinstance(spec, list):
+        if not spec:
+            _fail(f"{key!r} is an empty list; give at least one value")
+        for i, x in enumerate(spec):
+            if not _is_number(x):
+                _fail(f"'{key}[{i}]' must be a number, got {x!r}")
+        values = np.asarray(spec, dtype=np.float64)
+    elif _is_number(spec):
+        values = np.asarray([spec], dtype=np.float64)
+    else:
+        _fail(f"{key!r} must be a number, a list of numbers or a table {{start, stop, num}}, "
+              f"got {spec!r}")
+    allowed, ok = RANGES[name]
+    bad = ~ok(values)
+    if np.any(bad):
+        _fail(f"{key!r} must be {allowed}, got {float(values[bad][0])!r}")
+    return values
+
+
+def _fixed(key: str, name: str, x) -> float:
+    if not _is_number(x):
+        _fail(f"{key!r} must be a number, got {x!r}")
+    return float(_values(key, name, x)[0])
+
+
+def _parse_tube(data) -> dict:
+    tube = {}
+    for k, v in _table(data, "tube", TUBE_KEYS).items():
+        tube[k] = _choice("tube.material", v, MATERIALS) if k == "material" else _fixed(f"tube.{k}", k, v)
+    if "eta" in tube and "thickness_ratio" in tube:
+        _fail("give either 'tube.eta' or 'tube.thickness_ratio' (both set the wall thickness)")
+    return tube
+
+
+def _parse_fluid(data) -> dict:
+    fluid = {}
+    for k, v in _table(data, "fluid", FLUID_KEYS).items():
+        if k == "coupling":
+            fluid[k] = _choice("fluid.coupling", v, COUPLINGS)
+        elif k == "bessel_order":
+            fluid[k] = None if v is None else _integer("fluid.bessel_order", v, 0)
+        else:
+            fluid[k] = _fixed(f"fluid.{k}", k, v)
+    return fluid
+
+
+def _parse_axes(data, tube: dict, fluid: dict | None) -> dict:
+    if "axes" not in data:
+        _fail("missing table 'axes' (the sweep grid, e.g. n = [1, 2, 3])")
+    table = _table(data["axes"], "axes", NAMES)
+    if not table:
+        _fail("'axes' is empty: give the wavenumber axis 'alpha' (α̂) or 'n' (axial mode numbers)")
+    axes = {}
+    for name, spec in table.items():
+        if name in FLUID_LEAVES and fluid is None:
+            _fail(f"'axes.{name}' is a fluid parameter: add a [fluid] table")
+        given = f"'tube.{name}'" if name in tube else (f"'fluid.{name}'" if name in (fluid or {}) else "")
+        if given:
+            _fail(f"{given} is also a sweep axis ('axes.{name}'); give it in one place")
+        axes[name] = _values(f"axes.{name}", name, spec)
+    if ("alpha" in axes) == ("n" in axes):
+        _fail("'axes' needs exactly one wavenumber axis: 'alpha' (α̂) or 'n' (axial mode numbers)"
+              + (", not both" if "alpha" in axes else ""))
+    thickness = [f"'{where}.{k}'" for where, keys in (("tube", tube), ("axes", axes))
+                 for k in ("eta", "thickness_ratio") if k in keys]
+    if len(thickness) > 1:
+        _fail(f"{' and '.join(thickness)} both set the wall thickness; give one of them")
+    if "thickness_ratio" in tube:  # h/R_i held at every point (applied after λ_i, λ_z)
+        axes["thickness_ratio"] = np.asarray([tube.pop("thickness_ratio")])
+    return axes
+
+
+def _parse_solver(data, fluid: dict | None) -> dict:
+    table = _table(data.get("solver", {}), "solver", SOLVER_KEYS)
+    out = {}
+    for k in ("n_roots", "n_layers"):
+        if k in table:
+            out[k] = _integer(f"solver.{k}", table[k], 1)
+    if "omega_max" in table:
+        v = table["omega_max"]
+        if not _is_number(v) or not (math.isfinite(v) and v > 0):
+            _fail(f"'solver.omega_max' must be a finite number > 0, got {v!r}")
+        out["omega_max"] = float(v)
+    if "jacobian" in table:
+        jac = table["jacobian"]
+        allowed = [n for n in NAMES if n not in ("alpha", "n") and (fluid is not None or n not in FLUID_LEAVES)]
+        if isinstance(jac, list):
+            for i, name in enumerate(jac):
+                if name not in allowed:
+                    _fail(f"'solver.jacobian[{i}]' = {name!r} is no parameter of this case; "
+                          f"allowed: {', '.join(allowed)}")
+            if len(set(jac)) != len(jac):
+                _fail(f"'solver.jacobian' repeats a name: {jac}")
+            jac = tuple(jac)
+        elif not isinstance(jac, bool):
+            _fail(f"'solver.jacobian' must be true, false or a list of parameter names "
+                  f"({', '.join(allowed)}), got {jac!r}")
+        out["jacobian"] = jac
+    return out
+
+
+def _parse_output(data, default_name: str) -> dict:
+    table = _table(data.get("output", {}), "output", OUTPUT_KEYS)
+    out = {"name": default_name}
+    for k in ("dir", "name", "title"):
+        if k in table:
+            v = table[k]
+            if not isinstance(v, str) or not v or (k == "name" and ("/" in v or "\\" in v)):
+                what = "a file stem without folders" if k == "name" else "a non-empty string"
+                _fail(f"'output.{k}' must be {what}, got {v!r}")
+            out["out_dir" if k == "dir" else k] = v
+    if "formats" in table:
+        formats = table["formats"]
+        if not isinstance(formats, list):
+            _fail(f"'output.formats' must be a list of {', '.join(FORMATS)}, got {formats!r}")
+        for i, f in enumerate(formats):
+            _choice(f"output.formats[{i}]", f, FORMATS)
+        out["formats"] = tuple(dict.fromkeys(formats))
+    if "plot" in table:
+        if not isinstance(table["plot"], bool):
+            _fail(f"'output.plot' must be true or false, got {table['plot']!r}")
+        out["plot"] = table["plot"]
+    if not out.get("formats", FORMATS) and not out.get("plot", True):
+        _fail("'output.formats' is empty and 'output.plot' is false: nothing would be written")
+    return out
+
+
+def parse_config(data, default_name: str = "sweep") -> SweepConfig:
+    """Validate a sweep configuration (the parsed TOML/JSON document).
+
+    Args:
+        data: the document as a dict (tables ``tube``, ``fluid``, ``axes``, ``solver``,
+            ``output``; the module docstring shows them all).
+        default_name: file stem of the outputs when ``output.name`` is absent.
+
+    Returns:
+        :class:`SweepConfig`.
+
+    Raises:
+        ValueError: "sweep config: …" naming the offending key and what is allowed there.
+    """
+    _table(data, "", TOP_KEYS)
+    tube = _parse_tube(data.get("tube", {}))
+    fluid = _parse_fluid(data["fluid"]) if "fluid" in data else None
+    axes = _parse_axes(data, tube, fluid)
+    if (fluid is not None and fluid.get("coupling") == "paper" and fluid.get("bessel_order") is None
+            and "n" not in axes):
+        _fail("the paper coupling needs 'fluid.bessel_order' (ν), or a sweep over 'axes.n' (ν = n)")
+    return SweepConfig(tube=tube, fluid=fluid, axes=axes, **_parse_solver(data, fluid),
+                       **_parse_output(data, default_name))
+
+
+def load_config(path) -> SweepConfig:
+    """Read and validate a ``.toml`` or ``.json`` sweep configuration.
+
+    Raises:
+        ValueError: an unreadable file, an unknown suffix, a syntax error, or any error of
+            :func:`parse_config`.
+    """
+    path = Path(path)
+    if path.suffix not in (".toml", ".json"):
+        _fail(f"{path}: the file must end in .toml or .json")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        _fail(f"cannot read {path}: {exc.strerror or exc}")
+    try:
+        data = tomllib.loads(text) if path.suffix == ".toml" else json.loads(text)
+    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
+        _fail(f"{path} is no valid {path.suffix[1:].upper()}: {exc}")
+    return parse_config(data, default_name=path.stem)
