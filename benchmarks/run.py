@@ -1,0 +1,598 @@
+"""Benchmarks of jaxdea against a naive JAX variant and the SciPy baseline, side by side in one run.
+
+    python3 benchmarks/run.py [--quick] [--out benchmarks/results.md]
+
+Every workload runs in its own subprocess (``--worker NAME``) so that its peak memory (ru_maxrss)
+is its own; all of them use single-threaded BLAS (OPENBLAS_NUM_THREADS=1: 6×6 products gain nothing
+from threads, and a threaded OpenBLAS is 100× slower on a loaded machine). Timings: one warm-up
+call (compilation; jaxdea's persistent compile cache is left on, as for a user), then the best of k
+repeats with ``jax.block_until_ready``. See benchmarks/README.md for what each row means.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import resource
+import subprocess
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+SINGLE_THREAD = dict(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
+for _key, _value in SINGLE_THREAD.items():  # before numpy is imported (workers, direct use)
+    os.environ.setdefault(_key, _value)
+
+import numpy as np  # noqa: E402
+
+FIG3 = dict(lambda_z=1.2, lambda_i=[0.9, 1.1], voltage=[0.0, 0.2], n=list(range(1, 21)), n_roots=3)
+CURVE = dict(alpha_min=0.025, alpha_max=5.0, points=200, n_roots=4, rtol=1e-8)
+REFERENCE_LAYERS = 240  # the reference curve: Richardson of N = 240 and 480 (on every 10th α̂)
+
+
+def settings(quick: bool) -> dict:
+    """Sizes and repeat counts of a full or a --quick run."""
+    return dict(
+        quick=quick,
+        repeats=3 if quick else 5,
+        solve_repeats=1 if quick else 3,
+        min_time=0.2 if quick else 0.5,
+        batches=[1, 64, 4096] if quick else [1, 4, 16, 64, 256, 1024, 4096],
+        layers=[10, 30, 100, 300],
+        layer_batch=64 if quick else 256,
+        scipy_max_evals=128 if quick else 1024,
+        scipy_budget_s=20.0 if quick else 60.0,
+        curve_levels=[30, 60, 120],
+    )
+
+
+# ----------------------------------------------------------------------------------------- timing
+def peak_rss_mb() -> float:
+    """Peak resident set size of this process so far, MiB (ru_maxrss is KiB on Linux)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def best_time(fn, repeats: int, min_time: float):
+    """(seconds per call: best of ``repeats``, first-call seconds, the last output).
+
+    A first call warms up (compiles); each repeat loops over enough calls to last ``min_time``. The
+    first repeat also calibrates that count; with ``min_time`` = 0 (long workloads) every repeat is
+    one call."""
+    import jax
+
+    start = time.perf_counter()
+    out = jax.block_until_ready(fn())
+    first = time.perf_counter() - start
+    best, inner = math.inf, 1
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for _ in range(inner):
+            out = jax.block_until_ready(fn())
+        sec = (time.perf_counter() - start) / inner
+        best = min(best, sec)
+        inner = max(1, int(math.ceil(min_time / max(sec, 1e-9))))
+    return best, first, out
+
+
+def _jax():
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    import jaxdea
+
+    return jax, jaxdea
+
+
+def _baseline():
+    sys.path.insert(0, HERE)
+    import scipy_baseline
+
+    return scipy_baseline
+
+
+def _omegas(batch):
+    return np.linspace(0.05, 20.0, batch)
+
+
+# ---------------------------------------------------------------------------------------- workers
+def naive_characteristic(tube, n_layers, alpha):
+    """vmap-able det(B A S) with A from ``jax.scipy.linalg.expm`` per sublayer (no normalisation):
+    ``jaxdea.transfer.transfer_matrix(..., method="expm")`` and the fluid-free initial basis."""
+    import jax.numpy as jnp
+
+    from jaxdea import transfer
+
+    def f(om):
+        wall = transfer.discretize(tube, n_layers)
+        a = transfer.transfer_matrix(wall, om, alpha, method="expm")
+        p, ri = wall.pressure_inner, wall.r_inner
+        zero, one = jnp.zeros_like(p), jnp.ones_like(p)
+        s = jnp.array([[one, zero, zero], [zero, one, zero], [zero, zero, zero],
+                       [-p / ri, -alpha * p, zero], [-alpha * p, zero, zero], [zero, zero, one]])
+        return jnp.linalg.det(a[2:5] @ s)
+
+    return f
+
+
+def work_characteristic(impl: str, layers: list, batches: list, cfg: dict) -> dict:
+    """Evaluations per second of the characteristic function over Ω for each (N, batch)."""
+    tube_kw = dict(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
+    out = []
+    if impl == "scipy":
+        sb = _baseline()
+        tube = sb.Tube(**tube_kw)
+        alpha = sb.axial_wavenumber(tube, 2)
+        for n_layers in layers:
+            wall = sb.discretize(tube, n_layers)
+            for batch in batches:
+                count = min(batch, max(1, int(cfg["scipy_max_evals"] * 30 / n_layers)))
+                oms = _omegas(batch)[:count]
+                sec, _, _ = best_time(lambda oms=oms, wall=wall: [sb.characteristic_on_wall(
+                    wall, om, alpha, normalise=True) for om in oms], cfg["repeats"], cfg["min_time"])
+                out.append(dict(n_layers=n_layers, batch=batch, evaluated=count,
+                                evals_per_s=count / sec, first_call_s=None))
+        return dict(rows=out)
+    jax, jaxdea = _jax()
+    tube = jaxdea.Tube(**tube_kw)
+    alpha = jaxdea.axial_wavenumber(tube, 2)
+    for n_layers in layers:
+        if impl == "jaxdea":
+            one = lambda om, n_layers=n_layers: jaxdea.characteristic(tube, om, alpha,  # noqa: E731
+                                                                      n_layers=n_layers)
+        else:
+            one = naive_characteristic(tube, n_layers, alpha)
+        fn = jax.jit(jax.vmap(one))
+        for batch in batches:
+            oms = jax.numpy.asarray(_omegas(batch))
+            sec, first, _ = best_time(lambda fn=fn, oms=oms: fn(oms), cfg["repeats"], cfg["min_time"])
+            out.append(dict(n_layers=n_layers, batch=batch, evaluated=batch, evals_per_s=batch / sec,
+                            first_call_s=first))
+    return dict(rows=out)
+
+
+def _fig3_points():
+    return [(li, v, n) for li in FIG3["lambda_i"] for v in FIG3["voltage"] for n in FIG3["n"]]
+
+
+def work_fig3(impl: str, cfg: dict) -> dict:
+    """Roots of the Fig.-3 sweep (λ_z = 1.2; λ_i × V̂ × n, 3 lowest roots each)."""
+    points = _fig3_points()
+    if impl == "scipy":
+        sb = _baseline()
+        done, roots, evals = [], {}, 0
+        start = time.perf_counter()
+        order = list(range(0, len(points), 7)) + [i for i in range(len(points)) if i % 7]
+        for i in order:  # an even spread first; stop when the time budget is spent
+            li, v, n = points[i]
+            tube = sb.Tube(voltage=v, lambda_i=li, lambda_z=FIG3["lambda_z"])
+            r, calls = sb.frequencies(tube, sb.axial_wavenumber(tube, n), n_roots=FIG3["n_roots"])
+            roots[i], evals = r.tolist(), evals + calls
+            done.append(i)
+            if time.perf_counter() - start > cfg["scipy_budget_s"]:
+                break
+        sec = time.perf_counter() - start
+        return dict(points=len(points), solved=len(done), seconds_solved=sec,
+                    seconds_extrapolated=sec * len(points) / len(done), evaluations=evals,
+                    roots={str(k): v for k, v in roots.items()})
+    jax, jaxdea = _jax()
+
+    def run():
+        return jaxdea.sweep(jaxdea.Tube(lambda_z=FIG3["lambda_z"]), n_roots=FIG3["n_roots"],
+                            lambda_i=np.array(FIG3["lambda_i"]), voltage=np.array(FIG3["voltage"]),
+                            n=np.array(FIG3["n"]), progress=False).omega
+
+    sec, first, omega = best_time(run, cfg["solve_repeats"], 0.0)
+    omega = np.asarray(omega).reshape(len(points), FIG3["n_roots"])
+    return dict(points=len(points), seconds=sec, first_call_s=first, roots=omega.tolist())
+
+
+def _curve_alphas():
+    return np.linspace(CURVE["alpha_min"], CURVE["alpha_max"], CURVE["points"])
+
+
+def _richardson(coarse, fine):
+    return (4.0 * np.asarray(fine) - np.asarray(coarse)) / 3.0
+
+
+def work_curve_jaxdea(cfg: dict) -> dict:
+    """The unstretched-tube curve (200 α̂ × 4 roots) at 1e-8 relative accuracy.
+
+    Roots are isolated once by ``jaxdea.sweep`` at N = 30, then followed by ``jaxdea.frequency``
+    (safeguarded Newton, vmapped over all roots) on the laminates N and 2N, and combined by
+    Richardson (4Ω(2N) − Ω(N))/3. N is the smallest of ``curve_levels`` whose result on every 10th α̂
+    meets 1e-8 against the reference Richardson(240, 480) (followed the same way); the timing is
+    that of the whole chain at that N."""
+    jax, jaxdea = _jax()
+    alphas = _curve_alphas()
+    tube = jaxdea.Tube()
+    isolate = 30
+
+    def roots_at(alpha, n_layers):
+        return np.asarray(jaxdea.sweep(tube, n_roots=CURVE["n_roots"], n_layers=n_layers,
+                                       alpha=alpha, progress=False).omega)
+
+    follow_fns = {}
+
+    def follow(alpha, seeds, n_layers):
+        """Newton from the seeds on the laminate of ``n_layers`` (NaN seeds stay NaN)."""
+        if n_layers not in follow_fns:
+            one = lambda a, g: jaxdea.frequency(tube, a, g, n_layers=n_layers)  # noqa: E731
+            follow_fns[n_layers] = jax.jit(jax.vmap(one))
+        a = np.broadcast_to(np.asarray(alpha)[:, None], seeds.shape).ravel()
+        g = seeds.ravel()
+        ok = np.isfinite(g)
+        out = np.asarray(follow_fns[n_layers](a, np.where(ok, g, 1.0)))
+        return np.where(ok, out, np.nan).reshape(seeds.shape)
+
+    def level(alpha, seeds, n_layers):
+        return seeds if n_layers == isolate else follow(alpha, seeds, n_layers)
+
+    subset = alphas[::10]
+    seeds = roots_at(subset, isolate)
+    reference = _richardson(follow(subset, seeds, REFERENCE_LAYERS),
+                            follow(subset, seeds, 2 * REFERENCE_LAYERS))
+    levels, checks, chosen = {}, [], None
+    for n_layers in cfg["curve_levels"]:
+        for n in (n_layers, 2 * n_layers):
+            if n not in levels:
+                levels[n] = level(subset, seeds, n)
+        plain = np.nanmax(np.abs(levels[2 * n_layers] / reference - 1.0))
+        extrapolated = np.nanmax(np.abs(_richardson(levels[n_layers], levels[2 * n_layers])
+                                        / reference - 1.0))
+        checks.append(dict(n_layers=n_layers, plain_rel_error=float(plain),
+                           richardson_rel_error=float(extrapolated)))
+        if extrapolated <= CURVE["rtol"]:
+            chosen = n_layers
+            break
+    if chosen is None:
+        return dict(checks=checks, chosen=None, n_subset=len(subset))
+
+    def run():
+        seeds = roots_at(alphas, isolate)
+        return _richardson(level(alphas, seeds, chosen), level(alphas, seeds, 2 * chosen))
+
+    sec, first, omega = best_time(run, cfg["solve_repeats"], 0.0)
+    sub = omega[::10]
+    return dict(checks=checks, chosen=chosen, seconds=sec, first_call_s=first,
+                finite=int(np.sum(np.isfinite(omega))), roots=sub.tolist(),
+                measured_rel_error=float(np.nanmax(np.abs(sub / reference - 1.0))),
+                reference=reference.tolist(), n_subset=len(subset))
+
+
+def work_curve_scipy(cfg: dict, n_layers: int) -> dict:
+    """The same curve with the SciPy baseline: roots isolated at N = 30 (grid + brentq), then
+    brentq on the laminates N and 2N in a bracket of ±1e-3 Ω around each (the full scan again where
+    that bracket holds no sign change), Richardson. Every 10th α̂ is timed until the budget is spent;
+    the time is extrapolated to the 200 α̂."""
+    import scipy.optimize
+
+    sb = _baseline()
+    tube = sb.Tube()
+    alphas = _curve_alphas()
+    roots, start = {}, time.perf_counter()
+
+    def follow(alpha, seeds, layers):
+        if layers == 30:
+            return seeds
+        wall = sb.discretize(tube, layers)
+        f = lambda om: sb.characteristic_on_wall(wall, om, alpha)  # noqa: E731
+        out = []
+        for r in seeds:
+            lo, hi = r * (1 - 1e-3), r * (1 + 1e-3)
+            if np.isfinite(r) and f(lo) * f(hi) < 0:
+                out.append(scipy.optimize.brentq(f, lo, hi, xtol=1e-14, rtol=4 * np.finfo(float).eps))
+            else:
+                return sb.frequencies(tube, alpha, n_roots=len(seeds), n_layers=layers, wall=wall)[0]
+        return np.array(out)
+
+    for i in range(0, len(alphas), 10):  # the reference subset: every 10th α̂
+        seeds, _ = sb.frequencies(tube, alphas[i], n_roots=CURVE["n_roots"], n_layers=30)
+        fine = [follow(alphas[i], seeds, n) for n in (n_layers, 2 * n_layers)]
+        roots[i // 10] = _richardson(*fine).tolist()
+        if time.perf_counter() - start > cfg["scipy_budget_s"]:
+            break
+    sec = time.perf_counter() - start
+    return dict(solved=len(roots), seconds_solved=sec,
+                seconds_extrapolated=sec * len(alphas) / len(roots),
+                roots={str(k): v for k, v in roots.items()})
+
+
+def work_compile(what: str) -> dict:
+    """First-call time in a fresh process without the persistent compile cache (JAXDEA_CACHE_DIR=off
+    set by the parent); compile ≈ first call − second call."""
+    start = time.perf_counter()
+    jax, jaxdea = _jax()
+    imported = time.perf_counter() - start
+    assert jax.config.jax_compilation_cache_dir is None, "persistent compile cache still enabled"
+    tube = jaxdea.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
+    if what == "frequencies":
+        call = lambda a: jaxdea.frequencies(tube, a)  # noqa: E731
+    else:
+        call = lambda a: jaxdea.characteristic(tube, 1.0, a)  # noqa: E731
+    start = time.perf_counter()
+    jax.block_until_ready(call(0.445))
+    first = time.perf_counter() - start
+    start = time.perf_counter()
+    jax.block_until_ready(call(0.89))
+    second = time.perf_counter() - start
+    return dict(import_s=imported, first_call_s=first, second_call_s=second, compile_s=first - second)
+
+
+def worker(name: str, params: dict) -> None:
+    """Run one workload and print its result as JSON (last line of stdout)."""
+    cfg = params["cfg"]
+    rss0 = peak_rss_mb()
+    if name == "characteristic":
+        result = work_characteristic(params["impl"], params["layers"], params["batches"], cfg)
+    elif name == "fig3":
+        result = work_fig3(params["impl"], cfg)
+    elif name == "curve_jaxdea":
+        result = work_curve_jaxdea(cfg)
+    elif name == "curve_scipy":
+        result = work_curve_scipy(cfg, params["n_layers"])
+    elif name == "compile":
+        result = work_compile(params["what"])
+    else:
+        raise ValueError(f"unknown worker {name!r}")
+    result.update(rss_start_mb=rss0, rss_peak_mb=peak_rss_mb())
+    print(json.dumps(result))
+
+
+def spawn_worker(name: str, params: dict, env_extra=None, timeout=3600) -> dict:
+    """Run a worker in a fresh Python process; its JSON result with the wall time."""
+    env = dict(os.environ, **SINGLE_THREAD, **(env_extra or {}))
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, os.path.abspath(__file__), "--worker", name,
+                           "--params", json.dumps(params)], cwd=ROOT, env=env, capture_output=True,
+                          text=True, timeout=timeout)
+    if done.returncode != 0:
+        raise RuntimeError(f"worker {name} {params.get('impl', '')} failed:\n{done.stderr[-4000:]}")
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    result["wall_s"] = time.perf_counter() - start
+    print(f"  {name} {params.get('impl', params.get('what', ''))}: {result['wall_s']:.1f} s",
+          flush=True)
+    return result
+
+
+# ------------------------------------------------------------------------------------ the report
+def machine_info() -> dict:
+    import jax
+    import jaxlib
+    import scipy
+
+    cpu = platform.processor()
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return dict(cpu=cpu, cores=os.cpu_count(), python=platform.python_version(),
+                jax=jax.__version__, jaxlib=jaxlib.__version__, numpy=np.__version__,
+                scipy=scipy.__version__, device=str(jax.devices()[0]),
+                backend=jax.default_backend(), load_average=list(os.getloadavg()),
+                date=time.strftime("%Y-%m-%d %H:%M:%S"))
+
+
+def compare(points_a, points_b, rtol=1e-6):
+    """Roots of two solvers point by point, matched by value (rtol): (max relative difference of
+    the matched roots, roots only in a, roots only in b)."""
+    diff, only_a, only_b = 0.0, 0, 0
+    for ra, rb in zip(points_a, points_b, strict=True):
+        ra = np.asarray(ra, float)[np.isfinite(ra)]
+        rb = np.asarray(rb, float)[np.isfinite(rb)]
+        top = min(ra.max(initial=-np.inf), rb.max(initial=-np.inf))  # compare below both ends
+        ra, rb = ra[ra <= top * (1 + rtol)], rb[rb <= top * (1 + rtol)]
+        for x in ra:
+            j = np.argmin(np.abs(rb / x - 1.0)) if rb.size else None
+            if j is not None and abs(rb[j] / x - 1.0) <= rtol:
+                diff = max(diff, float(abs(rb[j] / x - 1.0)))
+            else:
+                only_a += 1
+        only_b += int(sum(not np.any(np.abs(ra / y - 1.0) <= rtol) for y in rb))
+    return diff, only_a, only_b
+
+
+def run_all(cfg: dict, partial: str, reuse: bool) -> dict:
+    """Every workload, each result saved to ``partial`` as it comes (``reuse``: skip those there)."""
+    res = dict(settings=cfg)
+    done = {}
+    if reuse and os.path.exists(partial):
+        with open(partial) as f:
+            done = json.load(f)
+
+    def spawn(key, name, params, env_extra=None):
+        if key in done and done[key].get("settings") == cfg:
+            print(f"  {key}: reused from {partial}", flush=True)
+            res[key] = done[key]["result"]
+            return res[key]
+        res[key] = spawn_worker(name, params, env_extra)
+        done[key] = dict(settings=cfg, result=res[key])
+        with open(partial, "w") as f:
+            json.dump(done, f)
+        return res[key]
+
+    print("characteristic (a, f) ...", flush=True)
+    layers_extra = [n for n in cfg["layers"] if n != 30]
+    for impl in ("jaxdea", "naive", "scipy"):
+        spawn(f"char_{impl}", "characteristic", dict(impl=impl, layers=[30], batches=cfg["batches"],
+                                                     cfg=cfg))
+        spawn(f"layers_{impl}", "characteristic", dict(impl=impl, layers=layers_extra,
+                                                       batches=[cfg["layer_batch"]], cfg=cfg))
+    print("Fig.-3 sweep (b, c) ...", flush=True)
+    spawn("fig3_jaxdea", "fig3", dict(impl="jaxdea", cfg=cfg))
+    spawn("fig3_scipy", "fig3", dict(impl="scipy", cfg=cfg))
+    print("200 x 4 curve at 1e-8 (b, c) ...", flush=True)
+    chosen = spawn("curve_jaxdea", "curve_jaxdea", dict(cfg=cfg)).get("chosen") or cfg["curve_levels"][-1]
+    spawn("curve_scipy", "curve_scipy", dict(cfg=cfg, n_layers=chosen))
+    print("first-call compile, no persistent cache (d) ...", flush=True)
+    for what in ("characteristic", "frequencies"):
+        spawn(f"compile_{what}", "compile", dict(what=what, cfg=cfg),
+              env_extra=dict(JAXDEA_CACHE_DIR="off"))
+    res["machine"] = machine_info()
+    return res
+
+
+def _rate(rows, n_layers, batch):
+    for r in rows:
+        if r["n_layers"] == n_layers and r["batch"] == batch:
+            return r["evals_per_s"]
+    return math.nan
+
+
+def fmt(x, digits=3):
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "–"
+    if abs(x) >= 100:
+        return f"{x:,.0f}"
+    return f"{x:.{digits}g}"
+
+
+def render(res: dict, provisional: bool) -> str:
+    cfg, m = res["settings"], res["machine"]
+    lines = ["# jaxdea benchmarks", ""]
+    if provisional:
+        lines += ["**PROVISIONAL** (`--quick` run while the core is being optimised and the 2-core "
+                  "machine is shared with other agents: absolute numbers are noisy and low; only the "
+                  "ratios measured in the same run mean something; the final table is regenerated "
+                  "at the end).", ""]
+    load = ", ".join(f"{x:.1f}" for x in m["load_average"])
+    lines += [f"Machine: {m['cpu']}, {m['cores']} cores, backend `{m['backend']}` ({m['device']}); "
+              f"Python {m['python']}, jax {m['jax']}, jaxlib {m['jaxlib']}, NumPy {m['numpy']}, "
+              f"SciPy {m['scipy']}; load average at the end {load}; "
+              f"{m['date']}. Mode: {'--quick' if cfg['quick'] else 'full'}; best of {cfg['repeats']} "
+              "repeats after a warm-up; single-threaded BLAS everywhere.", ""]
+    # (a) characteristic
+    cj, cn, cs = (res[f"char_{k}"]["rows"] for k in ("jaxdea", "naive", "scipy"))
+    lines += ["## (a) Characteristic evaluations per second, N = 30", "",
+              "| batch | jaxdea | naive vmap(expm) | SciPy loop | jaxdea / naive | jaxdea / SciPy |",
+              "|---:|---:|---:|---:|---:|---:|"]
+    for b in cfg["batches"]:
+        j, n, s = _rate(cj, 30, b), _rate(cn, 30, b), _rate(cs, 30, b)
+        lines.append(f"| {b} | {fmt(j)} | {fmt(n)} | {fmt(s)} | {fmt(j / n)}× | {fmt(j / s)}× |")
+    lines += ["", "The SciPy loop evaluates at most "
+              f"{cfg['scipy_max_evals']} Ω of a batch (its rate does not depend on the batch).", ""]
+    # (f) scaling with N
+    lj, ln, ls = (res[f"layers_{k}"]["rows"] + res[f"char_{k}"]["rows"]
+                  for k in ("jaxdea", "naive", "scipy"))
+    b = cfg["layer_batch"]
+    lines += [f"## (f) Scaling with N (batch {b}), evaluations per second", "",
+              "| N | jaxdea | naive | SciPy | jaxdea / naive | jaxdea / SciPy |",
+              "|---:|---:|---:|---:|---:|---:|"]
+    for n_layers in cfg["layers"]:
+        bb = b if n_layers != 30 else min(cfg["batches"], key=lambda x: abs(x - b))
+        j, n, s = _rate(lj, n_layers, bb), _rate(ln, n_layers, bb), _rate(ls, n_layers, bb)
+        note = f" (batch {bb})" if bb != b else ""
+        lines.append(f"| {n_layers}{note} | {fmt(j)} | {fmt(n)} | {fmt(s)} | {fmt(j / n)}× | {fmt(j / s)}× |")
+    lines += ["", "Scaling with batch size: the rows of (a) (N = 30).", ""]
+    # (b, c) sweeps
+    fj, fs = res["fig3_jaxdea"], res["fig3_scipy"]
+    fig_roots = fj["points"] * FIG3["n_roots"]
+    diff, only_s, only_j = compare([fs["roots"][k] for k in fs["roots"]],
+                                   [fj["roots"][int(k)] for k in fs["roots"]])
+    note = f" (extrapolated from {fs['solved']} points)" if fs["solved"] < fs["points"] else ""
+    cvj, cvs = res["curve_jaxdea"], res["curve_scipy"]
+    lines += ["## (b, c) Root solves", "",
+              "| workload | jaxdea | SciPy baseline | jaxdea / SciPy |", "|---|---:|---:|---:|",
+              f"| Fig. 3 sweep: {fj['points']} points × {FIG3['n_roots']} roots, N = 30: seconds | "
+              f"{fmt(fj['seconds'])} | {fmt(fs['seconds_extrapolated'])}"
+              f"{note} | "
+              f"{fmt(fs['seconds_extrapolated'] / fj['seconds'])}× |",
+              f"| Fig. 3 sweep: root solves per second | {fmt(fig_roots / fj['seconds'])} | "
+              f"{fmt(fig_roots / fs['seconds_extrapolated'])} | |"]
+    if cvj.get("chosen"):
+        n_curve = CURVE["points"] * CURVE["n_roots"]
+        cdiff, conly_s, conly_j = compare([cvs["roots"][k] for k in cvs["roots"]],
+                                          [cvj["roots"][int(k)] for k in cvs["roots"]])
+        lines += [f"| curve {CURVE['points']} α̂ × {CURVE['n_roots']} roots at 1e-8 (isolated at N = 30, "
+                  f"Richardson of N = {cvj['chosen']}, {2 * cvj['chosen']}; measured rel. error "
+                  f"{cvj['measured_rel_error']:.1e}): seconds | {fmt(cvj['seconds'])} | "
+                  f"{fmt(cvs['seconds_extrapolated'])} (extrapolated from {cvs['solved']} α̂) | "
+                  f"{fmt(cvs['seconds_extrapolated'] / cvj['seconds'])}× |",
+                  f"| curve: root solves per second | {fmt(n_curve / cvj['seconds'])} | "
+                  f"{fmt(n_curve / cvs['seconds_extrapolated'])} | |"]
+    lines += ["", f"Agreement (roots matched by value, below the highest root of both): Fig. 3, the "
+              f"{fs['solved']} points solved by both: max relative difference {diff:.1e}; "
+              f"{only_j} roots found by jaxdea only (missed by the SciPy sign-change scan: two roots "
+              f"inside one grid step), {only_s} by SciPy only."]
+    if cvj.get("chosen"):
+        lines += [f"Curve, {cvs['solved']} α̂: max relative difference {cdiff:.1e}; {conly_j} roots "
+                  f"found by jaxdea only, {conly_s} by SciPy only."]
+    lines += ["", f"Accuracy of the curve (every 10th α̂, {cvj.get('n_subset', '?')} α̂ × {CURVE['n_roots']} "
+              f"roots, against Richardson(N = {REFERENCE_LAYERS}, {2 * REFERENCE_LAYERS})):", "",
+              "| N | Ω(2N): max rel. error | Richardson (4Ω(2N) − Ω(N))/3: max rel. error |",
+              "|---:|---:|---:|"]
+    for c in cvj["checks"]:
+        lines.append(f"| {c['n_layers']} | {c['plain_rel_error']:.1e} | {c['richardson_rel_error']:.1e} |")
+    lines += ["", f"The first N whose Richardson value meets {CURVE['rtol']:g} is timed "
+              f"({cvj.get('chosen') or 'none met it'}).", ""]
+    # (d) compile, (e) memory
+    lines += ["## (d) First call in a fresh process, persistent compile cache off", "",
+              "| function | import jaxdea (s) | first call (s) | second call (s) "
+              "| compile ≈ first − second (s) |",
+              "|---|---:|---:|---:|---:|"]
+    for what in ("characteristic", "frequencies"):
+        c = res[f"compile_{what}"]
+        lines.append(f"| `{what}` | {fmt(c['import_s'])} | {fmt(c['first_call_s'])} | "
+                     f"{fmt(c['second_call_s'])} | {fmt(c['compile_s'])} |")
+    lines += ["", "## (e) Peak memory (ru_maxrss of the worker process)", "",
+              "| workload | after imports (MiB) | peak (MiB) |", "|---|---:|---:|"]
+    names = [("char_jaxdea", f"jaxdea characteristic, N = 30, batches {cfg['batches']}"),
+             ("char_naive", "naive vmap(expm), same"), ("char_scipy", "SciPy loop, same"),
+             ("layers_jaxdea", f"jaxdea characteristic, N = {layers_label(cfg)}, batch {b}"),
+             ("layers_naive", "naive, same"), ("layers_scipy", "SciPy, same"),
+             ("fig3_jaxdea", "jaxdea Fig. 3 sweep"), ("fig3_scipy", "SciPy Fig. 3 sweep"),
+             ("curve_jaxdea", "jaxdea curve (incl. the reference and the N search)"),
+             ("curve_scipy", "SciPy curve"), ("compile_frequencies", "first `frequencies` call")]
+    for key, label in names:
+        lines.append(f"| {label} | {fmt(res[key]['rss_start_mb'])} | {fmt(res[key]['rss_peak_mb'])} |")
+    lines.append("")
+    return "\n".join(lines)
+
+
+def layers_label(cfg):
+    return ", ".join(str(n) for n in cfg["layers"] if n != 30)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="smaller sizes and fewer repeats")
+    parser.add_argument("--out", default=os.path.join(HERE, "results.md"), help="markdown output")
+    parser.add_argument("--provisional", action="store_true", help="label the table provisional")
+    parser.add_argument("--reuse", action="store_true",
+                        help="reuse the workloads already saved in OUT.partial.json by an interrupted "
+                             "run with the same settings")
+    parser.add_argument("--render", metavar="JSON",
+                        help="only rewrite the markdown from the results.json of an earlier run")
+    parser.add_argument("--worker", help=argparse.SUPPRESS)
+    parser.add_argument("--params", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.worker:
+        worker(args.worker, json.loads(args.params))
+        return
+    if args.render:
+        with open(args.render) as f:
+            res = json.load(f)
+        with open(args.out, "w") as f:
+            f.write(render(res, args.provisional))
+        return
+    start = time.perf_counter()
+    res = run_all(settings(args.quick), os.path.splitext(args.out)[0] + ".partial.json", args.reuse)
+    res["total_s"] = time.perf_counter() - start
+    text = render(res, args.provisional)
+    with open(args.out, "w") as f:
+        f.write(text)
+    with open(os.path.splitext(args.out)[0] + ".json", "w") as f:
+        json.dump(res, f, indent=1)
+    partial = os.path.splitext(args.out)[0] + ".partial.json"
+    if os.path.exists(partial):
+        os.remove(partial)
+    print(text)
+    print(f"written {args.out} and its .json ({res['total_s']:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()
