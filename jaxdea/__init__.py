@@ -4,7 +4,6 @@ elastomer tubes, empty or filled with an inviscid compressible fluid (see theory
 64-bit floats are required: ``jax.config.update("jax_enable_x64", True)`` before use.
 """
 
-import math
 import os
 
 import jax
@@ -22,7 +21,7 @@ from .base_state import (
 from .counting import CountStatus, RootCount, count_roots
 from .dispersion import characteristic
 from .modes import fluid_pressure, mode_shape
-from .params import Fluid, Tube, as_float, require_x64
+from .params import Fluid, Tube, axial_wavenumber
 from .roots import (
     Roots,
     critical_voltage,
@@ -39,14 +38,6 @@ from .roots import (
 from .scalar import Status
 from .sweeps import SweepResult, sweep
 from .trace import Branch, BranchEnd, trace_branch
-
-
-def axial_wavenumber(tube: Tube, n):
-    """α̂ = α R_i for axial mode number n: α = 2nπ/l, l = λ_z L, so α̂ = 2nπη/(length_ratio·λ_z)."""
-    require_x64()
-    return (2.0 * math.pi * as_float(n) * as_float(tube.eta)
-            / (as_float(tube.length_ratio) * as_float(tube.lambda_z)))
-
 
 __all__ = [
     "Branch",

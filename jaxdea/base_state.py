@@ -80,7 +80,22 @@ def _elastic_integral(tube: Tube, r_end, panels=PANELS):
     left, right = edges[..., :-1, None], edges[..., 1:, None]
     nodes = 0.5 * (left + right) + 0.5 * (right - left) * x
     vals = _elastic_integrand(tube, nodes)
-    return jnp.sum(0.5 * (right - left) * w * vals, axis=(-2, -1))
+    terms = 0.5 * (right - left) * w * vals
+    return ordered_sum([terms[..., i, j] for i in range(panels) for j in range(GAUSS_ORDER)])
+
+
+def ordered_sum(terms):
+    """Σ terms by a fixed pairwise tree of elementwise additions.
+
+    ``jnp.sum`` lowers to an XLA reduce whose summation order depends on how XLA vectorises the
+    surrounding loops: the same point alone and inside a ``jax.vmap`` batch then differ in the last
+    bit. Elementwise additions in a fixed order give bit-identical results at any batch position
+    (and pairwise summation keeps the rounding error O(log n))."""
+    terms = list(terms)
+    while len(terms) > 1:
+        terms = [terms[k] + terms[k + 1] if k + 1 < len(terms) else terms[k]
+                 for k in range(0, len(terms), 2)]
+    return terms[0]
 
 
 def _electric_integral(tube: Tube, r_end):

@@ -25,11 +25,13 @@ from .params import (
     Tube,
     as_float,
     canonical,
+    guard,
     mode_number,
     require_x64,
+    validate_alpha,
     validate_fluid,
     validate_layers,
-    validate_positive,
+    validate_real,
     validate_tube,
 )
 from .transfer import Wall, discretize, propagate_basis, transfer_matrix
@@ -95,7 +97,7 @@ def check_inputs(tube, alpha, fluid, n_layers):
     validate_tube(tube)
     validate_fluid(fluid)
     validate_layers(n_layers)
-    validate_positive("alpha", alpha, "> 0 (the axial wavenumber α̂ = α R_i)")
+    validate_alpha(alpha)
     return resolve_order(tube, alpha, fluid)
 
 
@@ -107,20 +109,32 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
 
     Args:
         tube: the :class:`~jaxdea.Tube`.
-        omega: Ω = ω R_i / c_s.
-        alpha: α̂ = α R_i > 0.
+        omega: Ω = ω R_i / c_s, a finite real number.
+        alpha: α̂ = α R_i >= ALPHA_MIN = 1e-12 (:data:`jaxdea.params.ALPHA_MIN`).
         fluid: a :class:`~jaxdea.Fluid`, or None for the empty tube.
         n_layers: number of sublayers N (static).
+
+    Raises:
+        ValueError: for invalid concrete inputs, naming the parameter and its allowed range (past
+            Gent locking: stating the largest I_1 − 3 in the wall against G). Traced invalid inputs
+            (under ``jit``/``vmap``) give NaN instead.
 
     Example:
         >>> f = characteristic(Tube(), 1.0, 0.445)
     """
     order = check_inputs(tube, alpha, fluid, n_layers)
+    validate_real("omega", omega)
     tube, omega, alpha, fluid = canonical(tube, omega, alpha, fluid)
     return _characteristic(tube, omega, alpha, fluid, int(n_layers), order)
 
 
 @functools.partial(jax.jit, static_argnames=("n_layers", "order"))
 def _characteristic(tube, omega, alpha, fluid, n_layers, order):
+    """f(Ω); NaN where traced inputs are inadmissible (:func:`~jaxdea.params.guard`) or Ω is not
+    finite."""
+    ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
+    omega = as_float(omega)
+    ok &= jnp.isfinite(omega)
     wall = discretize(tube, n_layers)
-    return characteristic_on_wall(wall, as_float(omega), as_float(alpha), fluid, order)
+    f = characteristic_on_wall(wall, jnp.where(ok, omega, 1.0), alpha, fluid, order)
+    return jnp.where(ok, f, jnp.nan)

@@ -60,10 +60,17 @@ def _wall_fields(wall: Wall, states, omega, alpha, n_points: int, n_layers: int)
 
 
 def _displacement_scale(fields):
-    """The displacement entry (ū or w̄) of largest modulus over the sampled fields (n_points, 6)."""
+    """The displacement entry (ū or w̄) of largest modulus over the sampled fields (n_points, 6).
+
+    A direction without displacement (below 1e-13 of the largest field: e.g. the electrical
+    direction that is least singular at a non-root Ω of a tube at V̂ = 0, where the electrical
+    problem decouples) is scaled by its entry of largest modulus instead: finite, never 0/0."""
     big = jnp.argmax(jnp.max(jnp.abs(fields[:, U:W + 1]), axis=1))
     comp = jnp.argmax(jnp.abs(fields[big, U:W + 1]))
-    return fields[big, comp]
+    displacement = fields[big, comp]
+    flat = jnp.ravel(fields)
+    largest = flat[jnp.argmax(jnp.abs(flat))]
+    return jnp.where(jnp.abs(displacement) > 1e-13 * jnp.abs(largest), displacement, largest)
 
 
 def _cavity_pressure(wall: Wall, omega, alpha, fluid: Fluid, c_u, n_points: int):
@@ -122,7 +129,8 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
     pressure of :func:`fluid_pressure` with the same ``n_points`` uses the same scale.
 
     At a non-root ``omega`` the fields are those of the least-singular direction of the outer-face
-    conditions (they then violate them).
+    conditions (they then violate them); one without displacement (at V̂ = 0 the electrical
+    problem decouples) is scaled so that its entry of largest modulus is +1.
 
     Args:
         tube: the :class:`~jaxdea.Tube`.

@@ -17,6 +17,19 @@ import numpy as np
 
 COUPLINGS = ("acoustic", "paper")
 MATERIALS = ("gent", "neo_hookean")
+GENT_MIN = 1e-6
+"""Smallest Gent constant G accepted. A wall with I_1 - 3 < G that small lies within rounding of
+the undeformed state, where the Gent moduli (∝ 1/G times factors that vanish there) are dominated
+by the rounding of I_1: G = 1e-12 moves the frequencies by 2e-5 relative, G = 1e-300 gives NaN."""
+ALPHA_MIN = 1e-12
+"""Smallest axial wavenumber α̂ accepted (wavelengths up to 2π·1e12 R_i). The lowest roots scale like
+Ω ∝ α̂ and the characteristic function near them like α̂²: far below this they approach the
+absolute rounding floor of the root scan (measured: fluid-filled tubes lose their two lowest roots
+below α̂ ≈ 1e-19, empty ones drift from α̂ ≈ 1e-33 and lose the lowest root where f(0) ∝ α̂²
+underflows, α̂ < 1.5e-154). At α̂ = 1e-12 the long-wave limit Ω/α̂ is reached to rounding."""
+TINY = float(np.finfo(np.float64).tiny)
+"""Smallest normal float64. XLA on CPU flushes subnormal numbers to zero, so concrete values are
+validated as XLA will see them (a subnormal α̂ or λ is 0 inside the solvers)."""
 
 
 @jax.tree_util.register_dataclass
@@ -29,7 +42,7 @@ class Tube:
         lambda_i: inner circumferential stretch λ_i = r_i / R_i.
         lambda_z: axial stretch λ_z = l / L.
         eta: undeformed radius ratio η = R_i / R_o, in (0, 1).
-        gent: Gent constant G > 0 (``jnp.inf`` gives the neo-Hookean limit).
+        gent: Gent constant G >= GENT_MIN = 1e-6 (``jnp.inf`` gives the neo-Hookean limit).
         length_ratio: L / R_o (the paper uses 10); enters only :func:`jaxdea.axial_wavenumber`.
         material: static name of the elastic energy W(I_1) (``"gent"`` or ``"neo_hookean"``).
     """
@@ -104,7 +117,7 @@ def _concrete(x, name: str = "value"):
         raise ValueError(f"{name} must be a real number, got {x!r}")
     try:
         return np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise ValueError(f"{name} must be a real number, got {x!r}") from exc
 
 
@@ -120,9 +133,12 @@ def _check(name, x, allowed, ok, allow_inf=False, scalar=True):
     finite = np.isfinite(v) | (allow_inf & (v == np.inf))
     if not np.all(finite):
         raise ValueError(f"{name} must be finite ({allowed}), got {x!r}")
-    if not np.all(ok(v)):
-        bad = v[~ok(v)] if v.ndim else v
-        raise ValueError(f"{name} must be {allowed}, got {np.ravel(bad)[0]!r}")
+    flushed = np.where(np.abs(v) < TINY, 0.0, v)  # what XLA computes with (subnormals -> 0)
+    good = ok(flushed)
+    if not np.all(good):
+        bad = float(np.ravel(v[~good] if v.ndim else v)[0])
+        note = " (a subnormal number: XLA flushes it to 0)" if 0 < abs(bad) < TINY else ""
+        raise ValueError(f"{name} must be {allowed}, got {bad!r}{note}")
     return v
 
 
@@ -153,14 +169,16 @@ def _face_excess(lambda_i, lambda_z, eta, xp):
 
 def admissible(tube: Tube, alpha=1.0, fluid: Fluid | None = None) -> jax.Array:
     """Traced counterpart of the validation: True where every input is inside its allowed range
-    (finite; λ_i, λ_z, G, length_ratio, α̂, ρ̂_f, ĉ_f > 0; 0 < η < 1; I_1 − 3 < G in the whole wall).
+    (finite; λ_i, λ_z, length_ratio, ρ̂_f, ĉ_f > 0; α̂ >= ALPHA_MIN; G >= GENT_MIN; 0 < η < 1;
+    I_1 − 3 < G in the whole wall).
 
     Solvers use it under jit/vmap to return NaN with status INVALID instead of a plausible number.
     """
     li, lz, eta = (as_float(x) for x in (tube.lambda_i, tube.lambda_z, tube.eta))
     g, length, v, a = (as_float(x) for x in (tube.gent, tube.length_ratio, tube.voltage, alpha))
     finite = [jnp.isfinite(x) for x in (li, lz, eta, length, v, a)]
-    positive = [x > 0 for x in (li, lz, length, a)] + [(eta > 0) & (eta < 1), g > 0]
+    positive = [x > 0 for x in (li, lz, length)] + [a >= ALPHA_MIN, (eta > 0) & (eta < 1),
+                                                    g >= GENT_MIN]
     ok = functools.reduce(jnp.logical_and, finite + positive) & ~jnp.isnan(g)
     if tube.material == "gent":
         excess = _face_excess(li, lz, eta, jnp)
@@ -169,6 +187,19 @@ def admissible(tube: Tube, alpha=1.0, fluid: Fluid | None = None) -> jax.Array:
         rho, c = as_float(fluid.density_ratio), as_float(fluid.speed_ratio)
         ok &= jnp.isfinite(rho) & jnp.isfinite(c) & (rho > 0) & (c > 0)
     return ok
+
+
+def guard(tube: Tube, alpha, fluid: Fluid | None):
+    """(ok, tube, alpha, fluid): ``ok`` from :func:`admissible`; where not ok the inputs are swapped
+    for a harmless default case, so that a solver under vmap does no work on them (the caller
+    returns NaN, with status INVALID, there)."""
+    ok = admissible(tube, alpha, fluid)
+    swap = lambda x, d: jnp.where(ok, as_float(x), d)  # noqa: E731
+    tube = jax.tree_util.tree_map(swap, tube, Tube(material=tube.material))
+    if fluid is not None:
+        default = Fluid(coupling=fluid.coupling, bessel_order=fluid.bessel_order)
+        fluid = jax.tree_util.tree_map(swap, fluid, default)
+    return ok, tube, swap(alpha, 1.0), fluid
 
 
 def validate_tube(tube: Tube, scalar: bool = True) -> None:
@@ -195,8 +226,8 @@ def validate_tube(tube: Tube, scalar: bool = True) -> None:
         lambda_z=_check("lambda_z", tube.lambda_z, "> 0", lambda v: v > 0, scalar=scalar),
         eta=_check("eta", tube.eta, "in the open interval (0, 1)", lambda v: (v > 0) & (v < 1),
                    scalar=scalar),
-        gent=_check("gent", tube.gent, "> 0 (inf for neo-Hookean)", lambda v: v > 0,
-                    allow_inf=True, scalar=scalar),
+        gent=_check("gent", tube.gent, f">= {GENT_MIN!r} (inf for neo-Hookean)",
+                    lambda v: v >= GENT_MIN, allow_inf=True, scalar=scalar),
         length_ratio=_check("length_ratio", tube.length_ratio, "> 0", lambda v: v > 0,
                             scalar=scalar),
     )
@@ -238,6 +269,40 @@ def validate_fluid(fluid: Fluid | None, scalar: bool = True) -> None:
     )
     if not scalar:
         validate_broadcast("Fluid", checks)
+
+
+def validate_alpha(alpha, name: str = "alpha") -> None:
+    """Validate a concrete axial wavenumber: a finite real scalar α̂ >= ALPHA_MIN."""
+    _check(name, alpha, f">= {ALPHA_MIN!r} and finite (the axial wavenumber α̂ = α R_i)",
+           lambda v: v >= ALPHA_MIN)
+
+
+def axial_wavenumber(tube: Tube, n):
+    """α̂ = α R_i of the axial mode number n: α = 2nπ/l, l = λ_z L, so α̂ = 2nπη/(length_ratio·λ_z).
+
+    Elementwise: the tube's leaves and ``n`` may be arrays that broadcast together. Non-integer n
+    give the wavenumber of the wavelength l/n.
+
+    Args:
+        tube: the :class:`Tube` (η, λ_z and length_ratio enter).
+        n: the axial mode number, > 0.
+
+    Raises:
+        ValueError: for a concrete invalid tube (naming the parameter; past Gent locking stating
+            the largest I_1 − 3 against G) or n that is no finite real number > 0. Traced invalid
+            inputs give NaN.
+    """
+    require_x64()
+    validate_tube(tube, scalar=False)
+    count = _check("n", n, "a finite real number > 0 (the axial mode number)", lambda v: v > 0,
+                   scalar=False)
+    if count is not None:
+        values = {k: getattr(tube, k) for k in ("eta", "length_ratio", "lambda_z")}
+        validate_broadcast("axial_wavenumber argument", dict(values, n=count))
+    n = as_float(n)
+    alpha = 2.0 * math.pi * n * as_float(tube.eta) / (as_float(tube.length_ratio) * as_float(tube.lambda_z))
+    ok = admissible(tube) & jnp.isfinite(n) & (n > 0)
+    return jnp.where(ok, alpha, jnp.nan)
 
 
 def validate_positive(name: str, x, allowed: str = "> 0") -> None:

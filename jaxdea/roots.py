@@ -31,7 +31,18 @@ import numpy as np
 
 from .base_state import voltage_limit
 from .dispersion import characteristic_on_wall, check_inputs
-from .params import Fluid, Tube, admissible, as_float, canonical, validate_positive
+from .params import (
+    Fluid,
+    Tube,
+    as_float,
+    canonical,
+    guard,
+    real_value,
+    require_x64,
+    validate_broadcast,
+    validate_positive,
+    validate_range,
+)
 from .scalar import Status, run_lanes, start_lanes, value_and_slope
 from .transfer import Wall, discretize
 
@@ -220,19 +231,6 @@ def _problem(tube, alpha, fluid, n_layers, order):
     return wall, lambda om: characteristic_on_wall(wall, om, alpha, fluid, order)
 
 
-def guard(tube, alpha, fluid):
-    """(ok, tube, alpha, fluid): ``ok`` from :func:`~jaxdea.params.admissible`; where not ok the
-    inputs are swapped for a harmless default case, so that a solver under vmap does no work on
-    them (the caller returns NaN with status INVALID there)."""
-    ok = admissible(tube, alpha, fluid)
-    swap = lambda x, d: jnp.where(ok, as_float(x), d)  # noqa: E731
-    tube = jax.tree_util.tree_map(swap, tube, Tube(material=tube.material))
-    if fluid is not None:
-        default = Fluid(coupling=fluid.coupling, bessel_order=fluid.bessel_order)
-        fluid = jax.tree_util.tree_map(swap, fluid, default)
-    return ok, tube, swap(alpha, 1.0), fluid
-
-
 def invalid_where(ok, roots: Roots) -> Roots:
     """NaN with status INVALID where ``ok`` is False."""
     return Roots(jnp.where(ok, roots.omega, jnp.nan),
@@ -345,8 +343,21 @@ def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layer
     ``omega`` should be a root (e.g. from :func:`frequencies`); the formula is exact for the
     discretisation. The paper's coupling with ``bessel_order=None`` needs an integer mode α̂ and then
     differentiates at fixed order ν.
+
+    Args:
+        tube: the :class:`~jaxdea.Tube`.
+        alpha: α̂ = α R_i >= ALPHA_MIN = 1e-12.
+        omega: a root Ω > 0, finite (at Ω = 0 the even f has ∂f/∂Ω = 0).
+        fluid: a :class:`~jaxdea.Fluid`, or None for the empty tube.
+        n_layers: number of sublayers N (static; use the value the root was found with).
+
+    Raises:
+        ValueError: for invalid concrete inputs, naming the parameter. Traced invalid inputs give
+            NaN.
     """
     order = check_inputs(tube, alpha, fluid, n_layers)
+    validate_range("omega", omega, "a finite real number > 0 (a root of the characteristic function)",
+                   lambda v: v > 0)
     tube, alpha, omega, fluid = canonical(tube, alpha, omega, fluid)
     return _group_velocity(tube, alpha, omega, fluid, int(n_layers), order)
 
@@ -355,6 +366,8 @@ def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layer
 def _group_velocity(tube, alpha, omega, fluid, n_layers, order):
     ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
     omega = as_float(omega)
+    ok &= jnp.isfinite(omega) & (omega > 0)
+    omega = jnp.where(ok, omega, 1.0)
     wall = discretize(tube, n_layers)
     f = lambda om, al: characteristic_on_wall(wall, om, al, fluid, order)  # noqa: E731
     f_omega, f_alpha = jax.grad(f, argnums=(0, 1))(omega, alpha)
@@ -452,5 +465,27 @@ def critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None, n_laye
 
 
 def phase_velocity(omega, alpha):
-    """Phase velocity Ω/α̂ (in units of c_s): c_p/c_s = ω/(α c_s)."""
-    return as_float(omega) / as_float(alpha)
+    """Phase velocity Ω/α̂ (in units of c_s): c_p/c_s = ω/(α c_s).
+
+    Elementwise (arrays broadcast together). A NaN Ω (a NaN-padded root) gives NaN.
+
+    Args:
+        omega: frequencies Ω, real, NaN or finite.
+        alpha: axial wavenumbers α̂ > 0, finite.
+
+    Raises:
+        ValueError: naming the parameter for a concrete Ω that is ±inf or no real number, or a
+            concrete α̂ that is not a finite real number > 0. Traced invalid values give NaN.
+    """
+    require_x64()
+    w = real_value("omega", omega, scalar=False)
+    if w is not None and np.any(np.isinf(w)):
+        raise ValueError(f"omega must be a real number, finite or NaN (a NaN-padded root), got "
+                         f"{np.ravel(w[np.isinf(w)] if w.ndim else w)[0]!r}")
+    a = validate_range("alpha", alpha, "a finite real number > 0 (the axial wavenumber)",
+                       lambda v: v > 0, scalar=False)
+    if w is not None and a is not None:
+        validate_broadcast("phase_velocity argument", dict(omega=w, alpha=a))
+    omega, alpha = as_float(omega), as_float(alpha)
+    ok = jnp.isfinite(alpha) & (alpha > 0) & ~jnp.isinf(omega)
+    return jnp.where(ok, omega / jnp.where(ok, alpha, 1.0), jnp.nan)

@@ -49,7 +49,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .params import Fluid, Tube, require_x64, validate_broadcast, validate_fluid, validate_tube
+from .params import (
+    TINY,
+    Fluid,
+    Tube,
+    require_x64,
+    validate_broadcast,
+    validate_fluid,
+    validate_tube,
+)
 
 VACUUM_PERMITTIVITY = 8.8541878188e-12
 """ε_0 in F/m (CODATA 2022)."""
@@ -64,7 +72,7 @@ def _number(name: str, x):
         raise ValueError(f"{name} must be a real number, got {x!r}")
     try:
         return jnp.asarray(x, dtype=jnp.float64)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise ValueError(f"{name} must be a real number, got {x!r}") from exc
 
 
@@ -78,9 +86,11 @@ def _checked(name: str, x, allowed: str, ok, allow_inf: bool = False):
     finite = np.isfinite(v) | (allow_inf & (v == np.inf))
     if not np.all(finite):
         raise ValueError(f"{name} must be finite and {allowed}, got {x!r}")
-    if not np.all(ok(v)):
-        bad = v[~ok(v)] if v.ndim else v
-        raise ValueError(f"{name} must be {allowed}, got {np.ravel(bad)[0]!r}")
+    good = ok(np.where(np.abs(v) < TINY, 0.0, v))  # as XLA sees it: subnormals flushed to 0
+    if not np.all(good):
+        bad = float(np.ravel(v[~good] if v.ndim else v)[0])
+        note = " (a subnormal number: XLA flushes it to 0)" if 0 < abs(bad) < TINY else ""
+        raise ValueError(f"{name} must be {allowed}, got {bad!r}{note}")
     return out
 
 
@@ -96,10 +106,10 @@ def _positive_or_nan(name: str, x, unit: str = ""):
     if isinstance(out, jax.core.Tracer):
         return out
     v = np.asarray(out)
-    bad = ~np.isnan(v) & ~(np.isfinite(v) & (v > 0))
+    bad = ~np.isnan(v) & ~(np.isfinite(v) & (v >= TINY))
     if np.any(bad):
         raise ValueError(f"{name} must be finite and > 0{' (' + unit + ')' if unit else ''} "
-                         f"(or NaN), got {np.ravel(v[bad] if v.ndim else v)[0]!r}")
+                         f"(or NaN), got {float(np.ravel(v[bad] if v.ndim else v)[0])!r}")
     return out
 
 
@@ -115,9 +125,9 @@ def _derived(name: str, value, inputs: str, allowed: str, ok) -> None:
         return
     v = np.asarray(value)
     with np.errstate(invalid="ignore"):
-        good = ok(v)
+        good = ok(np.where(np.abs(v) < TINY, 0.0, v))  # as XLA sees it
     if not np.all(good):
-        bad = np.ravel(v[~good] if v.ndim else v)[0]
+        bad = float(np.ravel(v[~good] if v.ndim else v)[0])
         raise ValueError(f"{inputs} give {name} = {bad!r} in float64, which must be {allowed}")
 
 
