@@ -1,7 +1,7 @@
 """Frequencies: zeros in Ω of the characteristic function, with status codes and exact derivatives.
 
 Root isolation (:func:`solve_frequencies`). f(Ω) is scanned upwards from Ω = 0 in chunks of
-``CHUNK`` points: a first geometric chunk Ω = Δ·2^{-62} … Δ (roots near zero, no fixed lower limit),
+``CHUNK`` points: a first geometric chunk Ω = 0, Δ·4^{-30} … Δ (ratio 4: roots near zero, no fixed lower limit),
 then uniform steps Δ. Δ resolves the oscillation of f: Δ = min(π c_min/ĥ, π ĉ_f/r̂_i)/16, with c_min
 the slowest shear speed in the wall. Above the cutoffs of the shear waves along z (Ω_c = c_z α̂) and
 of the fluid (ĉ_f α̂), where thickness resonances crowd, the steps are uniform in the radial phase
@@ -46,7 +46,8 @@ from .params import (
 from .scalar import Status, run_lanes, start_lanes, value_and_slope
 from .transfer import Wall, discretize
 
-CHUNK = 64
+CHUNK = 32  # points per scan chunk: 64 cost twice the work where one chunk holds the roots
+GEOMETRIC_RATIO = 4.0
 STEPS_PER_OSCILLATION = 16
 
 
@@ -119,8 +120,8 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None) -> Root
     keeps the compiled program small.
     """
     fvals = jax.vmap(lambda x: value_and_slope(fun, x))
-    geometric = step * 2.0 ** jnp.arange(-(CHUNK - 2), 1, dtype=jnp.float64)
-    first = jnp.concatenate([jnp.zeros(1), geometric])  # Ω = 0, then Δ·2^-62 … Δ
+    geometric = step * GEOMETRIC_RATIO ** jnp.arange(-(CHUNK - 2), 1, dtype=jnp.float64)
+    first = jnp.concatenate([jnp.zeros(1), geometric])  # Ω = 0, then Δ·4^-30 … Δ
     max_chunks = 1_000_000
 
     def advance(carry, _):
@@ -384,10 +385,15 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
     return _with_derivatives(roots, (tube, alpha, fluid), int(n_layers), order, "voltage")
 
 
-def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=128):
-    """(V̂_cr, status) for one case (traceable); see :func:`critical_voltage`."""
+def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=128, v_end=None):
+    """(V̂_cr, status) for one case (traceable); see :func:`critical_voltage`.
+
+    ``v_end`` (optional) searches (0, v_end] instead of (0, V̂_lim] with the pull-in limit V̂_lim of
+    :func:`voltage_limit`, whose static-response solve dominates the compilation; a root above
+    ``v_end`` is reported as NO_ROOT.
+    """
     ok, tube, alpha, fluid = guard(tube.replace(voltage=0.0), as_float(alpha), fluid)
-    v_end = voltage_limit(tube)
+    v_end = voltage_limit(tube) if v_end is None else as_float(v_end)
 
     def g(v):
         return _residual(v, tube, alpha, fluid, n_layers, order, "voltage")

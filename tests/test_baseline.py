@@ -4,8 +4,8 @@ The baseline is an independent NumPy/SciPy implementation of the same method (ba
 ``scipy.integrate.quad``, ``scipy.linalg.expm`` per sublayer, a 6×6 product, QR, ``scipy.special``
 Bessel functions, ``brentq``): at the same N it must give the same characteristic function (its
 normalised form det(B Q) is unique, |f| ≤ 1, and its raw det(B A S) has the same signs) and the
-same roots. Measured: |Δf| ≈ 2e-15, roots to ≈ 1e-15 relative. It runs in a subprocess with single-threaded BLAS (threaded OpenBLAS makes 6×6
-products 100× slower on a loaded machine).
+same roots. Measured: |Δf| ≈ 2e-15, roots to ≈ 1e-15 relative. It runs in a subprocess with
+single-threaded BLAS (threaded OpenBLAS makes 6×6 products 100× slower on a loaded machine).
 """
 
 import json
