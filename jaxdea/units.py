@@ -183,7 +183,7 @@ class Scales:
             if not isinstance(value, jax.core.Tracer):
                 try:
                     shapes[field] = np.shape(np.asarray(value, dtype=np.float64))
-                except (TypeError, ValueError):
+                except (TypeError, ValueError, OverflowError):
                     pass  # not a number: refused by _values with its name
         try:
             np.broadcast_shapes(np.shape(out), *shapes.values())
