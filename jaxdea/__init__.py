@@ -19,6 +19,7 @@ from .base_state import (
     with_thickness_ratio,
 )
 from .counting import CountStatus, RootCount, count_roots
+from .design import DesignResult, DesignStatus, design_for_frequency, maximise_tunability, tunability
 from .dispersion import characteristic
 from .modes import fluid_pressure, mode_shape
 from .params import Fluid, Tube, axial_wavenumber
@@ -43,6 +44,8 @@ __all__ = [
     "Branch",
     "BranchEnd",
     "CountStatus",
+    "DesignResult",
+    "DesignStatus",
     "Estimate",
     "Fluid",
     "RootCount",
@@ -55,12 +58,14 @@ __all__ = [
     "count_roots",
     "critical_voltage",
     "critical_voltages",
+    "design_for_frequency",
     "fluid_pressure",
     "frequencies",
     "frequencies_with_error",
     "frequency",
     "group_velocity",
     "inner_stretch",
+    "maximise_tunability",
     "mode_shape",
     "phase_velocity",
     "pressure_difference",
@@ -72,6 +77,7 @@ __all__ = [
     "sweep",
     "thickness_ratio",
     "trace_branch",
+    "tunability",
     "units",
     "with_thickness_ratio",
 ]

@@ -218,6 +218,9 @@ def _implicit(x, params, n_layers, order, unknown):
 def _implicit_jvp(n_layers, order, unknown, primals, tangents):
     x, params = primals
     _, dparams = tangents
+    # the root re-attached to its parameters: differentiating this rule again (second and higher
+    # derivatives) then sees dx/dθ too, not only the explicit dependence of f on θ at a fixed x
+    x = _implicit(x, params, n_layers, order, unknown)
     return x, _root_tangent(x, params, dparams, n_layers, order, unknown)
 
 

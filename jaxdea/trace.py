@@ -85,6 +85,7 @@ from .params import (
     Tube,
     as_float,
     canonical,
+    validate_alpha,
     validate_fluid,
     validate_positive,
     validate_real,
@@ -473,7 +474,7 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
         try:
             validate_tube(end_tube)
             validate_fluid(end_fluid)
-            validate_positive("alpha", end_alpha, "> 0 (the axial wavenumber α̂ = α R_i)")
+            validate_alpha(end_alpha)
         except ValueError as exc:
             raise ValueError(f"stop = {stop!r} is outside the valid range of {along!r}: {exc}") from exc
     args = jax.lax.stop_gradient(canonical(tube, alpha, omega, fluid, stop, max_step))

@@ -23,6 +23,7 @@ def test_error_estimate_bounds_the_true_error():
     assert np.all(true < 1e-11 * exact)  # N = 30 alone: up to 1.1e-5
 
 
+@pytest.mark.slow
 def test_tolerance_is_reached_by_doubling():
     tube, alpha = jd.Tube(eta=0.85), 0.5
     exact = exact_cylinder.roots(alpha, 1.0, 1 / 0.85, 3, 22.0, 2000)

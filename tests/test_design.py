@@ -40,6 +40,7 @@ def _objective(x, setting, kind, guess):
     return float(aux["loss"]), np.asarray(grad), aux
 
 
+@pytest.mark.slow
 def test_tunability_objective_gradient_matches_central_differences():
     """Loss −|dΩ/dV̂| over (x_s, x_λ): its forward-mode gradient holds second derivatives of Ω
     (through V̂_cr(λ_i) and the root); central differences of the loss, each point solved afresh."""

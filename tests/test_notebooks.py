@@ -11,13 +11,15 @@ nbclient = pytest.importorskip("nbclient")
 
 ROOT = Path(__file__).resolve().parent.parent
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.py"))
+SLOW = {"design"}  # its optax loops compile the critical-voltage and Newton programs: minutes
 
 
 def test_every_notebook_is_listed():
     assert {p.stem for p in NOTEBOOKS} >= {"quickstart", "paper_reproduction", "sensitivity_maps", "design"}
 
 
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", [pytest.param(p, marks=pytest.mark.slow) if p.stem in SLOW else p
+                                  for p in NOTEBOOKS], ids=lambda p: p.stem)
 def test_notebook_runs(path, tmp_path, monkeypatch):
     monkeypatch.setenv("JAXDEA_NOTEBOOK_FAST", "1")
     monkeypatch.setenv("JUPYTER_PLATFORM_DIRS", "1")

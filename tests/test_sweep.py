@@ -121,6 +121,7 @@ def test_sensitivity_map_against_finite_differences():
         sweep(tube, voltage=[0.1], n=[1], progress=False).derivative("voltage")
 
 
+@pytest.mark.slow
 def test_paper_coupling_over_mode_numbers():
     """ν = n from the n axis, traced: one compilation for all modes, equal to the static-order solve."""
     fluid = jd.Fluid(coupling="paper")
