@@ -9,6 +9,7 @@ import jaxdea as jd
 from jaxdea.accuracy import frequencies_with_error
 
 
+@pytest.mark.slow
 def test_error_estimate_bounds_the_true_error():
     """Unstretched tube (exact incompressible cylinder): the estimate of every root exceeds its true
     error, by about 15 (asymptotic ratio of consecutive Richardson errors, 16 − 1), never by 1000."""
@@ -35,6 +36,7 @@ def test_tolerance_is_reached_by_doubling():
     assert np.all(few.status == jd.Status.INACCURATE) and np.all(np.isfinite(few.omega))
 
 
+@pytest.mark.slow
 def test_thick_wall_at_alpha_h_150_against_the_exact_cylinder():
     """η = 0.3 (ĥ = 2.33), α̂ĥ = 150: the raw transfer product is ~1e65 here. All 12 exact roots
     below Ω = 66 are found, including the thickness resonances crowding above the shear cutoff
@@ -50,6 +52,7 @@ def test_thick_wall_at_alpha_h_150_against_the_exact_cylinder():
     assert np.all(true <= est.error[:12]) and np.all(est.error[:12] < 1e-4 * exact[:12])
 
 
+@pytest.mark.slow
 def test_amplified_error_near_the_critical_voltage_is_visible():
     """V̂ = 0.999 V̂_cr: the lowest root carries the laminate error of V̂_cr amplified by
     ≈ 1/(2(1 − V̂/V̂_cr)) = 500; the levels see V̂_cr move, so its estimate is far larger (relative)

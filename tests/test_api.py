@@ -45,6 +45,7 @@ def test_every_derivative_of_frequency_matches_finite_differences():
         np.testing.assert_allclose(jac[name], fd, rtol=1e-6, err_msg=name)
 
 
+@pytest.mark.slow
 def test_reverse_mode_equals_forward_mode_and_group_velocity():
     """jax.grad (reverse, through custom_root's transpose) equals jacfwd; dΩ/dα̂ equals
     group_velocity; η enters directly too (empty tube)."""
@@ -58,6 +59,7 @@ def test_reverse_mode_equals_forward_mode_and_group_velocity():
     np.testing.assert_allclose(jd.group_velocity(tube, ALPHA, omega), fwd[1], rtol=1e-10)
 
 
+@pytest.mark.slow
 def test_frequencies_derivatives_of_every_root():
     """jacfwd of all roots returned by frequencies (implicit per root) equals finite differences.
     The third root (Ω ≈ 17.9) barely moves (dΩ/dV̂ ≈ −6e-5): there the FD rounding error
@@ -69,6 +71,7 @@ def test_frequencies_derivatives_of_every_root():
                                atol=1e-8)
 
 
+@pytest.mark.slow
 def test_critical_voltage_is_a_zero_frequency_and_differentiable():
     """f(Ω = 0; V̂_cr) = 0: just below V̂_cr the lowest root vanishes like sqrt(V̂_cr − V̂), and
     dV̂_cr/dλ_i (implicit) matches finite differences."""
@@ -229,6 +232,7 @@ def test_roots_exactly_on_grid_points():
     np.testing.assert_array_equal(got.status, [Status.CONVERGED, Status.CONVERGED, Status.NO_ROOT])
 
 
+@pytest.mark.slow
 def test_second_derivative_of_a_root_against_finite_differences():
     """d²Ω/dV̂² by nested grad (and jacfwd of jacrev) equals the central difference of dΩ/dV̂: the
     implicit-derivative rule re-attaches the root to its parameters, so the second-order term

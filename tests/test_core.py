@@ -151,6 +151,7 @@ def test_neo_hookean_pressure_closed_form():
         np.testing.assert_allclose(jd.pressure_difference(tube), exact, rtol=1e-13, atol=1e-15)
 
 
+@pytest.mark.slow
 def test_static_response_without_pull_in():
     """At fixed λ_z the ideal-dielectric neo-Hookean tube has no pull-in at ΔP̂ = 0: V̂²(λ_i) rises
     monotonically to ln(1/η)/E(∞) with E(∞) = 2λ_z/(η⁻² − 1) (both limits in closed form), so

@@ -99,6 +99,7 @@ def _fd_frequencies(tube, fluid, n, name, value, h):
     return (at(value + h) - at(value - h)) / (2 * h)
 
 
+@pytest.mark.slow
 def test_sensitivity_map_against_finite_differences():
     """dΩ/dθ for θ = (V̂, λ_i, λ_z, ρ̂_f, ĉ_f, h/R_i, G) at fixed n (α̂ follows λ_z, η) and the group
     velocity, against central differences and jaxdea.group_velocity."""
