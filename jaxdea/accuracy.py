@@ -63,9 +63,9 @@ def _follow(tube, alpha, fluid, guesses, n_layers, order):
     start = jnp.where(finite, guesses, 1.0)
     nan = jnp.full_like(start, jnp.nan)
     cap = jnp.full_like(start, 0.25 * scan_step(wall, fluid))
-    lanes = start_lanes(start, start, nan, nan, nan, nan, jnp.where(finite, 3, 0), max_step=cap)
+    lanes = start_lanes(start, start, nan, nan, nan, nan, jnp.where(finite, 3, 0), max_step=cap,
+                        pairs=False)
     roots, _, status = run_lanes(fun, lanes)
-    roots, status = roots[::2], status[::2]  # FREE lanes sit on the even slots
     status = jnp.where(finite, status, Status.NO_ROOT)
     return jnp.where(status == Status.CONVERGED, roots, jnp.nan), status
 

@@ -64,15 +64,21 @@ def initial_basis(wall: Wall, omega, alpha, fluid: Fluid | None = None, order: i
     return jnp.stack([col_u, col_w, col_d], axis=-1)
 
 
-def characteristic_and_scale(wall: Wall, omega, alpha, fluid=None, order=0):
-    """(f, log_scale) with det(B A S) = f · exp(log_scale); f = det(B Q_N) ∈ [−1, 1]."""
-    q, log_scale = propagate_basis(wall, omega, alpha, initial_basis(wall, omega, alpha, fluid, order))
+def characteristic_and_scale(wall: Wall, omega, alpha, fluid=None, order=0, method="taylor"):
+    """(f, log_scale) with det(B A S) = f · exp(log_scale); f = det(B Q_N) ∈ [−1, 1].
+
+    ``method``: the sublayer exponential (:func:`jaxdea.transfer.layer_exponentials`)."""
+    q, log_scale = propagate_basis(wall, omega, alpha,
+                                   initial_basis(wall, omega, alpha, fluid, order), method)
     return jnp.linalg.det(q[OUTER_ROWS, :]), log_scale
 
 
-def characteristic_on_wall(wall: Wall, omega, alpha, fluid=None, order=0):
-    """The scaled characteristic function f(Ω) on a discretised wall (see module docstring)."""
-    return characteristic_and_scale(wall, omega, alpha, fluid, order)[0]
+def characteristic_on_wall(wall: Wall, omega, alpha, fluid=None, order=0, method="taylor"):
+    """The scaled characteristic function f(Ω) on a discretised wall (see module docstring).
+
+    ``method="adaptive"`` gives the same values faster, differentiable in forward mode only (the
+    root solvers' value-and-slope evaluations)."""
+    return characteristic_and_scale(wall, omega, alpha, fluid, order, method)[0]
 
 
 def reference_determinant(wall: Wall, omega, alpha, fluid=None, order=0):

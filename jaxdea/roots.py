@@ -43,7 +43,7 @@ from .params import (
     validate_positive,
     validate_range,
 )
-from .scalar import Status, run_lanes, start_lanes, value_and_slope
+from .scalar import Status, lanes_from_slots, run_lanes, start_lanes, value_and_slope
 from .transfer import Wall, discretize
 
 CHUNK = 32  # points per scan chunk: 64 cost twice the work where one chunk holds the roots
@@ -116,13 +116,18 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None) -> Root
     ``next_point(x)`` gives the grid point after x (default x + step); runs of plain steps are
     laid out as base + k·step, so a uniform grid has no accumulated rounding.
 
-    f and f' are evaluated at exactly two places (the grid chunk and the refinement lanes), which
-    keeps the compiled program small.
+    Rounds: chunks are scanned until the candidate intervals found could hold the roots still
+    needed (a sign change one, a hidden pair two), then all of them are refined together by one
+    call of :func:`~jaxdea.scalar.run_lanes` (a lane per root, ``n_roots + 1`` lanes); only if
+    hidden pairs held no roots does a further round scan on. f and f' are evaluated at exactly two
+    places (the grid chunk and the lanes), which keeps the compiled program small.
     """
     fvals = jax.vmap(lambda x: value_and_slope(fun, x))
     geometric = step * GEOMETRIC_RATIO ** jnp.arange(-(CHUNK - 2), 1, dtype=jnp.float64)
     first = jnp.concatenate([jnp.zeros(1), geometric])  # Ω = 0, then Δ·4^-30 … Δ
     max_chunks = 1_000_000
+    n_lanes = n_roots + 1  # a hidden pair always fits next to n_roots − 1 taken lanes
+    cost_of = jnp.array([0, 1, 2])  # lanes per candidate kind (none, sign change, hidden pair)
 
     def advance(carry, _):
         x, base, count = carry
@@ -140,13 +145,12 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None) -> Root
             _, uniform = jax.lax.scan(advance, (left, left, jnp.zeros_like(left)), None, length=CHUNK)
         return jnp.minimum(jnp.where(chunk == 0, first, uniform), omega_end)
 
-    def cond(s):
-        left, _, _, keys, _, _, blocked, chunk = s
-        found = jnp.sum(jnp.isfinite(keys))
-        return (found < n_roots) & (left < omega_end) & ~blocked & (chunk < max_chunks)
+    def scanning(left, blocked, chunk):
+        return (left < omega_end) & ~blocked & (chunk < max_chunks)
 
-    def body(s):
-        left, f_left, df_left, keys, roots, status, _, chunk = s
+    def collect(c):
+        """One chunk: classify its intervals and put the candidates into free lane slots."""
+        (left, f_left, df_left, blocked, chunk), slots, used, need = c
         x = grid(left, chunk)
         f, df = fvals(x)
         start = chunk == 0  # the first interval [0, 0] is empty
@@ -158,38 +162,55 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None) -> Root
         hidden = finite & ~change & (fa * dfa < 0) & (f * df > 0) & (x > xa)
         ok = jnp.cumsum(~finite) == 0  # nothing at or after a non-finite value is trusted
         kind = jnp.where(ok & change, 1, jnp.where(ok & hidden, 2, 0))
-        (idx,) = jnp.nonzero(kind > 0, size=n_roots, fill_value=0)
-        has = jnp.arange(n_roots) < jnp.sum(kind > 0)
-        lanes = start_lanes(xa[idx], x[idx], fa[idx], f[idx], dfa[idx], df[idx],
-                            jnp.where(has, kind[idx], 0))
-        new_roots, new_keys, new_status = run_lanes(fun, lanes)
+        cost = cost_of[kind]
+        pos = used + jnp.cumsum(cost) - cost  # first lane slot of each candidate
+        take = (kind > 0) & (pos < need)
+        for side in (0, 1):
+            at = jnp.where(take & (side < cost), pos + side, n_lanes)  # n_lanes: dropped
+            values = (xa, x, fa, f, dfa, df, kind, jnp.full_like(kind, side))
+            slots = tuple(v.at[at].set(w, mode="drop") for v, w in zip(slots, values, strict=True))
+        # more candidates than needed: resume after the last one taken
+        full = jnp.any((kind > 0) & ~take)
+        end = jnp.where(full, jnp.max(jnp.where(take, jnp.arange(CHUNK), 0)), CHUNK - 1)
+        blocked = jnp.any(~finite & (jnp.arange(CHUNK) <= end))
+        used = used + jnp.sum(jnp.where(take, cost, 0))
+        return (x[end], f[end], df[end], blocked, chunk + 1), slots, used, need
+
+    def round_cond(r):
+        scan, keys = r[0], r[1]
+        return (jnp.sum(jnp.isfinite(keys)) < n_roots) & scanning(scan[0], scan[3], scan[4])
+
+    def one_round(r):
+        scan, keys, roots, status = r
+        need = n_roots - jnp.sum(jnp.isfinite(keys))
+        empty = tuple(jnp.zeros(n_lanes) for _ in range(6)) + (jnp.zeros(n_lanes, jnp.int32),) * 2
+        scan, slots, _, _ = jax.lax.while_loop(
+            lambda c: (c[2] < c[3]) & scanning(c[0][0], c[0][3], c[0][4]), collect,
+            (scan, empty, 0, need))
+        new_roots, new_keys, new_status = run_lanes(fun, lanes_from_slots(*slots))
         all_keys = jnp.concatenate([keys, new_keys])
         order = jnp.argsort(all_keys)[:n_roots]
-        keys = all_keys[order]
-        roots = jnp.concatenate([roots, new_roots])[order]
-        status = jnp.concatenate([status, new_status])[order]
-        # more candidates than slots: resume after the last processed interval
-        end = jnp.where(jnp.sum(kind > 0) > n_roots, idx[n_roots - 1], CHUNK - 1)
-        blocked = jnp.any(~finite & (jnp.arange(CHUNK) <= end))
-        return x[end], f[end], df[end], keys, roots, status, blocked, chunk + 1
+        return (scan, all_keys[order], jnp.concatenate([roots, new_roots])[order],
+                jnp.concatenate([status, new_status])[order])
 
     zero = jnp.zeros_like(step)
-    init = (zero, zero, zero, jnp.full(n_roots, jnp.inf), jnp.full(n_roots, jnp.nan),
-            jnp.full(n_roots, Status.NO_ROOT, jnp.int32),
-            ~(jnp.isfinite(step) & jnp.isfinite(omega_end) & (step > 0)), 0)
-    _, _, _, keys, roots, status, blocked, _ = jax.lax.while_loop(cond, body, init)
+    blocked = ~(jnp.isfinite(step) & jnp.isfinite(omega_end) & (step > 0))
+    init = ((zero, zero, zero, blocked, 0), jnp.full(n_roots, jnp.inf), jnp.full(n_roots, jnp.nan),
+            jnp.full(n_roots, Status.NO_ROOT, jnp.int32))
+    (_, _, _, blocked, _), keys, roots, status = jax.lax.while_loop(round_cond, one_round, init)
     missing = ~jnp.isfinite(keys)
     status = jnp.where(missing, jnp.where(blocked, Status.NOT_FINITE, Status.NO_ROOT), status)
     return Roots(jnp.where(status == Status.CONVERGED, roots, jnp.nan), status.astype(jnp.int32))
 
 
-def _residual(x, tube, alpha, fluid, n_layers, order, unknown):
+def _residual(x, tube, alpha, fluid, n_layers, order, unknown, method="taylor"):
     """The characteristic function as a function of the unknown x and of every parameter:
-    unknown = "omega": f(Ω = x); "voltage": f(Ω = 0; V̂ = x)."""
+    unknown = "omega": f(Ω = x); "voltage": f(Ω = 0; V̂ = x). ``method="adaptive"`` for the
+    solvers (same values, forward mode only), the default for derivatives of any order."""
     if unknown == "voltage":
         wall = discretize(tube.replace(voltage=x), n_layers)
-        return characteristic_on_wall(wall, jnp.zeros_like(x), alpha, fluid, order)
-    return characteristic_on_wall(discretize(tube, n_layers), x, alpha, fluid, order)
+        return characteristic_on_wall(wall, jnp.zeros_like(x), alpha, fluid, order, method)
+    return characteristic_on_wall(discretize(tube, n_layers), x, alpha, fluid, order, method)
 
 
 @functools.partial(jax.jit, static_argnames=("n_layers", "order", "unknown"))
@@ -230,9 +251,10 @@ def _with_derivatives(roots: Roots, params, n_layers, order, unknown="omega") ->
 
 
 def _problem(tube, alpha, fluid, n_layers, order):
-    """(wall, f) with f(Ω) the characteristic function of one case."""
+    """(wall, f) with f(Ω) the characteristic function of one case, for the solvers (values and
+    forward-mode slopes: the adaptive exponential)."""
     wall = discretize(tube, n_layers)
-    return wall, lambda om: characteristic_on_wall(wall, om, alpha, fluid, order)
+    return wall, lambda om: characteristic_on_wall(wall, om, alpha, fluid, order, "adaptive")
 
 
 def invalid_where(ok, roots: Roots) -> Roots:
@@ -302,7 +324,7 @@ def _newton_from_guess(fun, guess, max_step):
     one = lambda v: jnp.reshape(v, (1,))  # noqa: E731
     nan = jnp.full((1,), jnp.nan)
     lanes = start_lanes(one(guess), one(guess), nan, nan, nan, nan, jnp.array([3]),
-                        max_step=one(max_step))
+                        max_step=one(max_step), pairs=False)
     roots, _, status = run_lanes(fun, lanes)
     return roots[0], status[0]
 
@@ -399,7 +421,7 @@ def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=128, 
     v_end = voltage_limit(tube) if v_end is None else as_float(v_end)
 
     def g(v):
-        return _residual(v, tube, alpha, fluid, n_layers, order, "voltage")
+        return _residual(v, tube, alpha, fluid, n_layers, order, "voltage", "adaptive")
 
     def solve():
         grid = v_end * jnp.linspace(0.0, 1.0, n_grid + 1)

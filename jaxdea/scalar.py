@@ -51,6 +51,7 @@ def implicit_root(fun, solve, x0):
 
 # ------------------------------------------------------------------------- vectorised lane solver
 IDLE, EXTREMUM, BRACKET, FREE = 0, 1, 2, 3
+STALL_RTOL = 1e-10  # Newton steps below this (relative) that no longer halve: the rounding floor
 
 
 class Lanes(NamedTuple):
@@ -105,17 +106,29 @@ def _enter_bracket(lanes, mask, a, b, fa, fb, dfa, dfb):
     return lanes._replace(**upd)
 
 
-def start_lanes(a, b, fa, fb, dfa, dfb, kind, max_step=None):
+def start_lanes(a, b, fa, fb, dfa, dfb, kind, max_step=None, pairs=True):
     """Lanes for candidate intervals: kind 1 = sign change (one root), 2 = hidden pair (two lanes
     each, left and right of the extremum), 3 = FREE Newton from ``a`` (guess), 0 = nothing.
 
-    Inputs have shape (n,); the lanes have shape (2n,) (lane 2i and 2i+1 serve candidate i).
+    Inputs have shape (n,); the lanes have shape (2n,) (lane 2i and 2i+1 serve candidate i). With
+    ``pairs=False`` (no kind 2 among the candidates) one lane serves each candidate, shape (n,):
+    every lane is then evaluated for a purpose (idle lanes cost a full evaluation under ``vmap``).
     """
-    rep = lambda v: jnp.repeat(jnp.asarray(v, jnp.float64), 2)  # noqa: E731
+    copies = 2 if pairs else 1
+    rep = lambda v: jnp.repeat(jnp.asarray(v, jnp.float64), copies)  # noqa: E731
     a, b, fa, fb, dfa, dfb = map(rep, (a, b, fa, fb, dfa, dfb))
-    kind = jnp.repeat(kind, 2)
-    side = jnp.tile(jnp.array([0, 1]), kind.shape[0] // 2)
-    max_step = jnp.full_like(a, jnp.inf) if max_step is None else rep(max_step)
+    kind = jnp.repeat(kind, copies)
+    side = jnp.tile(jnp.arange(copies), kind.shape[0] // copies)
+    return lanes_from_slots(a, b, fa, fb, dfa, dfb, kind, side,
+                            None if max_step is None else rep(max_step))
+
+
+def lanes_from_slots(a, b, fa, fb, dfa, dfb, kind, side, max_step=None):
+    """Lanes with one slot each: the candidate's interval data, its ``kind`` (as in
+    :func:`start_lanes`) and the ``side`` of a hidden pair this lane takes (0: left, 1: right).
+    FREE and sign-change candidates run on their side-0 lane only."""
+    a, b, fa, fb, dfa, dfb = (jnp.asarray(v, jnp.float64) for v in (a, b, fa, fb, dfa, dfb))
+    max_step = jnp.full_like(a, jnp.inf) if max_step is None else max_step
     mode = jnp.where((kind == 2) | ((kind == 3) & (side == 0)), jnp.where(kind == 2, EXTREMUM, FREE),
                      IDLE)
     lanes = Lanes(
@@ -154,7 +167,9 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
         use_newton = (newton > lo_) & (newton < hi_) & jnp.isfinite(newton)
         use_newton &= jnp.abs(2.0 * s.fx) <= jnp.abs(s.step_old * s.dfx)
         x_bracket = jnp.where(use_newton, newton, 0.5 * (s.lo + s.hi))
-        x_bracket = jnp.where(s.fx == 0, s.x, x_bracket)  # started on an exact zero: done
+        # an exact zero, or a Newton step below the spacing of floats at x (x can be a bracket end,
+        # where the strict test above would fall back to bisection): x is the root
+        x_bracket = jnp.where((s.fx == 0) | (newton == s.x), s.x, x_bracket)
         secant = jnp.where(s.ghi != s.glo, s.hi - s.ghi * (s.hi - s.lo) / (s.ghi - s.glo), 0.5 * (s.lo + s.hi))
         x_extremum = jnp.where((secant > lo_) & (secant < hi_), secant, 0.5 * (s.lo + s.hi))
         fresh = jnp.isnan(s.fx)  # a FREE lane's guess has not been evaluated yet
@@ -172,7 +187,11 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
         lo = jnp.where(in_bracket & (f_new < 0), x_new, s.lo)
         hi = jnp.where(in_bracket & (f_new > 0), x_new, s.hi)
         step_new = jnp.abs(x_new - s.x)
-        converged = in_bracket & ((step_new <= tol) | (f_new == 0) | (jnp.abs(hi - lo) <= tol))
+        # Newton at the rounding floor of f: its steps stop shrinking (quadratic convergence would
+        # cut them by orders of magnitude), so x is the root to within those steps
+        stalled = (step_new <= STALL_RTOL * scale) & (step_new > 0.5 * s.step)
+        converged = in_bracket & ((step_new <= tol) | (f_new == 0) | (jnp.abs(hi - lo) <= tol)
+                                  | (use_newton & stalled))
 
         # EXTREMUM update (Illinois on f')
         in_ext = s.mode == EXTREMUM
@@ -185,7 +204,7 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
         # FREE update
         in_free = s.mode == FREE
         crossed = in_free & (jnp.sign(f_new) * jnp.sign(s.fx) < 0)
-        free_done = in_free & ~crossed & ~fresh & ((step_new <= tol) | (f_new == 0))
+        free_done = in_free & ~crossed & ~fresh & ((step_new <= tol) | (f_new == 0) | stalled)
 
         s = s._replace(
             lo=jnp.where(in_ext, e_lo, lo), hi=jnp.where(in_ext, x_new, hi),
@@ -233,7 +252,7 @@ def bracketed_root(fun, lo, hi, f_lo, f_hi):
     df_lo, df_hi = (value_and_slope(fun, x)[1] for x in (lo, hi))
     bracketed = (jnp.sign(f_lo) * jnp.sign(f_hi) <= 0) & jnp.isfinite(f_lo) & jnp.isfinite(f_hi)
     lanes = start_lanes(one(lo), one(hi), one(f_lo), one(f_hi), one(df_lo), one(df_hi),
-                        jnp.where(bracketed, 1, 0)[None])
+                        jnp.where(bracketed, 1, 0)[None], pairs=False)
     roots, _, status = run_lanes(fun, lanes)
     finite = jnp.isfinite(f_lo) & jnp.isfinite(f_hi)
     status = jnp.where(bracketed, status[0], jnp.where(finite, Status.NO_ROOT, Status.NOT_FINITE))

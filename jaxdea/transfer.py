@@ -92,15 +92,8 @@ def matmul_small(a, b):
     return sum(a[..., :, k : k + 1] * b[..., k : k + 1, :] for k in range(a.shape[-1]))
 
 
-def expm_taylor(a):
-    """exp(a) by scaling and squaring with a degree-19 Taylor polynomial (branch-free).
-
-    s = ⌈log2(‖a‖_∞/θ)⌉ with θ = 1, so the truncation error is ≤ θ²⁰/20! ≈ 4e-19 relative; the
-    polynomial costs 7 products (Paterson–Stockmeyer, blocks of 5) and all ``MAX_SQUARINGS``
-    squarings are applied under a mask so that the graph is fixed: cheap to compile, to batch and to
-    differentiate (forward and reverse). NaN if ‖a‖_∞ > θ·2^MAX_SQUARINGS (= 8192). Matches
-    ``jax.scipy.linalg.expm`` to rounding (tests).
-    """
+def _scaled_taylor(a):
+    """(P(a/2^s), s): the degree-19 Taylor polynomial of exp at a/2^s, s = ⌈log2(‖a‖_∞/θ)⌉ ≥ 0."""
     norm = jnp.max(jnp.sum(jnp.abs(a), axis=-1))
     s = jnp.clip(jnp.ceil(jnp.log2(jnp.maximum(norm, 1e-300) / TAYLOR_THETA)), 0, MAX_SQUARINGS + 1)
     x = a * jnp.exp2(-s)
@@ -116,18 +109,47 @@ def expm_taylor(a):
     e = blocks[3]
     for j in (2, 1, 0):
         e = blocks[j] + matmul_small(top, e)
+    return e, s
+
+
+def expm_taylor(a):
+    """exp(a) by scaling and squaring with a degree-19 Taylor polynomial (branch-free).
+
+    s = ⌈log2(‖a‖_∞/θ)⌉ with θ = 1, so the truncation error is ≤ θ²⁰/20! ≈ 4e-19 relative; the
+    polynomial costs 7 products (Paterson–Stockmeyer, blocks of 5) and all ``MAX_SQUARINGS``
+    squarings are applied under a mask so that the graph is fixed: cheap to compile, to batch and to
+    differentiate (forward and reverse). NaN if ‖a‖_∞ > θ·2^MAX_SQUARINGS (= 8192). Matches
+    ``jax.scipy.linalg.expm`` to rounding (tests).
+    """
+    e, s = _scaled_taylor(a)
     e = jax.lax.fori_loop(0, MAX_SQUARINGS, lambda i, e: jnp.where(i < s, matmul_small(e, e), e), e)
     return jnp.where(s <= MAX_SQUARINGS, e, jnp.nan)
 
 
-EXPONENTIALS = {"taylor": expm_taylor, "expm": jax.scipy.linalg.expm}
+def expm_taylor_adaptive(a):
+    """:func:`expm_taylor` with only the s squarings it needs (a ``while_loop``; under ``vmap`` the
+    largest s of the batch), bit-identical to it.
+
+    Typical sublayers need none (‖(ĥ/N) M‖ < 1), so this skips most of the 13 masked products.
+    Forward-mode derivatives only (``jax.jvp``; reverse mode cannot pass a ``while_loop``): the
+    root solvers' value-and-slope evaluations use it, every other path :func:`expm_taylor`.
+    """
+    e, s = _scaled_taylor(a)
+    e = jax.lax.while_loop(lambda c: c[0] < s, lambda c: (c[0] + 1.0, matmul_small(c[1], c[1])),
+                           (jnp.zeros_like(s), e))[1]
+    return jnp.where(s <= MAX_SQUARINGS, e, jnp.nan)
+
+
+EXPONENTIALS = {"taylor": expm_taylor, "adaptive": expm_taylor_adaptive,
+                "expm": jax.scipy.linalg.expm}
 
 
 def layer_exponentials(wall: Wall, omega, alpha, method: str = "taylor"):
     """T_k = exp[(ĥ/N) M(r̂_k; Ω, α̂)], shape (N, 6, 6) (paper Eq. 43).
 
     ``method="expm"`` uses ``jax.scipy.linalg.expm`` (the reference); ``"taylor"`` (default) the
-    branch-free :func:`expm_taylor`, equal to rounding and far cheaper to compile and batch.
+    branch-free :func:`expm_taylor`, equal to rounding and far cheaper to compile and batch;
+    ``"adaptive"`` :func:`expm_taylor_adaptive` (bit-identical to ``"taylor"``, forward mode only).
     """
     mats = jax.vmap(state_matrix, (0, 0, None, None))(wall.coef, wall.radii, omega, alpha)
     return jax.vmap(EXPONENTIALS[method])(wall.step * mats)

@@ -232,6 +232,43 @@ def test_roots_exactly_on_grid_points():
     np.testing.assert_array_equal(got.status, [Status.CONVERGED, Status.CONVERGED, Status.NO_ROOT])
 
 
+def _counted(f):
+    """f with a host-side count of its evaluations (one per vectorised call)."""
+    calls = []
+
+    def g(x):
+        jax.debug.callback(lambda: calls.append(1))
+        return f(x)
+
+    return g, calls
+
+
+def test_newton_stops_once_its_step_is_below_the_float_spacing():
+    """Every evaluated point becomes a bracket end, so a converged Newton step (below one ulp at x)
+    proposes x itself, a bracket end: that must end the solve, not start bisecting a bracket of
+    width ~1e-12 down to 1e-15 (which took 30–40 evaluations per root before)."""
+    from jaxdea.scalar import bracketed_root
+
+    f, calls = _counted(lambda x: x * x - 2.0)
+    x, status = jax.jit(lambda: bracketed_root(f, 1.0, 2.0, -1.0, 2.0))()
+    assert int(status) == Status.CONVERGED
+    assert abs(float(x) - np.sqrt(2.0)) <= np.spacing(np.sqrt(2.0))
+    assert len(calls) <= 2 + 7  # the two end slopes, then quadratic convergence from 1
+
+
+def test_frequency_from_a_close_guess_takes_few_newton_steps():
+    """Newton from a root of the coarser laminate (relative distance ~5e-6) converges in a few
+    evaluations on the finer one, like Newton should (it took 36 on this case before)."""
+    tube, alpha, coarse = jd.Tube(), 0.15, 1.8540488  # the N = 30 root, 5e-6 below N = 60's
+    wall = roots_module.discretize(tube, 60)
+    fun, calls = _counted(lambda om: roots_module.characteristic_on_wall(wall, om, alpha))
+    root, status = jax.jit(lambda: roots_module._newton_from_guess(fun, coarse, 4.0))()
+    assert int(status) == Status.CONVERGED
+    np.testing.assert_allclose(root, jd.frequency(tube, alpha, coarse, n_layers=60), rtol=1e-15)
+    np.testing.assert_allclose(root, 1.85405738, rtol=1e-8)
+    assert len(calls) <= 6
+
+
 @pytest.mark.slow
 def test_second_derivative_of_a_root_against_finite_differences():
     """d²Ω/dV̂² by nested grad (and jacfwd of jacrev) equals the central difference of dΩ/dV̂: the
