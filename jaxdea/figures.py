@@ -52,10 +52,12 @@ class Resolution:
     voltages: int
     max_mode: int
     fluid_points: int
+    static_points: int
 
     @classmethod
     def pick(cls, quick: bool) -> Resolution:
-        return cls(voltages=5, max_mode=4, fluid_points=3) if quick else cls(16, 15, 10)
+        return cls(voltages=5, max_mode=4, fluid_points=3, static_points=60) if quick else \
+            cls(16, 15, 10, 240)
 
 
 class Table:
@@ -120,10 +122,19 @@ class Context:
     n_layers: int
     progress: bool
     written: list
+    critical: dict = dataclasses.field(default_factory=dict)
 
     def log(self, message: str) -> None:
         if self.progress:
             print(message, flush=True)
+
+    def critical_voltages(self, **axes) -> np.ndarray:
+        """:func:`critical_voltage_grid` of the paper's tube, solved once per grid: V̂_cr does not
+        depend on the fluid, so the empty-tube and fluid-filled figures share it."""
+        key = tuple((k, tuple(np.atleast_1d(np.asarray(v, float)).tolist())) for k, v in axes.items())
+        if key not in self.critical:
+            self.critical[key] = critical_voltage_grid(PAPER_TUBE, self.n_layers, **axes)
+        return self.critical[key]
 
     def solve(self, fluid: Fluid | None, *, voltage, lambda_i, n, eta=0.85,
               density_ratio=PAPER_FLUID["density_ratio"], speed_ratio=PAPER_FLUID["speed_ratio"]):
@@ -202,7 +213,7 @@ def figure_voltage(ctx: Context, fluid_filled: bool) -> None:
     """Ω and c_p against V̂ for n = 1, 2, 3 at λ_i = 0.9, 1.1 (Fig. 2 fluid-free, Fig. 5 filled)."""
     name = "fig5_voltage_fluid" if fluid_filled else "fig2_voltage_empty"
     ctx.log(f"[{name}] Ω and phase velocity against V̂")
-    v_cr = critical_voltage_grid(PAPER_TUBE, ctx.n_layers, lambda_i=STRETCHES, n=MODES)
+    v_cr = ctx.critical_voltages(lambda_i=STRETCHES, n=MODES)
     v_top = float(np.nanmax(v_cr))
     voltages = v_top * np.linspace(0.0, 1.0, ctx.res.voltages, endpoint=False)
     cases = _fluids() if fluid_filled else {None: None}
@@ -245,7 +256,7 @@ def figure_modes(ctx: Context, fluid_filled: bool, critical_stretch: bool) -> No
         stretches, voltages = STRETCHES, (0.0, 0.2)
     ctx.log(f"[{name}] Ω and phase velocity against the axial mode number")
     modes = np.arange(1, ctx.res.max_mode + 1)
-    v_cr = critical_voltage_grid(PAPER_TUBE, ctx.n_layers, lambda_i=stretches, n=modes)
+    v_cr = ctx.critical_voltages(lambda_i=stretches, n=modes)
     cases = _fluids() if fluid_filled else {None: None}
     title = ("Fluid-filled" if fluid_filled else "Fluid-free") + " tube against the mode number"
     if critical_stretch:
@@ -292,7 +303,7 @@ def figure_fluid_parameter(ctx: Context, axis: str) -> Table:
     grid = np.geomspace(lo, hi, k) if log else np.linspace(lo, hi, k)
     voltages = (0.0, 0.15)
     geometry_axes = {"thickness_ratio": grid} if axis == "thickness_ratio" else {}
-    v_cr = critical_voltage_grid(PAPER_TUBE, ctx.n_layers, lambda_i=STRETCHES, **geometry_axes, n=MODES)
+    v_cr = ctx.critical_voltages(lambda_i=STRETCHES, **geometry_axes, n=MODES)
     if not geometry_axes:  # V̂_cr does not depend on the fluid: broadcast over the fluid axis
         v_cr = np.broadcast_to(v_cr[:, None, :], (len(STRETCHES), k, len(MODES)))
     fig, panels = _figure(title=f"Fluid-filled tube: lowest frequency of n = 1, 2, 3 against {axis}")
@@ -391,7 +402,7 @@ def figure_static_response(ctx: Context) -> None:
     ctx.log(f"[{name}] V̂ against λ_i at fixed ΔP̂, pull-in marked")
     tube = PAPER_TUBE
     lock = locking_stretch(tube)
-    stretches = np.geomspace(0.6, lock, 60 if ctx.res.voltages < 10 else 240)
+    stretches = np.geomspace(0.6, lock, ctx.res.static_points)
     fig, (ax,) = _figure(ncols=1)
     table = Table(name)
     v2 = jax.jit(jax.vmap(lambda li, dp: _squared_voltage(tube, li, dp), (0, None)))

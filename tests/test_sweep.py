@@ -135,6 +135,7 @@ def test_paper_coupling_over_mode_numbers():
         sweep(TUBE, fluid, n=[1.5], progress=False)
 
 
+@pytest.mark.slow  # 80 s: compiles the pull-in limit and two critical-voltage programs
 def test_critical_voltages_of_all_modes():
     """One batched call equals jaxdea.critical_voltage mode by mode."""
     got = jd.solve_critical_voltages(TUBE, 5)
