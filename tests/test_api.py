@@ -232,6 +232,24 @@ def test_roots_exactly_on_grid_points():
     np.testing.assert_array_equal(got.status, [Status.CONVERGED, Status.CONVERGED, Status.NO_ROOT])
 
 
+def test_scan_goes_on_after_a_hidden_candidate_without_roots():
+    """An extremum of f that stays above zero looks like a hidden pair (it takes two lanes); the
+    lanes find no root there, so the scan must go on to the real roots above it. And with one root
+    wanted, a true pair inside one interval still gives its lower member."""
+    def empty_dip(x):
+        return ((x - 1.1) ** 2 + 1e-4) * (x - 3.0) * (x - 4.0) / (1.0 + x**4)  # dip in (1, 1.25)
+
+    got = jax.jit(lambda: roots_module._scan_for_roots(empty_dip, jnp.asarray(0.25), 6.0, 2))()
+    np.testing.assert_allclose(got.omega, [3.0, 4.0], rtol=1e-14)
+
+    def pair(x):
+        return ((x - 1.1) ** 2 - 1e-6) * (x - 3.0) / (1.0 + x**4)  # 1.099, 1.101 in (1, 1.25)
+
+    got = jax.jit(lambda: roots_module._scan_for_roots(pair, jnp.asarray(0.25), 6.0, 1))()
+    np.testing.assert_allclose(got.omega, [1.099], rtol=1e-14)
+    assert int(got.status[0]) == Status.CONVERGED
+
+
 def _counted(f):
     """f with a host-side count of its evaluations (one per vectorised call)."""
     calls = []
