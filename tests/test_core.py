@@ -178,6 +178,12 @@ def test_taylor_exponential_matches_expm():
         a, b = exps(tube, omega, alpha, "taylor"), exps(tube, omega, alpha, "expm")
         scale = jnp.max(jnp.abs(b), axis=(1, 2), keepdims=True)
         np.testing.assert_allclose(a / scale, b / scale, atol=1e-12)
+        # the solvers' adaptive squaring count: the same bits, values and Ω-slopes
+        np.testing.assert_array_equal(exps(tube, omega, alpha, "adaptive"), a)
+        slope = jax.jit(lambda o, m: jax.jvp(
+            lambda x: layer_exponentials(discretize(tube, 30), x, alpha, m), (o,), (1.0,))[1],
+            static_argnums=1)
+        np.testing.assert_array_equal(slope(omega, "adaptive"), slope(omega, "taylor"))
 
 
 @pytest.mark.parametrize("fluid", [None, jd.Fluid(), jd.Fluid(coupling="paper", bessel_order=1)])
