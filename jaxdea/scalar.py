@@ -150,6 +150,10 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
     at ``max_step`` (f is even in Ω, so iterates stay positive) and hand over to BRACKET as soon as
     two iterates bracket a sign change.
 
+    Stopping: a step ≤ rtol·|x|, f = 0, a bracket narrower than rtol·|x|, a Newton step below the
+    float spacing at x (the proposal is x itself), or Newton steps ≤ ``STALL_RTOL``·|x| that no
+    longer halve (the rounding floor of f).
+
     Returns:
         (roots, keys, status): roots NaN unless converged; keys order them (inf = no root).
     """
