@@ -49,7 +49,7 @@ import numpy as np
 import optax
 
 from .dispersion import characteristic
-from .params import Fluid, Tube, as_float, canonical, require_x64
+from .params import Fluid, Tube, as_float, canonical, mode_wavenumber, require_x64
 from .roots import frequencies, solve_critical_voltage, solve_frequency
 from .scalar import Status, implicit_root
 
@@ -170,7 +170,7 @@ def _point(x, setting, kind):
             lam = setting["li_lo"] + (setting["li_hi"] - setting["li_lo"]) * _cosine(x[1])
             tube = tube.replace(lambda_i=lam)
     tube = tube.replace(voltage=jnp.zeros_like(fraction))
-    alpha = 2.0 * np.pi * n * as_float(tube.eta) / (as_float(tube.length_ratio) * as_float(tube.lambda_z))
+    alpha = mode_wavenumber(tube, n)
     return tube, alpha, fraction
 
 

@@ -11,10 +11,9 @@ Order of application (so that a combination means what it says): tube leaves, th
 (α̂ of mode n of the final tube).
 """
 
-import jax.numpy as jnp
 
 from .base_state import geometry, with_thickness_ratio_unchecked
-from .params import Fluid, Tube, as_float
+from .params import Fluid, Tube, as_float, mode_wavenumber
 
 TUBE_LEAVES = ("voltage", "lambda_i", "lambda_z", "eta", "gent", "length_ratio")
 FLUID_LEAVES = ("density_ratio", "speed_ratio")
@@ -60,8 +59,7 @@ def apply_parameters(tube: Tube, alpha, fluid: Fluid | None, values: dict):
     if "alpha" in values:
         alpha = values["alpha"]
     if "n" in values:
-        alpha = (2.0 * jnp.pi * as_float(values["n"]) * as_float(tube.eta)
-                 / (as_float(tube.length_ratio) * as_float(tube.lambda_z)))
+        alpha = mode_wavenumber(tube, values["n"])
     return tube, alpha, fluid
 
 

@@ -277,6 +277,12 @@ def validate_alpha(alpha, name: str = "alpha") -> None:
            lambda v: v >= ALPHA_MIN)
 
 
+def mode_wavenumber(tube: Tube, n):
+    """α̂ = 2nπη/(length_ratio·λ_z) without validation (traceable; :func:`axial_wavenumber` checks)."""
+    return 2.0 * math.pi * as_float(n) * as_float(tube.eta) / (as_float(tube.length_ratio)
+                                                              * as_float(tube.lambda_z))
+
+
 def axial_wavenumber(tube: Tube, n):
     """α̂ = α R_i of the axial mode number n: α = 2nπ/l, l = λ_z L, so α̂ = 2nπη/(length_ratio·λ_z).
 
@@ -300,9 +306,8 @@ def axial_wavenumber(tube: Tube, n):
         values = {k: getattr(tube, k) for k in ("eta", "length_ratio", "lambda_z")}
         validate_broadcast("axial_wavenumber argument", dict(values, n=count))
     n = as_float(n)
-    alpha = 2.0 * math.pi * n * as_float(tube.eta) / (as_float(tube.length_ratio) * as_float(tube.lambda_z))
     ok = admissible(tube) & jnp.isfinite(n) & (n > 0)
-    return jnp.where(ok, alpha, jnp.nan)
+    return jnp.where(ok, mode_wavenumber(tube, n), jnp.nan)
 
 
 def validate_positive(name: str, x, allowed: str = "> 0") -> None:

@@ -37,6 +37,7 @@ from .params import (
     as_float,
     canonical,
     guard,
+    mode_wavenumber,
     real_value,
     require_x64,
     validate_broadcast,
@@ -479,8 +480,7 @@ def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
 
 @functools.partial(jax.jit, static_argnames=("n_max", "n_layers"))
 def _critical_voltages(tube, n_max, n_layers):
-    eta, lr, lz = (as_float(x) for x in (tube.eta, tube.length_ratio, tube.lambda_z))
-    alphas = 2.0 * np.pi * jnp.arange(1, n_max + 1, dtype=jnp.float64) * eta / (lr * lz)
+    alphas = mode_wavenumber(tube, jnp.arange(1, n_max + 1, dtype=jnp.float64))
 
     def one(alpha):
         values = jax.lax.stop_gradient((tube, alpha))

@@ -51,7 +51,6 @@ def implicit_root(fun, solve, x0):
 
 # ------------------------------------------------------------------------- vectorised lane solver
 IDLE, EXTREMUM, BRACKET, FREE = 0, 1, 2, 3
-STALL_RTOL = 1e-10  # Newton steps below this (relative) that no longer halve: the rounding floor
 
 
 class Lanes(NamedTuple):
@@ -150,9 +149,8 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
     at ``max_step`` (f is even in Ω, so iterates stay positive) and hand over to BRACKET as soon as
     two iterates bracket a sign change.
 
-    Stopping: a step ≤ rtol·|x|, f = 0, a bracket narrower than rtol·|x|, a Newton step below the
-    float spacing at x (the proposal is x itself), or Newton steps ≤ ``STALL_RTOL``·|x| that no
-    longer halve (the rounding floor of f).
+    Stopping: a step ≤ rtol·|x|, f = 0, a bracket narrower than rtol·|x|, or a Newton step below
+    the float spacing at x (the proposal is x itself).
 
     Returns:
         (roots, keys, status): roots NaN unless converged; keys order them (inf = no root).
@@ -191,11 +189,7 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
         lo = jnp.where(in_bracket & (f_new < 0), x_new, s.lo)
         hi = jnp.where(in_bracket & (f_new > 0), x_new, s.hi)
         step_new = jnp.abs(x_new - s.x)
-        # Newton at the rounding floor of f: its steps stop shrinking (quadratic convergence would
-        # cut them by orders of magnitude), so x is the root to within those steps
-        stalled = (step_new <= STALL_RTOL * scale) & (step_new > 0.5 * s.step)
-        converged = in_bracket & ((step_new <= tol) | (f_new == 0) | (jnp.abs(hi - lo) <= tol)
-                                  | (use_newton & stalled))
+        converged = in_bracket & ((step_new <= tol) | (f_new == 0) | (jnp.abs(hi - lo) <= tol))
 
         # EXTREMUM update (Illinois on f')
         in_ext = s.mode == EXTREMUM
@@ -208,7 +202,7 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
         # FREE update
         in_free = s.mode == FREE
         crossed = in_free & (jnp.sign(f_new) * jnp.sign(s.fx) < 0)
-        free_done = in_free & ~crossed & ~fresh & ((step_new <= tol) | (f_new == 0) | stalled)
+        free_done = in_free & ~crossed & ~fresh & ((step_new <= tol) | (f_new == 0))
 
         s = s._replace(
             lo=jnp.where(in_ext, e_lo, lo), hi=jnp.where(in_ext, x_new, hi),
