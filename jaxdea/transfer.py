@@ -225,17 +225,26 @@ def propagate_basis(wall: Wall, omega, alpha, basis, method: str = "taylor"):
     if jnp.iscomplexobj(omega) and not jnp.iscomplexobj(basis):
         basis = basis.astype(jnp.result_type(basis.dtype, omega))
     q0, log0 = orthonormalize(basis)
-    exponential = EXPONENTIALS[method]
 
-    def step(carry, layer):
+    def advance(carry, t):
         q, log_scale = carry
-        coef, radius = layer
-        t = exponential(wall.step * state_matrix(coef, radius, omega, alpha))
         q_new, log_r = orthonormalize(matmul_small(t, q))
         return (q_new, log_scale + log_r), None
 
-    # T_k is formed inside the scan: a batch of one sublayer at a time stays in cache (1.5× faster
-    # under vmap than all N exponentials first, benchmarks/), with the same values bit for bit.
+    if method == "adaptive":
+        # the solvers' value-and-slope evaluations (small batches: lanes, 32-point grid chunks): all
+        # N exponentials at once, then the scan (fewer sequential steps; 1.2–1.5× faster there)
+        (q, log_scale), _ = jax.lax.scan(advance, (q0, log0),
+                                         layer_exponentials(wall, omega, alpha, method))
+        return q, log_scale
+    exponential = EXPONENTIALS[method]
+
+    def step(carry, layer):
+        coef, radius = layer
+        return advance(carry, exponential(wall.step * state_matrix(coef, radius, omega, alpha)))
+
+    # values: T_k formed inside the scan, so that a batch of one sublayer at a time stays in cache
+    # (1.2–1.4× faster at batch 4096 than all N exponentials first, the same values bit for bit)
     (q, log_scale), _ = jax.lax.scan(step, (q0, log0), (wall.coef, wall.radii))
     return q, log_scale
 
