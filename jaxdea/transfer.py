@@ -203,14 +203,18 @@ def orthonormalize(y):
     A complex Y (complex Ω, :mod:`jaxdea.counting`) uses the Hermitian projection u (u^H v), so
     Q^H Q = I and R_jj = ‖v_j‖ is still real and positive: det R > 0 leaves arg det unchanged.
     """
-    project = jnp.vdot if jnp.iscomplexobj(y) else jnp.dot  # real Y: the real path, unchanged
+    conj = jnp.conj if jnp.iscomplexobj(y) else (lambda u: u)  # real Y: the real path
+
+    def inner(u, v):  # u^H v as an explicit sum: elementwise, fused by XLA under vmap
+        return sum(conj(u[i]) * v[i] for i in range(u.shape[0]))
+
     cols, logdet = [], 0.0
     for j in range(y.shape[-1]):
         v = y[:, j]
         for _ in range(2):
             for u in cols:
-                v = v - project(u, v) * u
-        norm = jnp.linalg.norm(v)
+                v = v - inner(u, v) * u
+        norm = jnp.sqrt(jnp.real(inner(v, v)))
         logdet = logdet + jnp.log(norm)
         cols.append(v / norm)
     return jnp.stack(cols, axis=-1), logdet
