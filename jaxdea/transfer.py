@@ -2,7 +2,8 @@
 
 The wall is cut into N equal sublayers; sublayer k carries the base state and moduli of its
 mid-radius r̂_k, and T_k = exp[(ĥ/N) M(r̂_k)], either ``jax.scipy.linalg.expm`` (the reference) or
-the equal-to-rounding branch-free :func:`expm_taylor` (default: cheap to compile and to batch).
+the equal-to-rounding :func:`expm_taylor` (default: a degree-12 Taylor polynomial with scaling and
+squaring, cheap to compile and to batch, differentiable to any order through a fixed graph).
 Two propagators:
 
 * :func:`transfer_matrix`, the reference: the full product A = T_N ⋯ T_1 (``lax.scan``).
@@ -175,8 +176,8 @@ EXPONENTIALS = {"taylor": expm_taylor, "adaptive": expm_taylor_adaptive,
 def layer_exponentials(wall: Wall, omega, alpha, method: str = "taylor"):
     """T_k = exp[(ĥ/N) M(r̂_k; Ω, α̂)], shape (N, 6, 6) (paper Eq. 43).
 
-    ``method="expm"`` uses ``jax.scipy.linalg.expm`` (the reference); ``"taylor"`` (default) the
-    branch-free :func:`expm_taylor`, equal to rounding and far cheaper to compile and batch;
+    ``method="expm"`` uses ``jax.scipy.linalg.expm`` (the reference); ``"taylor"`` (default)
+    :func:`expm_taylor`, equal to rounding and far cheaper to compile and batch;
     ``"adaptive"`` :func:`expm_taylor_adaptive` (bit-identical to ``"taylor"``, forward mode only).
     """
     mats = jax.vmap(state_matrix, (0, 0, None, None))(wall.coef, wall.radii, omega, alpha)
@@ -251,7 +252,8 @@ def propagate_basis(wall: Wall, omega, alpha, basis, method: str = "taylor"):
         return advance(carry, exponential(wall.step * state_matrix(coef, radius, omega, alpha)))
 
     # values: T_k formed inside the scan, so that a batch of one sublayer at a time stays in cache
-    # (1.2–1.4× faster at batch 4096 than all N exponentials first, the same values bit for bit)
+    # (1.2–1.5× faster at batch 4096 than all N exponentials first; the same T_k, fused differently
+    # by XLA: f equal to rounding, ≤ 4 ulp of 1, tested)
     (q, log_scale), _ = jax.lax.scan(step, (q0, log0), (wall.coef, wall.radii))
     return q, log_scale
 
