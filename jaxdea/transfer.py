@@ -100,7 +100,7 @@ def _product(a, b):
 
     Without the barrier XLA:CPU fuses a chain of products into one loop that recomputes each
     earlier factor for every entry that reads it; the polynomial below ran 2.6× slower that way
-    (benchmarks/ notes). Products of polynomials in x commute, so they are written with the
+    (README, Performance). Products of polynomials in x commute, so they are written with the
     newest factor on the left (also measured: 2× faster than on the right under XLA:CPU).
     """
     return jax.lax.optimization_barrier(matmul_small(a, b))
@@ -138,7 +138,7 @@ def expm_taylor_adaptive(a):
     """exp(a) as :func:`expm_taylor`, bit for bit, with only the s squarings it needs (a
     ``while_loop``; under ``vmap`` the largest s of the batch).
 
-    Typical sublayers need none (‖(ĥ/N) M‖ < 1), so this skips most of the 13 squarings of the fixed
+    Typical sublayers need none (‖(ĥ/N) M‖ < 1), so this skips most of the 15 squarings of the fixed
     graph. Forward-mode derivatives only (``jax.jvp`` passes a ``while_loop``, reverse mode does
     not): the root solvers' value-and-slope evaluations use it.
     """
