@@ -11,7 +11,6 @@ Order of application (so that a combination means what it says): tube leaves, th
 (α̂ of mode n of the final tube).
 """
 
-
 from .base_state import geometry, with_thickness_ratio_unchecked
 from .params import Fluid, Tube, as_float, mode_wavenumber
 

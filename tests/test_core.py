@@ -214,11 +214,11 @@ def test_taylor_exponential_derivatives_and_layouts():
     tube = jd.Tube(voltage=0.1, lambda_i=0.9, **PAPER)
     wall = discretize(tube, 30)
     omegas = jnp.linspace(0.05, 20.0, 64)
+    ref = jax.jit(jax.vmap(lambda o: characteristic_and_scale(wall, o, 0.7, None, 0,
+                                                              "taylor")))(omegas)
     for method in ("adaptive", "expm"):
         got = jax.jit(jax.vmap(lambda o, m=method: characteristic_and_scale(wall, o, 0.7, None, 0,
                                                                              m)))(omegas)
-        ref = jax.jit(jax.vmap(lambda o: characteristic_and_scale(wall, o, 0.7, None, 0,
-                                                                  "taylor")))(omegas)
         # the same exponentials bit for bit, fused differently by XLA: equal to rounding; the plain
         # expm per sublayer is the reference every faster path must match to 1e-12
         tol = 4 * np.finfo(float).eps if method == "adaptive" else 1e-12
