@@ -1,14 +1,15 @@
 """Frequencies: zeros in Ω of the characteristic function, with status codes and exact derivatives.
 
 Root isolation (:func:`solve_frequencies`). f(Ω) is scanned upwards from Ω = 0 in chunks of
-``CHUNK`` points: a first geometric chunk Ω = 0, Δ·4^{-30} … Δ (ratio 4: roots near zero, no fixed lower limit),
-then uniform steps Δ. Δ resolves the oscillation of f: Δ = min(π c_min/ĥ, π ĉ_f/r̂_i)/16, with c_min
+``CHUNK`` points: Ω = 0 and geometric points Δ·64^{-9} … Δ (roots near zero, no fixed lower
+limit), then uniform steps Δ. Δ resolves the oscillation of f: Δ = min(π c_min/ĥ, π ĉ_f/r̂_i)/16, with c_min
 the slowest shear speed in the wall. Above the cutoffs of the shear waves along z (Ω_c = c_z α̂) and
 of the fluid (ĉ_f α̂), where thickness resonances crowd, the steps are uniform in the radial phase
 instead (:func:`cutoff_steps`). Each grid interval [a, b] is classified with the values *and*
 autodiff slopes at its ends (Hermite data):
 
-* a sign change of f → one root, refined by safeguarded Newton;
+* a sign change of f → one root, refined by safeguarded Newton from the root of the Hermite cubic
+  of the interval (:func:`jaxdea.scalar.hermite_root`);
 * no sign change, but f heads towards zero at a and away from it at b (f_a f'_a < 0 < f_b f'_b) →
   f has an extremum inside, located by Illinois regula falsi on f'; if f changes
   sign there, the interval holds a pair of roots, each refined in its half.
@@ -48,7 +49,8 @@ from .scalar import Status, lanes_from_slots, run_lanes, start_lanes, value_and_
 from .transfer import Wall, discretize
 
 CHUNK = 32  # points per scan chunk: 64 cost twice the work where one chunk holds the roots
-GEOMETRIC_RATIO = 4.0
+GEOMETRIC_RATIO = 64.0
+GEOMETRIC_POINTS = 10  # Δ·64^-9 ≈ 6e-17 Δ … Δ: roots near Ω = 0 (no fixed lower limit)
 STEPS_PER_OSCILLATION = 16
 
 
@@ -124,8 +126,9 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None) -> Root
     places (the grid chunk and the lanes), which keeps the compiled program small.
     """
     fvals = jax.vmap(lambda x: value_and_slope(fun, x))
-    geometric = step * GEOMETRIC_RATIO ** jnp.arange(-(CHUNK - 2), 1, dtype=jnp.float64)
-    first = jnp.concatenate([jnp.zeros(1), geometric])  # Ω = 0, then Δ·4^-30 … Δ
+    # the first chunk: Ω = 0, then Δ·64^-9 … Δ, then the grid on from Δ
+    head = jnp.concatenate([jnp.zeros(1), step * GEOMETRIC_RATIO ** jnp.arange(
+        -(GEOMETRIC_POINTS - 1), 1, dtype=jnp.float64)])
     max_chunks = 1_000_000
     n_lanes = n_roots + 1  # a hidden pair always fits next to n_roots − 1 taken lanes
     cost_of = jnp.array([0, 1, 2])  # lanes per candidate kind (none, sign change, hidden pair)
@@ -140,10 +143,13 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None) -> Root
         return carry, new
 
     def grid(left, chunk):
+        start = jnp.where(chunk == 0, step, left)
         if next_point is None:
-            uniform = left + step * jnp.arange(1, CHUNK + 1, dtype=jnp.float64)
+            uniform = start + step * jnp.arange(1, CHUNK + 1, dtype=jnp.float64)
         else:
-            _, uniform = jax.lax.scan(advance, (left, left, jnp.zeros_like(left)), None, length=CHUNK)
+            _, uniform = jax.lax.scan(advance, (start, start, jnp.zeros_like(start)), None,
+                                      length=CHUNK)
+        first = jnp.concatenate([head, uniform[: CHUNK - head.size]])
         return jnp.minimum(jnp.where(chunk == 0, first, uniform), omega_end)
 
     def scanning(left, blocked, chunk):

@@ -274,6 +274,28 @@ def test_newton_stops_once_its_step_is_below_the_float_spacing():
     assert len(calls) <= 2 + 7  # the two end slopes, then quadratic convergence from 1
 
 
+def test_bracket_starts_at_the_hermite_cubic_root():
+    """The first point of a bracket is the root of the cubic Hermite interpolant of the end data: for
+    a cubic f that is its root, so one evaluation ends the solve (its Newton step is below the
+    tolerance); for sin on a 1/16-period bracket the cubic's root is within O(h⁴) of π."""
+    from jaxdea.scalar import bracketed_root, hermite_root
+
+    cubic = lambda x: (x - 1.3) * (x * x + 0.5)  # noqa: E731  one real root, 1.3
+    f, calls = _counted(cubic)
+    x, status = jax.jit(lambda: bracketed_root(f, 0.25, 2.0, cubic(0.25), cubic(2.0)))()
+    assert int(status) == Status.CONVERGED
+    assert abs(float(x) - 1.3) <= 2 * np.spacing(1.3)
+    assert len(calls) == 2 + 1  # the two end slopes, then the cubic's root
+    h = 2 * np.pi / 16
+    for a in (np.pi - 0.9 * h, np.pi - 0.5 * h, np.pi - 0.1 * h):
+        b = a + h
+        guess = float(hermite_root(a, b, np.sin(a), np.sin(b), np.cos(a), np.cos(b)))
+        assert a < guess < b and abs(guess - np.pi) < h**4 / 100  # h⁴/384 max|f⁽⁴⁾| / |f'|
+    # no sign change, or a root at an end: no guess
+    assert np.isnan(hermite_root(0.0, 1.0, 1.0, 2.0, 0.0, 0.0))
+    assert np.isnan(hermite_root(0.0, 1.0, 0.0, 2.0, 1.0, 1.0))
+
+
 def test_frequency_from_a_close_guess_takes_few_newton_steps():
     """Newton from a root of the coarser laminate (relative distance ~5e-6) converges in a few
     evaluations on the finer one, like Newton should (it took 36 on this case before)."""
