@@ -256,10 +256,10 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
             step=jnp.where(in_bracket | in_free, step_new, s.step),
         )
         x_prev, f_prev, df_prev = s.x, s.fx, s.dfx
-        polished = jnp.clip(x_new + jnp.where(tiny_step & (f_new != 0), last_step, 0.0),
-                            jnp.minimum(lo, hi), jnp.maximum(lo, hi))
-        x_done = jnp.where(converged, polished, jnp.where(free_done & tiny_step, x_new + last_step,
-                                                           x_new))
+        # converged lanes take the last Newton step (kept inside the bracket for BRACKET lanes)
+        x_last = x_new + jnp.where(tiny_step & (f_new != 0), last_step, 0.0)
+        x_done = jnp.where(converged, jnp.clip(x_last, jnp.minimum(lo, hi), jnp.maximum(lo, hi)),
+                           jnp.where(free_done, x_last, x_new))
         s = s._replace(x=x_done, fx=f_new, dfx=df_new, guess=jnp.full_like(s.guess, jnp.nan))
 
         # extremum found: split into the two root brackets if f changes sign there
