@@ -185,8 +185,10 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
 
     Stopping: a step ≤ rtol·|x| (not counting the step to the Hermite guess), f = 0, a bracket
     narrower than rtol·|x|, a Newton step below the float spacing at x (the proposal is x itself),
-    or a next Newton step |f/f'| ≤ rtol·|x|, which is then applied without another evaluation
-    (quadratic convergence: the root to rounding).
+    or a next Newton step |f/f'| that is ≤ rtol·|x| or leaves an error K·(f/f')² ≤ rtol·|x| (K =
+    |f''/(2f')| from the slopes of the last two iterates, trusted where f' changed by ≤ 20 % between
+    them); that step is then applied without another evaluation (quadratic convergence: the root to
+    rounding, one evaluation fewer than waiting for a step below rtol·|x|).
 
     Returns:
         (roots, keys, status): roots NaN unless converged; keys order them (inf = no root).
@@ -230,7 +232,12 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
         # the Newton step from x_new is below tol: x_new − f/f' is the root to rounding (quadratic
         # convergence), no further evaluation needed
         last_step = -f_new / df_new
-        tiny_step = finite & (jnp.abs(last_step) <= tol)
+        # or the step is small enough that the error left after it, ≈ K·step² with the curvature
+        # K = |f''/(2f')| estimated from the slopes at x and x_new, is below tol (quadratic
+        # convergence; trusted only where K·|x_new − x| ≤ 0.1, i.e. f' varies by ≤ 20 % between)
+        curvature = jnp.abs(df_new - s.dfx) / (2.0 * jnp.abs(df_new) * step_new)
+        settled = (curvature * last_step**2 <= tol) & (curvature * step_new <= 0.1)
+        tiny_step = finite & ((jnp.abs(last_step) <= tol) | (settled & (step_new > 0)))
         # (a step from the guess is no Newton step: its length says nothing of convergence)
         converged = in_bracket & (((step_new <= tol) & ~from_guess) | (f_new == 0)
                                   | (jnp.abs(hi - lo) <= tol) | tiny_step)
