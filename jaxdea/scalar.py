@@ -237,10 +237,10 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
         # convergence; trusted only where K·|x_new − x| ≤ 0.1, i.e. f' varies by ≤ 20 % between)
         curvature = jnp.abs(df_new - s.dfx) / (2.0 * jnp.abs(df_new) * step_new)
         settled = (curvature * last_step**2 <= tol) & (curvature * step_new <= 0.1)
-        tiny_step = finite & ((jnp.abs(last_step) <= tol) | (settled & (step_new > 0)))
+        finish_step = finite & ((jnp.abs(last_step) <= tol) | (settled & (step_new > 0)))
         # (a step from the guess is no Newton step: its length says nothing of convergence)
         converged = in_bracket & (((step_new <= tol) & ~from_guess) | (f_new == 0)
-                                  | (jnp.abs(hi - lo) <= tol) | tiny_step)
+                                  | (jnp.abs(hi - lo) <= tol) | finish_step)
 
         # EXTREMUM update (Illinois on f')
         in_ext = s.mode == EXTREMUM
@@ -253,7 +253,7 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
         # FREE update
         in_free = s.mode == FREE
         crossed = in_free & (jnp.sign(f_new) * jnp.sign(s.fx) < 0)
-        free_done = in_free & ~crossed & (((step_new <= tol) & ~fresh) | (f_new == 0) | tiny_step)
+        free_done = in_free & ~crossed & (((step_new <= tol) & ~fresh) | (f_new == 0) | finish_step)
 
         s = s._replace(
             lo=jnp.where(in_ext, e_lo, lo), hi=jnp.where(in_ext, x_new, hi),
@@ -264,7 +264,7 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
         )
         x_prev, f_prev, df_prev = s.x, s.fx, s.dfx
         # converged lanes take the last Newton step (kept inside the bracket for BRACKET lanes)
-        x_last = x_new + jnp.where(tiny_step & (f_new != 0), last_step, 0.0)
+        x_last = x_new + jnp.where(finish_step & (f_new != 0), last_step, 0.0)
         x_done = jnp.where(converged, jnp.clip(x_last, jnp.minimum(lo, hi), jnp.maximum(lo, hi)),
                            jnp.where(free_done, x_last, x_new))
         s = s._replace(x=x_done, fx=f_new, dfx=df_new, guess=jnp.full_like(s.guess, jnp.nan))
