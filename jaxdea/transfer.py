@@ -138,9 +138,11 @@ def expm_taylor_adaptive(a):
     """exp(a) as :func:`expm_taylor`, bit for bit, with only the s squarings it needs (a
     ``while_loop``; under ``vmap`` the largest s of the batch).
 
-    Typical sublayers need none (‖(ĥ/N) M‖ < 1), so this skips most of the 15 squarings of the fixed
-    graph. Forward-mode derivatives only (``jax.jvp`` passes a ``while_loop``, reverse mode does
-    not): the root solvers' value-and-slope evaluations use it.
+    Sublayers need few: over the benchmark batch (N = 30, Ω ≤ 20) ‖(ĥ/N) M‖∞ has median 0.55 and
+    at most 2.2, so 39 % need none and none more than 3 (up to 7 on a coarse N = 10 laminate at
+    Ω ≤ 36); this skips at least 12 of the 15 squarings of the fixed graph. Forward-mode derivatives
+    only (``jax.jvp`` passes a ``while_loop``, reverse mode does not): the root solvers'
+    value-and-slope evaluations use it.
     """
     e, s = _scaled_taylor(a)
     e = jax.lax.while_loop(lambda c: c[0] < s, lambda c: (c[0] + 1.0, _product(c[1], c[1])),
@@ -153,9 +155,9 @@ def expm_taylor(a):
     """exp(a) by scaling and squaring with a degree-12 Taylor polynomial.
 
     s = ⌈log2(‖a‖_∞/θ)⌉ with θ = 0.336, so the truncation error is ≤ θ¹³/13! = 2⁻⁵³ relative; the
-    polynomial costs 5 products (Paterson–Stockmeyer, blocks of 4), then s squarings (none for the
-    typical sublayer, ‖a‖ ≈ 0.01–0.3). NaN if ‖a‖_∞ > θ·2^MAX_SQUARINGS (≈ 1.1e4). Matches
-    ``jax.scipy.linalg.expm`` to rounding (tests).
+    polynomial costs 5 products (Paterson–Stockmeyer, blocks of 4), then s squarings (0–3 at
+    N = 30 and Ω ≤ 20, see :func:`expm_taylor_adaptive`). NaN if ‖a‖_∞ > θ·2^MAX_SQUARINGS
+    (≈ 1.1e4). Matches ``jax.scipy.linalg.expm`` to rounding (tests).
 
     A value is computed with only the squarings it needs (:func:`expm_taylor_adaptive`); every
     derivative, forward or reverse and of any order, is that of the fixed graph with all
