@@ -160,7 +160,11 @@ def base_state(tube: Tube, r) -> BaseState:
 
 
 def thickness_ratio(tube: Tube):
-    """h/R_i = r̂_o − r̂_i, the deformed wall thickness over the undeformed inner radius."""
+    """h/R_i = r̂_o − r̂_i, the deformed wall thickness over the undeformed inner radius.
+
+    Elementwise over a tube with array fields: the result has the broadcast shape of all its float
+    fields (admissibility, NaN where a traced tube is not admissible, involves every one of them).
+    """
     require_x64()
     validate_tube(tube, scalar=False)  # elementwise: arrays that broadcast are fine
     # NaN where a traced tube is not admissible (concrete ones were validated above)

@@ -292,10 +292,13 @@ def _moderate_fluid(values, fluid_values):
 
 def fuzz(strategy, small=SMALL, small_strategy=None):
     """A check as two tests: ``small`` examples of ``small_strategy`` (default: ``strategy``) in the
-    default run (none with ``small=0``), LARGE of ``strategy`` under ``-m slow``."""
+    default run (none with ``small=0``), LARGE of ``strategy`` under ``-m slow``.
+
+    The default run is derandomised (the same examples every run, so CI passes or fails on the code,
+    not on the draw); the slow tier explores with fresh random examples each time."""
     def make(check):
         @pytest.mark.skipif(small == 0, reason="run with -m slow (compilation dominates)")
-        @settings(max_examples=max(small, 1), **PROFILE)
+        @settings(max_examples=max(small, 1), derandomize=True, **PROFILE)
         @given(strategy if small_strategy is None else small_strategy)
         def test_small(case):
             check(case)
@@ -684,7 +687,9 @@ def static(case):
         li, lz, eta = (_real_array(values[k]) for k in ("lambda_i", "lambda_z", "eta"))
         want = np.sqrt(li**2 + (eta**-2 - 1) / lz)
         np.testing.assert_allclose(np.asarray(out) + li, want, rtol=1e-14)
-        assert np.shape(out) == np.shape(want)
+        # one entry per tube: admissibility (NaN where a traced tube is not) involves every field
+        shapes = (np.shape(_real_array(values[k])) for k in TUBE_FIELDS if k in values)
+        assert np.shape(out) == np.broadcast_shapes(np.shape(want), *shapes)
         return
     x = float(out)
     if not math.isfinite(x):  # V̂² overflows only for absurd voltages
@@ -692,6 +697,13 @@ def static(case):
 
 
 test_static, test_static_slow = fuzz(static_cases())(static)
+
+
+def test_static_regression_thickness_ratio_of_a_gent_array():
+    """Found by the fuzz: a Tube whose only array field is ``gent`` gives one thickness per tube
+    (shape (2,)), equal to the closed form of its scalar λ_i, λ_z, η."""
+    static(({"voltage": 0.0, "lambda_i": 1.0, "lambda_z": 1.0, "eta": 0.75, "gent": [0.9, 1.1],
+             "length_ratio": 2.0, "h_over_Ri": 1.0, "delta_p": 0.0}, "thickness_ratio"))
 
 
 # ------------------------------------------------------- axial wavenumber, phase velocity
