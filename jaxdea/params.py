@@ -286,8 +286,9 @@ def mode_wavenumber(tube: Tube, n):
 def axial_wavenumber(tube: Tube, n):
     """α̂ = α R_i of the axial mode number n: α = 2nπ/l, l = λ_z L, so α̂ = 2nπη/(length_ratio·λ_z).
 
-    Elementwise: the tube's leaves and ``n`` may be arrays that broadcast together. Non-integer n
-    give the wavenumber of the wavelength l/n.
+    Elementwise: the tube's leaves and ``n`` may be arrays that broadcast together (all of them:
+    the admissibility of the tube involves every leaf). Non-integer n give the wavenumber of the
+    wavelength l/n.
 
     Args:
         tube: the :class:`Tube` (η, λ_z and length_ratio enter).
@@ -302,8 +303,9 @@ def axial_wavenumber(tube: Tube, n):
     validate_tube(tube, scalar=False)
     count = _check("n", n, "a finite real number > 0 (the axial mode number)", lambda v: v > 0,
                    scalar=False)
-    if count is not None:
-        values = {k: getattr(tube, k) for k in ("eta", "length_ratio", "lambda_z")}
+    if count is not None:  # every float field: admissibility (NaN where traced) involves them all
+        values = {f.name: getattr(tube, f.name) for f in dataclasses.fields(tube)
+                  if f.name != "material"}
         validate_broadcast("axial_wavenumber argument", dict(values, n=count))
     n = as_float(n)
     ok = admissible(tube) & jnp.isfinite(n) & (n > 0)

@@ -735,6 +735,14 @@ def axial_wavenumber(case):
 test_axial_wavenumber, test_axial_wavenumber_slow = fuzz(wavenumber_cases())(axial_wavenumber)
 
 
+@pytest.mark.parametrize("gent", [[0.9, 1.1], np.ones((2, 2))])
+def test_axial_wavenumber_regression_fields_that_do_not_broadcast(gent):
+    """Found by the slow fuzz: a Tube field that does not broadcast with n (here ``gent``, which
+    enters only the admissibility) gives a ValueError naming both, not JAX's shape error."""
+    axial_wavenumber(({"voltage": 0.0, "lambda_i": 1.0, "lambda_z": 1.0, "eta": 0.75, "gent": gent,
+                       "length_ratio": 2.0}, np.array([1, 1, 1])))
+
+
 @st.composite
 def phase_velocity_cases(draw):
     omega = draw(st.one_of(st.floats(allow_nan=True, allow_infinity=True),
@@ -845,8 +853,16 @@ def trace_cases(draw, bad=bad_value, min_faults=0):
 
 def trace(case):
     values, statics = case
-    problems, ambiguous = _problems(values)
+    # max_step=None is trace_branch's default (the automatic step), not a bad value
+    problems, ambiguous = _problems({k: v for k, v in values.items()
+                                     if not (k == "max_step" and v is None)})
+    omega = _scalar(values["omega"])
+    if omega is not None and not POSITIVE(np.asarray(omega)):  # a root Ω_0 > 0 (docstring)
+        problems.add("omega")
     problems |= set(statics)
+    stop = _scalar(values["stop"])
+    if statics.get("along", "alpha") == "alpha" and stop is not None and not RULES["alpha"](stop):
+        problems.add("stop")  # along α̂, stop is an α̂ too (>= ALPHA_MIN)
     if "alpha" in problems or "stop" in problems:  # messages: "stop ... outside the range of 'alpha'"
         problems |= {"alpha", "stop"}
     kwargs = dict(along="alpha", max_points=16) | statics
@@ -877,6 +893,13 @@ def trace(case):
 
 test_trace, test_trace_slow = fuzz(
     trace_cases(), small_strategy=trace_cases(ALWAYS_BAD, 1))(trace)
+
+
+def test_trace_regression_start_at_zero_frequency():
+    """Found by the slow fuzz: Ω_0 = 0 is outside trace_branch's range (a root Ω_0 > 0), so the
+    ValueError may name omega (here next to a bad max_step)."""
+    trace(({"voltage": 0.0, "lambda_i": 1.0, "lambda_z": 1.0, "eta": 0.75, "gent": 30.0,
+            "length_ratio": 2.0, "alpha": 1.0, "omega": 0.0, "stop": 1.0, "max_step": 0.0}, {}))
 
 
 # -------------------------------------------------------------------------------------- units
