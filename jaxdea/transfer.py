@@ -140,7 +140,7 @@ def expm_taylor_adaptive(a):
 
     Sublayers need few: over the benchmark batch (N = 30, Ω ≤ 20) ‖(ĥ/N) M‖∞ has median 0.55 and
     at most 2.2, so 39 % need none and none more than 3 (up to 7 on a coarse N = 10 laminate at
-    Ω ≤ 36), so a batch skips 12 (8) of the 15 squarings of the fixed graph. Forward-mode
+    Ω ≤ 36): a batch skips 12 (8) of the 15 squarings of the fixed graph. Forward-mode
     derivatives only (``jax.jvp`` passes a ``while_loop``, reverse mode does not): the root
     solvers' value-and-slope evaluations use it.
     """
