@@ -202,7 +202,7 @@ def guard(tube: Tube, alpha, fluid: Fluid | None):
     return ok, tube, swap(alpha, 1.0), fluid
 
 
-def validate_tube(tube: Tube, scalar: bool = True) -> None:
+def validate_tube(tube: Tube, scalar: bool = True) -> dict:
     """Validate the concrete leaves of a tube (traced leaves are skipped).
 
     Args:
@@ -210,6 +210,9 @@ def validate_tube(tube: Tube, scalar: bool = True) -> None:
         scalar: every concrete leaf must be a scalar (the solvers: batches go through
             ``jax.vmap``); with False, arrays that broadcast together are allowed (elementwise
             helpers such as :func:`jaxdea.thickness_ratio`).
+
+    Returns:
+        ``{field: concrete float64 value, or None where traced}`` for every float field.
 
     Raises:
         ValueError: naming the parameter and its allowed range; past Gent locking, stating the
@@ -235,7 +238,7 @@ def validate_tube(tube: Tube, scalar: bool = True) -> None:
         validate_broadcast("Tube", checks)
     li, lz, eta, g = (checks[k] for k in ("lambda_i", "lambda_z", "eta", "gent"))
     if li is None or lz is None or eta is None or g is None or tube.material != "gent":
-        return
+        return checks
     excess = gent_limit_excess(li, lz, eta)
     if np.any(excess >= g):
         worst = float(np.max(excess))
@@ -243,6 +246,7 @@ def validate_tube(tube: Tube, scalar: bool = True) -> None:
             "lambda_i, lambda_z, eta beyond the Gent locking limit: I_1 - 3 must stay below "
             f"gent = {float(np.min(g))!r} everywhere in the wall, but reaches {worst:.6g}"
         )
+    return checks
 
 
 def validate_fluid(fluid: Fluid | None, scalar: bool = True) -> None:
@@ -300,12 +304,11 @@ def axial_wavenumber(tube: Tube, n):
             inputs give NaN.
     """
     require_x64()
-    validate_tube(tube, scalar=False)
+    fields = validate_tube(tube, scalar=False)
     count = _check("n", n, "a finite real number > 0 (the axial mode number)", lambda v: v > 0,
                    scalar=False)
     if count is not None:  # every float field: admissibility (NaN where traced) involves them all
-        values = {f.name: getattr(tube, f.name) for f in dataclasses.fields(tube)
-                  if f.name != "material"}
+        values = {k: getattr(tube, k) for k in fields}  # traced leaves too (their shapes count)
         validate_broadcast("axial_wavenumber argument", dict(values, n=count))
     n = as_float(n)
     ok = admissible(tube) & jnp.isfinite(n) & (n > 0)
