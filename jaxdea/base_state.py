@@ -21,6 +21,7 @@ from .params import (
     validate_range,
     validate_real,
     validate_tube,
+    wall_constant,
 )
 from .scalar import Status, bracketed_root, implicit_root
 
@@ -29,7 +30,7 @@ PANELS = 16
 
 
 class Geometry(NamedTuple):
-    """Deformed radii r̂_i, r̂_o and thickness ĥ = r̂_o − r̂_i."""
+    """Deformed radii r̂_i, r̂_o and thickness ĥ = r̂_o − r̂_i (computed without cancellation)."""
 
     r_inner: jax.Array
     r_outer: jax.Array
@@ -37,10 +38,19 @@ class Geometry(NamedTuple):
 
 
 def geometry(tube: Tube) -> Geometry:
-    """r̂_i = λ_i, r̂_o = sqrt(λ_i² + (η⁻² − 1)/λ_z) (paper Eqs. 5–6)."""
+    """r̂_i = λ_i, r̂_o = sqrt(λ_i² + c), c = (η⁻² − 1)/λ_z (paper Eqs. 5–6).
+
+    ĥ = c/(r̂_o + r̂_i), equal to r̂_o − r̂_i but free of its cancellation: a wall much thinner than
+    its radius keeps every digit (r̂_o − r̂_i loses log10(r̂_o/ĥ) of them)."""
     li, lz, eta = as_float(tube.lambda_i), as_float(tube.lambda_z), as_float(tube.eta)
-    ro = jnp.sqrt(li**2 + (eta**-2 - 1.0) / lz)
-    return Geometry(li, ro, ro - li)
+    c = wall_constant(lz, eta)
+    ro = jnp.sqrt(li**2 + c)
+    return Geometry(li, ro, c / (ro + li))
+
+
+def log_radius_ratio(geo: Geometry):
+    """ln(r̂_o/r̂_i) = log1p(ĥ/r̂_i), accurate for thin walls too."""
+    return jnp.log1p(geo.thickness / geo.r_inner)
 
 
 def stretch(tube: Tube, r):
@@ -51,8 +61,7 @@ def stretch(tube: Tube, r):
 
 def electric_displacement(tube: Tube, r):
     """D̂_r(r̂) = V̂ / (r̂ ln(r̂_o/r̂_i)) (paper Eq. 8, ideal dielectric)."""
-    geo = geometry(tube)
-    return as_float(tube.voltage) / (r * jnp.log(geo.r_outer / geo.r_inner))
+    return as_float(tube.voltage) / (r * log_radius_ratio(geometry(tube)))
 
 
 def _w1(tube: Tube, r):
@@ -71,16 +80,14 @@ def _elastic_integrand(tube: Tube, r):
     return 2.0 * w1 * (lam**2 - lam_r**2) / r
 
 
-def _elastic_integral(tube: Tube, r_end, panels=PANELS):
-    """∫_{r̂_i}^{r_end} 2W_1(λ² − λ_r²) dr̂/r̂ by composite Gauss–Legendre (vectorised in r_end)."""
+def _elastic_integral(tube: Tube, width, panels=PANELS):
+    """∫_{r̂_i}^{r̂_i + width} 2W_1(λ² − λ_r²) dr̂/r̂ by composite Gauss–Legendre (vectorised in
+    width; the whole wall is width = ĥ)."""
     x, w = np.polynomial.legendre.leggauss(GAUSS_ORDER)
     r0 = geometry(tube).r_inner
-    r_end = jnp.asarray(r_end)
-    edges = r0 + (r_end[..., None] - r0) * jnp.linspace(0.0, 1.0, panels + 1)
-    left, right = edges[..., :-1, None], edges[..., 1:, None]
-    nodes = 0.5 * (left + right) + 0.5 * (right - left) * x
-    vals = _elastic_integrand(tube, nodes)
-    terms = 0.5 * (right - left) * w * vals
+    half = 0.5 * jnp.asarray(width)[..., None, None] / panels  # half a panel, not a difference
+    nodes = r0 + half * (2.0 * np.arange(panels)[:, None] + 1.0 + x)  # panel k: centre (2k + 1)·half
+    terms = half * w * _elastic_integrand(tube, nodes)
     return ordered_sum([terms[..., i, j] for i in range(panels) for j in range(GAUSS_ORDER)])
 
 
@@ -98,18 +105,20 @@ def ordered_sum(terms):
     return terms[0]
 
 
-def _electric_integral(tube: Tube, r_end):
-    """∫_{r̂_i}^{r_end} D̂_r² dr̂/r̂ = V̂²(1/r̂_i² − 1/r_end²)/(2 ln²(r̂_o/r̂_i)) (closed form)."""
+def _electric_integral(tube: Tube, width):
+    """∫_{r̂_i}^{r̂} D̂_r² dr̂/r̂ = V̂²(1/r̂_i² − 1/r̂²)/(2 ln²(r̂_o/r̂_i)), r̂ = r̂_i + width (closed form;
+    1/r̂_i² − 1/r̂² = width (2r̂_i + width)/(r̂_i r̂)², free of cancellation in thin walls)."""
     geo = geometry(tube)
-    log_ratio = jnp.log(geo.r_outer / geo.r_inner)
+    r_end = geo.r_inner + width
     v = as_float(tube.voltage)
-    return v**2 * (geo.r_inner**-2 - r_end**-2) / (2.0 * log_ratio**2)
+    return (v**2 * width * (2.0 * geo.r_inner + width) / (geo.r_inner * r_end) ** 2
+            / (2.0 * log_radius_ratio(geo) ** 2))
 
 
 def pressure_difference_unchecked(tube: Tube):
     """ΔP̂ = P̂_i − P̂_o holding the tube at (λ_i, λ_z, V̂) (theory.md Eq. 1.1; corrected paper Eq. 15)."""
-    ro = geometry(tube).r_outer
-    return _elastic_integral(tube, ro) - _electric_integral(tube, ro)
+    geo = geometry(tube)
+    return _elastic_integral(tube, geo.thickness) - _electric_integral(tube, geo.thickness)
 
 
 def pressure_difference(tube: Tube):
@@ -151,11 +160,9 @@ def base_state(tube: Tube, r) -> BaseState:
     w1, lam = _w1(tube, r)
     lam_r = 1.0 / (lam * as_float(tube.lambda_z))
     d = electric_displacement(tube, r)
-    tau_rr = (
-        -pressure_difference_unchecked(tube)
-        + _elastic_integral(tube, r)
-        - _electric_integral(tube, r)
-    )
+    width = r - as_float(tube.lambda_i)
+    tau_rr = -pressure_difference_unchecked(tube) + _elastic_integral(tube, width) - _electric_integral(
+        tube, width)
     return BaseState(r, lam, d, 2.0 * w1 * lam_r**2 + d**2 - tau_rr)
 
 
@@ -203,17 +210,18 @@ def with_thickness_ratio_unchecked(tube: Tube, h_over_Ri) -> Tube:
 
 
 def _voltage_factor(tube: Tube):
-    """E(λ_i) with ΔP̂ = ΔP̂_el(λ_i) − V̂² E(λ_i): E = (1 − r̂_i²/r̂_o²)/(2 r̂_i² ln²(r̂_o/r̂_i))."""
+    """E(λ_i) with ΔP̂ = ΔP̂_el(λ_i) − V̂² E(λ_i): E = (1 − r̂_i²/r̂_o²)/(2 r̂_i² ln²(r̂_o/r̂_i)),
+    1 − r̂_i²/r̂_o² = ĥ(r̂_o + r̂_i)/r̂_o²."""
     geo = geometry(tube)
-    return (1.0 - (geo.r_inner / geo.r_outer) ** 2) / (
-        2.0 * geo.r_inner**2 * jnp.log(geo.r_outer / geo.r_inner) ** 2
+    return (geo.thickness * (geo.r_outer + geo.r_inner) / geo.r_outer**2) / (
+        2.0 * geo.r_inner**2 * log_radius_ratio(geo) ** 2
     )
 
 
 def _squared_voltage(tube: Tube, lambda_i, delta_p):
     """V̂²(λ_i) = (ΔP̂_el(λ_i) − ΔP̂)/E(λ_i) on the static response at fixed ΔP̂."""
     t = tube.replace(lambda_i=lambda_i, voltage=0.0)
-    return (_elastic_integral(t, geometry(t).r_outer) - delta_p) / _voltage_factor(t)
+    return (_elastic_integral(t, geometry(t).thickness) - delta_p) / _voltage_factor(t)
 
 
 def _stretch_grid(lower=0.05, upper=20.0, points=400):
@@ -254,7 +262,7 @@ def _inner_stretch_unchecked(tube: Tube, delta_p):
 
     def residual(li):
         t = tube.replace(lambda_i=li, voltage=0.0)
-        return v2 * _voltage_factor(t) + delta_p - _elastic_integral(t, geometry(t).r_outer)
+        return v2 * _voltage_factor(t) + delta_p - _elastic_integral(t, geometry(t).thickness)
 
     def solve():
         grid = _stretch_grid()

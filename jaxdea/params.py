@@ -27,6 +27,12 @@ ALPHA_MIN = 1e-12
 absolute rounding floor of the root scan (measured: fluid-filled tubes lose their two lowest roots
 below α̂ ≈ 1e-19, empty ones drift from α̂ ≈ 1e-33 and lose the lowest root where f(0) ∝ α̂²
 underflows, α̂ < 1.5e-154). At α̂ = 1e-12 the long-wave limit Ω/α̂ is reached to rounding."""
+WIDTH_MAX = 1e6
+"""Largest λ_z r̂_o² accepted (r̂_o = r_o/R_i, the deformed outer radius). The stretch through the
+wall depends on u = λ_z (r̂² − r̂_i²), whose rounding in float64 is about 2.2e-16·λ_z r̂_o² absolute:
+the results carry that relative error (measured on the lowest roots at α̂ = 0.445, η = 0.85: 2e-11
+at λ_i = 1e3, 9e-8 at 1e4, and ΔP̂ off by 0.4 % at 1e7). Below the limit it stays under 2.2e-10
+(λ_i up to 1000 at λ_z = 1; finite Gent constants bound λ_i far more tightly)."""
 TINY = float(np.finfo(np.float64).tiny)
 """Smallest normal float64. XLA on CPU flushes subnormal numbers to zero, so concrete values are
 validated as XLA will see them (a subnormal α̂ or λ is 0 inside the solvers)."""
@@ -160,9 +166,21 @@ def gent_limit_excess(lambda_i, lambda_z, eta):
     return np.where(np.isfinite(excess), excess, np.inf)
 
 
+def wall_constant(lambda_z, eta):
+    """(η⁻² − 1)/λ_z = r̂_o² − r̂_i² (incompressibility, paper Eq. 6), as (1 − η)(1 + η)/(η² λ_z):
+    accurate to a few ulp for every η in (0, 1), thin walls (η → 1) included."""
+    return (1.0 - eta) * (1.0 + eta) / (eta**2 * lambda_z)
+
+
+def width_excess(lambda_i, lambda_z, eta):
+    """λ_z r̂_o² / WIDTH_MAX (numpy; > 1, inf or NaN: too wide to resolve in float64)."""
+    with np.errstate(all="ignore"):
+        return lambda_z * (lambda_i**2 + wall_constant(lambda_z, eta)) / WIDTH_MAX
+
+
 def _face_excess(lambda_i, lambda_z, eta, xp):
     """max(I_1 − 3) over the two faces (``xp``: numpy or jax.numpy)."""
-    ro = xp.sqrt(lambda_i**2 + (1.0 / eta**2 - 1.0) / lambda_z)
+    ro = xp.sqrt(lambda_i**2 + wall_constant(lambda_z, eta))
     i1 = [lam**2 + 1.0 / (lam * lambda_z) ** 2 + lambda_z**2 for lam in (lambda_i, ro * eta)]
     return xp.maximum(i1[0], i1[1]) - 3.0
 
@@ -170,7 +188,7 @@ def _face_excess(lambda_i, lambda_z, eta, xp):
 def admissible(tube: Tube, alpha=1.0, fluid: Fluid | None = None) -> jax.Array:
     """Traced counterpart of the validation: True where every input is inside its allowed range
     (finite; λ_i, λ_z, length_ratio, ρ̂_f, ĉ_f > 0; α̂ >= ALPHA_MIN; G >= GENT_MIN; 0 < η < 1;
-    I_1 − 3 < G in the whole wall).
+    λ_z r̂_o² <= WIDTH_MAX; I_1 − 3 < G in the whole wall).
 
     Solvers use it under jit/vmap to return NaN with status INVALID instead of a plausible number.
     """
@@ -180,6 +198,7 @@ def admissible(tube: Tube, alpha=1.0, fluid: Fluid | None = None) -> jax.Array:
     positive = [x > 0 for x in (li, lz, length)] + [a >= ALPHA_MIN, (eta > 0) & (eta < 1),
                                                     g >= GENT_MIN]
     ok = functools.reduce(jnp.logical_and, finite + positive) & ~jnp.isnan(g)
+    ok &= lz * (li**2 + wall_constant(lz, eta)) <= WIDTH_MAX  # NaN and inf fail
     if tube.material == "gent":
         excess = _face_excess(li, lz, eta, jnp)
         ok &= jnp.isfinite(excess) & (excess < g)
@@ -215,8 +234,9 @@ def validate_tube(tube: Tube, scalar: bool = True) -> dict:
         ``{field: concrete float64 value, or None where traced}`` for every float field.
 
     Raises:
-        ValueError: naming the parameter and its allowed range; past Gent locking, stating the
-            largest I_1 - 3 in the wall against G.
+        ValueError: naming the parameter and its allowed range; for a tube too wide to resolve
+            (λ_z r̂_o² > WIDTH_MAX), stating λ_z r̂_o²; past Gent locking, stating the largest
+            I_1 - 3 in the wall against G.
     """
     if not isinstance(tube, Tube):
         raise ValueError(f"tube must be a jaxdea.Tube, got {type(tube).__name__}")
@@ -237,7 +257,17 @@ def validate_tube(tube: Tube, scalar: bool = True) -> dict:
     if not scalar:
         validate_broadcast("Tube", checks)
     li, lz, eta, g = (checks[k] for k in ("lambda_i", "lambda_z", "eta", "gent"))
-    if li is None or lz is None or eta is None or g is None or tube.material != "gent":
+    if li is None or lz is None or eta is None:
+        return checks
+    width = width_excess(li, lz, eta)
+    if not np.all(width <= 1.0):
+        worst = float(np.max(np.where(np.isnan(width), np.inf, width))) * WIDTH_MAX
+        raise ValueError(
+            "lambda_i, lambda_z, eta give a deformed tube too wide to resolve in float64: "
+            f"lambda_z * r_o**2 must be <= {WIDTH_MAX:g} (r_o the deformed outer radius over R_i; "
+            f"rounding perturbs the stretches by about 2.2e-16 * lambda_z * r_o**2), got {worst:.6e}"
+        )
+    if g is None or tube.material != "gent":
         return checks
     excess = gent_limit_excess(li, lz, eta)
     if np.any(excess >= g):

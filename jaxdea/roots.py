@@ -65,7 +65,7 @@ def scan_step(wall: Wall, fluid: Fluid | None):
     """Scan step Δ = min(π c_min/ĥ, π ĉ_f/r̂_i)/16 (a sixteenth of the shortest oscillation of f)."""
     coef = wall.coef
     c_min = jnp.sqrt(jnp.min(jnp.minimum(coef.c - coef.eps * coef.d**2, coef.a)))
-    thickness = wall.r_outer - wall.r_inner
+    thickness = wall.thickness
     scale = np.pi * c_min / thickness
     if fluid is not None:
         scale = jnp.minimum(scale, np.pi * as_float(fluid.speed_ratio) / wall.r_inner)
@@ -88,7 +88,7 @@ def cutoff_steps(wall: Wall, alpha, fluid: Fluid | None, step):
     c_z = jnp.sqrt(coef.a)
     cut = [jnp.min(c_z) * alpha, jnp.max(c_z) * alpha]
     speed = [c_min, c_min]
-    length = [wall.r_outer - wall.r_inner] * 2
+    length = [wall.thickness] * 2
     if fluid is not None:
         c_f = as_float(fluid.speed_ratio)
         cut.append(c_f * alpha)
@@ -109,7 +109,7 @@ def default_omega_max(wall: Wall, alpha, n_roots: int):
     """Search limit when none is given: (n_roots + 1) thickness-mode spacings plus 3α̂ c_max."""
     coef = wall.coef
     c_max = jnp.sqrt(jnp.max(jnp.maximum(jnp.maximum(coef.a, coef.b), coef.c)))
-    thickness = wall.r_outer - wall.r_inner
+    thickness = wall.thickness
     return (n_roots + 1) * np.pi * c_max / thickness + 3.0 * alpha * c_max
 
 

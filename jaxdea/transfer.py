@@ -44,6 +44,11 @@ class Wall(NamedTuple):
     coef: Coefficients
     pressure_inner: jax.Array
 
+    @property
+    def thickness(self):
+        """ĥ = N·(ĥ/N), the deformed wall thickness (free of the cancellation of r̂_o − r̂_i)."""
+        return self.step * self.radii.shape[-1]
+
 
 def layer_coefficients(tube: Tube, r, moduli: str = "closed") -> Coefficients:
     """State-matrix coefficients at radii r̂ (theory.md §3).

@@ -141,6 +141,23 @@ def test_bad_tube_raises_value_error_naming_the_parameter(changes, name):
         jd.frequencies(TUBE.replace(**changes), ALPHA)
 
 
+def test_too_wide_tube_is_rejected_and_invalid_under_jit():
+    """λ_z r̂_o² > WIDTH_MAX = 1e6: the rounding of the radii (≈ 2.2e-16 λ_z r̂_o² in the stretches)
+    would be silent (ΔP̂ of a neo-Hookean tube at λ_i = 1e7 was 0.4 % off, at λ_i = 6.7e7 NaN), so
+    concrete inputs raise a ValueError naming the three fields and stating λ_z r̂_o², and traced
+    ones give NaN with status INVALID; λ_i = 999 (λ_z r̂_o² ≈ 9.98e5) is still accepted."""
+    neo = TUBE.replace(lambda_z=1.0, gent=jnp.inf)
+    message = r"lambda_i, lambda_z, eta .* lambda_z \* r_o\*\*2 must be <= 1e\+06 .* got 1\.000000e\+08"
+    for call in (jd.pressure_difference, jd.thickness_ratio, lambda t: jd.frequencies(t, ALPHA)):
+        with pytest.raises(ValueError, match=message):
+            call(neo.replace(lambda_i=1e4))
+    assert np.isfinite(jd.thickness_ratio(neo.replace(lambda_i=999.0)))
+    solve = jax.jit(lambda li: jd.solve_frequencies(neo.replace(lambda_i=li), ALPHA))
+    out = solve(1e4)
+    assert np.all(np.isnan(out.omega)) and np.all(out.status == Status.INVALID)
+    assert np.all(solve(1.0).status == Status.CONVERGED)
+
+
 def test_locking_message_states_the_limit():
     with pytest.raises(ValueError, match=r"I_1 - 3 must stay below gent = 2\.0.*reaches"):
         jd.characteristic(TUBE.replace(lambda_i=3.0, gent=2.0), 1.0, ALPHA)

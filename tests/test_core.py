@@ -101,6 +101,37 @@ def test_pressure_difference_independent_quadrature():
     np.testing.assert_allclose(jd.pressure_difference(tube), ref, rtol=1e-12)
 
 
+def _thin_wall_decimal(li, lz, eta, v):
+    """(ĥ, ΔP̂) of a neo-Hookean wall in 50-digit decimal arithmetic: ĥ = r̂_o − r̂_i, ΔP̂ with the
+    elastic integral by the midpoint rule (relative error O(ĥ²)) and the electric part in closed
+    form, V̂²(1/r̂_i² − 1/r̂_o²)/(2 ln²(r̂_o/r̂_i)) (theory.md Eq. 1.1)."""
+    from decimal import Decimal, localcontext
+
+    with localcontext() as ctx:
+        ctx.prec = 50
+        li, lz, eta, v = (Decimal(float(x)) for x in (li, lz, eta, v))
+        ro = (li * li + (1 / (eta * eta) - 1) / lz).sqrt()
+        h = ro - li
+        rm = li + h / 2
+        lam2 = rm * rm / (lz * (rm * rm - li * li) + 1)
+        elastic = h * (lam2 - 1 / (lam2 * lz * lz)) / rm
+        electric = v * v * (1 / (li * li) - 1 / (ro * ro)) / (2 * (ro / li).ln() ** 2)
+        return float(h), float(elastic - electric)
+
+
+@pytest.mark.parametrize("eta", [1 - 1e-6, 1 - 1e-9, 1 - 1e-12])
+def test_thin_wall_geometry_and_pressure_keep_every_digit(eta):
+    """η → 1: ĥ and ΔP̂ against 50-digit decimal arithmetic. ĥ = c/(r̂_o + r̂_i) and
+    ln(r̂_o/r̂_i) = log1p(ĥ/r̂_i) keep every digit, where r̂_o − r̂_i and ln(r̂_o/r̂_i) lose
+    log10(r̂_o/ĥ) of them (1e-7 relative at ĥ ≈ 1e-9: the ΔP̂ of this test was off by 2e-7)."""
+    li, lz = 1.2, 1.1
+    for v in (0.0, 1e-3):
+        tube = jd.Tube(voltage=v, lambda_i=li, lambda_z=lz, eta=eta, gent=jnp.inf)
+        h, dp = _thin_wall_decimal(li, lz, eta, v)
+        np.testing.assert_allclose(jd.thickness_ratio(tube), h, rtol=1e-14)
+        np.testing.assert_allclose(jd.pressure_difference(tube), dp, rtol=1e-11)
+
+
 def test_homogeneous_state_has_no_pressure():
     """λ_i = λ_z^{-1/2}, V = 0: uniaxial tension, ΔP̂ = 0 (theory.md §1, erratum E16)."""
     tube = jd.Tube(lambda_i=1.2**-0.5, **PAPER)

@@ -118,6 +118,33 @@ RULES = dict(  # elementwise on float64 arrays
     max_step=POSITIVE, n=POSITIVE,
 )
 LOCKING = "Gent locking"
+WIDE = "too wide"
+WIDTH_MAX = 1e6  # README: λ_z r̂_o² <= 1e6 (rounding of the radii in the stretches <= 2.2e-10)
+
+
+def width(lambda_i, lambda_z, eta):
+    """λ_z r̂_o² = λ_z λ_i² + η⁻² − 1 (inf on overflow), computed independently (elementwise)."""
+    lambda_i, lambda_z, eta = (np.asarray(x, dtype=np.float64) for x in (lambda_i, lambda_z, eta))
+    with np.errstate(all="ignore"):
+        w = lambda_z * lambda_i**2 + 1.0 / eta**2 - 1.0
+    return np.where(np.isfinite(w), w, np.inf)
+
+
+def wall_problems(lambda_i, lambda_z, eta, gent, material="gent"):
+    """(problems, ambiguous) of a wall with valid fields: ``WIDE`` past λ_z r̂_o² = WIDTH_MAX,
+    ``LOCKING`` past Gent locking; ambiguous within rounding of either limit."""
+    bad, ambiguous = set(), False
+    w = width(lambda_i, lambda_z, eta)
+    if np.any(w > WIDTH_MAX):
+        bad.add(WIDE)
+    ambiguous |= bool(np.any(np.abs(w - WIDTH_MAX) <= 1e-9 * WIDTH_MAX))
+    if material == "gent":
+        excess = np.vectorize(gent_excess)(lambda_i, lambda_z, eta)
+        if np.any(excess >= gent):
+            bad.add(LOCKING)
+        with np.errstate(invalid="ignore"):
+            ambiguous |= bool(np.any(np.isfinite(gent) & (np.abs(excess - gent) <= 1e-9 * gent)))
+    return bad, ambiguous
 
 
 def gent_excess(lambda_i, lambda_z, eta):
@@ -133,9 +160,10 @@ def gent_excess(lambda_i, lambda_z, eta):
 
 
 def _problems(values, material="gent", arrays=False):
-    """(set of invalid parameter names, ambiguous): ``LOCKING`` when the wall is past Gent locking;
-    ambiguous when I_1 - 3 is within rounding of G (either outcome is fine). With ``arrays`` real
-    arrays that broadcast together are valid (elementwise helpers); otherwise only scalars."""
+    """(set of invalid parameter names, ambiguous): ``WIDE`` and ``LOCKING`` as in
+    :func:`wall_problems`; ambiguous within rounding of either limit (either outcome is fine).
+    With ``arrays`` real arrays that broadcast together are valid (elementwise helpers); otherwise
+    only scalars."""
     bad, x = set(), {}
     for name, value in values.items():
         x[name] = _real_array(value) if arrays else _scalar(value)
@@ -148,21 +176,18 @@ def _problems(values, material="gent", arrays=False):
             np.broadcast_shapes(*(v.shape for v in shaped.values()))
         except ValueError:
             bad |= set(shaped)
-    keys = ("lambda_i", "lambda_z", "eta", "gent")
-    if material == "gent" and all(k in x for k in keys) and not bad & set(keys):
-        excess = gent_excess(*(x[k] for k in keys[:3]))
-        g = x["gent"]
-        if np.any(excess >= g):
-            bad.add(LOCKING)
-        with np.errstate(invalid="ignore"):
-            if np.any(np.isfinite(g) & (np.abs(excess - g) <= 1e-9 * g)):
-                return bad, True
+    keys = ("lambda_i", "lambda_z", "eta")  # gent: the Tube's default where not drawn
+    if all(k in x for k in keys) and not bad & {*keys, "gent"}:
+        gent = x.get("gent", jd.Tube().gent)
+        wall, ambiguous = wall_problems(*(x[k] for k in keys), gent, material=material)
+        return bad | wall, ambiguous
     return bad, False
 
 
 def _names(message, names):
     for name in names:
-        pattern = r"I_1 - 3 must stay below gent = " if name == LOCKING else rf"\b{name}\b"
+        pattern = {LOCKING: r"I_1 - 3 must stay below gent = ",
+                   WIDE: r"lambda_z \* r_o\*\*2 must be <= "}.get(name, rf"\b{name}\b")
         if re.search(pattern, message):
             return True
     return False
@@ -497,6 +522,14 @@ def group_velocity(values):
 test_group_velocity, test_group_velocity_slow = fuzz(group_velocity_cases())(group_velocity)
 
 
+def test_group_velocity_regression_wall_of_radius_ratio_2e17():
+    """Found by the slow tier: η = 4.6e-18 (R_o/R_i = 2e17, short of Gent locking: λ at the outer
+    face stays near 1) gave NaN, its sublayers far past ‖hM‖∞ = 1.1e4; it is rejected as too wide
+    (λ_z r̂_o² ≈ 4.7e34)."""
+    group_velocity({"voltage": 0.1, "lambda_i": 0.9, "lambda_z": 1.2, "eta": 4.6e-18, "gent": 97.2,
+                    "length_ratio": 10.0, "alpha": 1.0, "omega": 1.0})
+
+
 # ----------------------------------------------------------------------- critical voltage(s)
 @st.composite
 def critical_voltage_cases(draw, bad=bad_value, min_faults=0):
@@ -704,6 +737,14 @@ def test_static_regression_thickness_ratio_of_a_gent_array():
     (shape (2,)), equal to the closed form of its scalar λ_i, λ_z, η."""
     static(({"voltage": 0.0, "lambda_i": 1.0, "lambda_z": 1.0, "eta": 0.75, "gent": [0.9, 1.1],
              "length_ratio": 2.0, "h_over_Ri": 1.0, "delta_p": 0.0}, "thickness_ratio"))
+
+
+def test_static_regression_too_wide_tube():
+    """Found by the slow tier: λ_i = 6.7e7 (G = 1e300, short of locking) gave ΔP̂ = NaN, r̂_o − r̂_i
+    rounding to 0. Such a tube (λ_z r̂_o² = 5.4e15) is rejected as too wide to resolve in float64."""
+    for which in ("pressure_difference", "thickness_ratio"):
+        static(({"voltage": 0.1, "lambda_i": 6.7e7, "lambda_z": 1.2, "eta": 0.85, "gent": 1e300,
+                 "length_ratio": 10.0, "h_over_Ri": 0.5, "delta_p": 0.0}, which))
 
 
 # ------------------------------------------------------- axial wavenumber, phase velocity
@@ -1040,12 +1081,11 @@ def si_constructors(case):
                     problems |= {"length", "outer_radius"}
                 if np.any(VHB.inner_radius / arrays["outer_radius"] < TINY):
                     problems |= {"inner_radius", "outer_radius"}
-            if not problems and material == "gent":
+            if not problems:
                 eta = VHB.inner_radius / arrays["outer_radius"]
-                excess = np.vectorize(gent_excess)(arrays["lambda_i"], arrays["lambda_z"], eta)
-                if np.any(excess >= arrays["gent"]):
-                    problems.add(LOCKING)
-                ambiguous = bool(np.any(np.abs(excess - arrays["gent"]) <= 1e-9 * arrays["gent"]))
+                wall, ambiguous = wall_problems(arrays["lambda_i"], arrays["lambda_z"], eta,
+                                                arrays["gent"], material)
+                problems |= wall
     out = run(lambda: units.tube_from_si(VHB, **values, material=material), problems, ambiguous)
     if out is not REJECTED:
         assert not problems or ambiguous, f"invalid input {problems} accepted: {out}"
