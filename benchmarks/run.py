@@ -299,7 +299,7 @@ def work_compile(what: str, cache: bool = False) -> dict:
 
     ``cache=False``: without the persistent compile cache (JAXDEA_CACHE_DIR=off set by the parent).
     ``cache=True``: with the cache directory the parent chose and filled by an earlier run of the
-    same call, so the first call only traces, lowers and loads the compiled program."""
+    same call, so the first call loads the compiled program (:mod:`jaxdea.compiled`)."""
     start = time.perf_counter()
     jax, jaxdea = _jax()
     imported = time.perf_counter() - start
@@ -544,9 +544,10 @@ def render(res: dict, provisional: bool) -> str:
         lines.append(f"| `{what}` | {fmt(c['import_s'])} | {fmt(c['first_call_s'])} | "
                      f"{fmt(c['second_call_s'])} | {fmt(c['compile_s'])} |")
     if all(f"cache_warm_{what}" in res for what in ("characteristic", "frequencies")):
-        lines += ["", "With the persistent cache on (a fresh directory; one process fills it, the "
-                  "next one is timed): the first call then traces and lowers the program and loads "
-                  "it from disk instead of compiling it.", "",
+        lines += ["", "With the persistent caches on (a fresh directory; one process fills it, the "
+                  "next one is timed): the first call then loads the compiled program from disk "
+                  "without tracing it (`jaxdea.compiled`: keyed by the function, its static "
+                  "arguments and argument types, the jaxdea sources and the versions).", "",
                   "| function | first call, filling the cache (s) | first call, warm cache (s) "
                   "| second call (s) |", "|---|---:|---:|---:|"]
         for what in ("characteristic", "frequencies"):

@@ -4,12 +4,10 @@ elastomer tubes, empty or filled with an inviscid compressible fluid (see theory
 64-bit floats are required: ``jax.config.update("jax_enable_x64", True)`` before use.
 """
 
-import os
-
 import jax
 import jax.numpy as jnp
 
-from . import units
+from . import compiled, units
 from .accuracy import Estimate, frequencies_with_error
 from .base_state import (
     inner_stretch,
@@ -86,12 +84,14 @@ del jnp
 
 
 def _enable_compilation_cache():
-    """Keep compiled solvers on disk between processes (compilation dominates a first call):
-    ~/.cache/jaxdea/xla unless the user configured a JAX cache or set JAXDEA_CACHE_DIR=off."""
-    where = os.environ.get("JAXDEA_CACHE_DIR", os.path.join("~", ".cache", "jaxdea", "xla"))
-    if where.lower() == "off" or jax.config.jax_compilation_cache_dir is not None:
+    """Keep compiled solvers on disk between processes (compilation dominates a first call): XLA
+    programs in <root>/xla unless the user configured a JAX cache, executables in
+    <root>/executables (:mod:`jaxdea.compiled`); root ``JAXDEA_CACHE_DIR``, default ~/.cache/jaxdea,
+    ``off`` for neither."""
+    root = compiled.cache_root()
+    if root is None or jax.config.jax_compilation_cache_dir is not None:
         return
-    jax.config.update("jax_compilation_cache_dir", os.path.expanduser(where))
+    jax.config.update("jax_compilation_cache_dir", str(root / "xla"))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 

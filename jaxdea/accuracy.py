@@ -20,13 +20,12 @@ the estimate grows accordingly; if V̂ lies above V̂_cr of some level the root 
 the status says so (NO_ROOT / MAX_ITER) instead of extrapolating across the instability.
 """
 
-import functools
 from typing import NamedTuple
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .compiled import cached_jit
 from .dispersion import check_inputs
 from .params import Fluid, Tube, canonical, validate_layers
 from .roots import _problem, guard, scan_step, solve_frequencies
@@ -53,7 +52,7 @@ class Estimate(NamedTuple):
     n_layers: np.ndarray
 
 
-@functools.partial(jax.jit, static_argnames=("n_layers", "order"))
+@cached_jit(static_argnames=("n_layers", "order"))
 def _follow(tube, alpha, fluid, guesses, n_layers, order):
     """Safeguarded Newton from each guess on the laminate of ``n_layers`` sublayers (one lane
     per root, steps capped at a quarter of the scan step, as in :func:`jaxdea.solve_frequency`)."""

@@ -64,13 +64,13 @@ complex evaluation per Î´ of contour plus a few per root near the top side; 125â
 """
 
 import enum
-import functools
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .compiled import cached_jit
 from .dispersion import characteristic_on_wall, check_inputs
 from .params import Fluid, Tube, as_float, canonical, validate_positive
 from .roots import guard, scan_step
@@ -241,7 +241,7 @@ def count_roots_unchecked(tube, alpha, omega_lo, omega_hi, fluid, n_layers: int,
             jnp.where(ok, status, CountStatus.INVALID).astype(jnp.int32), evals)
 
 
-@functools.partial(jax.jit, static_argnames=("n_layers", "order", "symmetric", "default"))
+@cached_jit(static_argnames=("n_layers", "order", "symmetric", "default"))
 def _count_roots(tube, alpha, omega_lo, omega_hi, fluid, height, max_evaluations, n_layers, order,
                  symmetric, default):
     return count_roots_unchecked(tube, alpha, omega_lo, omega_hi, fluid, n_layers, order,

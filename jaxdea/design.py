@@ -39,7 +39,6 @@ How the problems are posed, and why (what converged robustly in our runs):
 from __future__ import annotations
 
 import enum
-import functools
 import math
 from typing import NamedTuple
 
@@ -48,6 +47,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from .compiled import cached_jit
 from .dispersion import characteristic
 from .params import Fluid, Tube, as_float, canonical, mode_wavenumber, require_x64
 from .roots import frequencies, solve_critical_voltage, solve_frequency
@@ -196,7 +196,7 @@ def _objective(x, omega_root, v_cr_root, setting, kind, n_layers):
     return loss, aux
 
 
-@functools.partial(jax.jit, static_argnames=("kind", "n_layers"))
+@cached_jit(static_argnames=("kind", "n_layers"))
 def _loss_and_gradient(x, omega_root, v_cr_root, setting, kind, n_layers):
     """(aux, dloss/dx) by forward mode (at most two design variables)."""
     grad, aux = jax.jacfwd(_objective, has_aux=True)(x, omega_root, v_cr_root, setting, kind, n_layers)

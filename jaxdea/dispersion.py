@@ -14,12 +14,11 @@ The characteristic function is det(B Q_N), with Q_N the orthonormalised propagat
 det C, and |f| ≤ 1 (well scaled for Newton at any α̂ĥ).
 """
 
-import functools
 
-import jax
 import jax.numpy as jnp
 
 from .bessel import coupling_pair
+from .compiled import cached_jit
 from .params import (
     Fluid,
     Tube,
@@ -134,7 +133,7 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
     return _characteristic(tube, omega, alpha, fluid, int(n_layers), order)
 
 
-@functools.partial(jax.jit, static_argnames=("n_layers", "order"))
+@cached_jit(static_argnames=("n_layers", "order"))
 def _characteristic(tube, omega, alpha, fluid, n_layers, order):
     """f(Ω); NaN where traced inputs are inadmissible (:func:`~jaxdea.params.guard`) or Ω is not
     finite."""

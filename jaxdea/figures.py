@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import functools
 import math
 import time
 from pathlib import Path
@@ -31,6 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base_state import _squared_voltage, pull_in, with_thickness_ratio_unchecked
+from .compiled import cached_jit
 from .leaves import apply_parameters
 from .params import Fluid, Tube
 from .roots import critical_voltage_unchecked
@@ -91,7 +91,7 @@ CV_CHUNK = 8  # critical voltages solved per compiled call
 VOLTAGE_SEARCH_END = 0.5  # V̂_cr is searched in (0, 0.5]: every figure stays below V̂ = 0.2
 
 
-@functools.partial(jax.jit, static_argnames=("n_layers",))
+@cached_jit(static_argnames=("n_layers",))
 def _critical_voltages(tubes: Tube, alphas, n_layers):
     """V̂_cr at each (tube, α̂) of a flat batch (:func:`critical_voltage_unchecked` in (0, 0.5])."""
     def one(t, a):

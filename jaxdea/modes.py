@@ -20,12 +20,12 @@ D_0 S⁰_{·1} − Ω²ρ̂_f r̂_i N_0 e_T̄, so with c_u = x_0:
 and no division by D_0 (zero at the rigid-wall cavity resonances) or by N_0 is ever needed.
 """
 
-import functools
 
 import jax
 import jax.numpy as jnp
 
 from .bessel import coupling_log_factor, coupling_pair
+from .compiled import cached_jit
 from .dispersion import OUTER_ROWS, U, W, check_inputs, initial_basis
 from .params import Fluid, Tube, admissible, as_float, canonical, validate_count, validate_real
 from .state_matrix import state_matrix
@@ -91,7 +91,7 @@ def _cavity_pressure(wall: Wall, omega, alpha, fluid: Fluid, c_u, n_points: int)
     return r, omega**2 * rho * ri * c_u * n * ratio
 
 
-@functools.partial(jax.jit, static_argnames=("n_points", "n_layers", "order"))
+@cached_jit(static_argnames=("n_points", "n_layers", "order"))
 def _solve_mode(tube, alpha, omega, fluid, n_points, n_layers, order):
     """(r, fields (6, n_points), r_f, p) in the normalisation of :func:`mode_shape`; r_f, p are the
     cavity radii and acoustic pressure for the ``acoustic`` coupling, None otherwise."""

@@ -31,6 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base_state import voltage_limit
+from .compiled import cached_jit
 from .dispersion import characteristic_on_wall, check_inputs
 from .params import (
     Fluid,
@@ -281,7 +282,7 @@ def frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, orde
                                              cutoff_steps(wall, alpha, fluid, step)))
 
 
-_solve_frequencies = jax.jit(frequencies_unchecked, static_argnames=("n_roots", "n_layers", "order"))
+_solve_frequencies = cached_jit(frequencies_unchecked, static_argnames=("n_roots", "n_layers", "order"))
 
 
 def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
@@ -336,7 +337,7 @@ def _newton_from_guess(fun, guess, max_step):
     return roots[0], status[0]
 
 
-@functools.partial(jax.jit, static_argnames=("n_layers", "order"))
+@cached_jit(static_argnames=("n_layers", "order"))
 def _solve_frequency(tube, alpha, guess, fluid, n_layers, order):
     ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
     guess = as_float(guess)
@@ -395,7 +396,7 @@ def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layer
     return _group_velocity(tube, alpha, omega, fluid, int(n_layers), order)
 
 
-@functools.partial(jax.jit, static_argnames=("n_layers", "order"))
+@cached_jit(static_argnames=("n_layers", "order"))
 def _group_velocity(tube, alpha, omega, fluid, n_layers, order):
     ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
     omega = as_float(omega)
@@ -452,7 +453,8 @@ def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=128, 
     return invalid_where(ok, Roots(*solve()))
 
 
-_solve_critical_voltage = jax.jit(critical_voltage_unchecked, static_argnames=("n_layers", "order", "n_grid"))
+_solve_critical_voltage = cached_jit(critical_voltage_unchecked,
+                                     static_argnames=("n_layers", "order", "n_grid"))
 
 
 def critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None, n_layers: int = 30):
@@ -484,7 +486,7 @@ def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
     return _critical_voltages(canonical(tube), int(n_max), int(n_layers))
 
 
-@functools.partial(jax.jit, static_argnames=("n_max", "n_layers"))
+@cached_jit(static_argnames=("n_max", "n_layers"))
 def _critical_voltages(tube, n_max, n_layers):
     alphas = mode_wavenumber(tube, jnp.arange(1, n_max + 1, dtype=jnp.float64))
 

@@ -23,7 +23,6 @@ dΩ/dλ_i at fixed h/R_i, with η following). On a grid over ``n`` the wavenumbe
 from __future__ import annotations
 
 import dataclasses
-import functools
 import json
 import math
 
@@ -33,6 +32,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
+from .compiled import cached_jit
 from .dispersion import characteristic_on_wall
 from .leaves import FLUID_LEAVES, TUBE_LEAVES, apply_parameters, check_names, get_parameter
 from .params import (
@@ -182,7 +182,7 @@ def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_
     return roots.omega, roots.status, alpha_point, d[:, 0], *jac
 
 
-@functools.partial(jax.jit, static_argnames=("names", "n_roots", "n_layers", "order", "jac_names",
+@cached_jit(static_argnames=("names", "n_roots", "n_layers", "order", "jac_names",
                                              "batch_size"))
 def _sweep_chunk(columns, tube, alpha, fluid, omega_max, names, n_roots, n_layers, order, jac_names,
                  batch_size):

@@ -70,7 +70,6 @@ once per static configuration (``along``, ``max_points``, ``n_layers``, coupling
 """
 
 import enum
-import functools
 import math
 from typing import NamedTuple
 
@@ -78,6 +77,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .compiled import cached_jit
 from .dispersion import characteristic_on_wall, check_inputs
 from .leaves import FLUID_LEAVES, check_names, get_parameter, set_parameter
 from .params import (
@@ -389,7 +389,7 @@ def continue_branch(fun, s0, omega0, stop, max_points: int, max_step=DEFAULT_MAX
 
 
 # ------------------------------------------------------------------------------------- the tube
-@functools.partial(jax.jit, static_argnames=("along", "max_points", "n_layers", "order"))
+@cached_jit(static_argnames=("along", "max_points", "n_layers", "order"))
 def _trace_branch(tube, alpha, omega, fluid, stop, max_step, along, max_points, n_layers, order):
     alpha = as_float(alpha)
     s0 = get_parameter(tube, alpha, fluid, along)

@@ -5,9 +5,12 @@ import os
 import jax
 
 jax.config.update("jax_enable_x64", True)
-# compiled programs are reused across test processes and runs (compilation dominates test time)
-jax.config.update("jax_compilation_cache_dir",
-                  os.path.join(os.path.dirname(os.path.dirname(__file__)), ".jax_cache"))
+# compiled programs are reused across test processes and runs (compilation dominates test time):
+# XLA's in .jax_cache/xla, jaxdea's executables (jaxdea.compiled) in .jax_cache/executables unless
+# JAXDEA_CACHE_DIR names another root
+CACHE_ROOT = os.path.join(os.path.dirname(os.path.dirname(__file__)), ".jax_cache")
+os.environ.setdefault("JAXDEA_CACHE_DIR", CACHE_ROOT)
+jax.config.update("jax_compilation_cache_dir", os.path.join(CACHE_ROOT, "xla"))
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 import jax.numpy as jnp  # noqa: E402

@@ -15,7 +15,7 @@ import jaxdea as jd
 from jaxdea import sweeps as sweep_module
 from jaxdea.sweeps import sweep
 
-CACHE = os.path.join(os.path.dirname(os.path.dirname(__file__)), ".jax_cache")
+CACHE = os.path.join(os.path.dirname(os.path.dirname(__file__)), ".jax_cache", "xla")
 TUBE = jd.Tube(lambda_i=1.1, lambda_z=1.2, eta=0.85)  # the configuration of test_sweep (shared compilation)
 GRID = dict(voltage=np.array([0.0, 0.1, 0.2]), n=np.array([1, 2, 5]), chunk_size=4, progress=False)
 
