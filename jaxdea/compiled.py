@@ -17,7 +17,7 @@ Everything else goes through ``jax.jit`` as usual: calls under a transformation 
 arguments), arrays committed to a device where there are several (e.g. the blocks of a sharded
 sweep; a loaded program runs on the default device), JAX's debugging options
 (:data:`BYPASS_OPTIONS`) switched on, and every call when the cache is off
-(``JAXDEA_CACHE_DIR=off``). An entry that cannot be loaded is deleted and the program compiled
+(``JAXDEA_CACHE_DIR=off``). An entry that cannot be loaded or run is deleted and the program compiled
 anew; an entry that cannot be written is skipped: the cache never changes a result, it only saves
 the first call its compilation (the loaded executable is the compiled one, bit for bit). Only
 programs that XLA compiled in the process are written: one that JAX took from its own persistent
@@ -172,11 +172,12 @@ class CachedJit:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             data = pickle.dumps(serialize_executable.serialize(compiled))
-            with tempfile.NamedTemporaryFile(dir=path.parent, delete=False) as stream:
+            with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False) as stream:
                 stream.write(data)
             os.replace(stream.name, path)  # atomic: readers see the whole entry or none
         except Exception:  # noqa: BLE001 - a read-only or full disk only costs the next process
-            return
+            if "stream" in locals():
+                Path(stream.name).unlink(missing_ok=True)
 
     def __call__(self, *args, **kwargs):
         off = os.environ.get("JAXDEA_CACHE_DIR", "").lower() == "off"
@@ -184,19 +185,27 @@ class CachedJit:
         if found is None:
             return self._jit(*args, **kwargs)
         key, arguments = found
+        dynamic = {k: v for k, v in arguments.items() if k not in self._static}
         compiled = self._loaded.get(key)
         if compiled is None:
             path = self._entry(key)
             compiled = self._load(path)
-            if compiled is None:
-                compiled, storable = _compile(self._jit.lower(**arguments))
-                if storable:
-                    self._store(path, compiled)
-                self.counts["compiled"] += 1
-            else:
-                self.counts["loaded"] += 1
+            if compiled is not None:
+                try:  # a loaded program's first run, checked (an entry that fails to run: jax.jit)
+                    out = jax.block_until_ready(compiled(**dynamic))
+                except Exception:  # noqa: BLE001
+                    path.unlink(missing_ok=True)
+                    compiled = None
+                else:
+                    self.counts["loaded"] += 1
+                    self._loaded[key] = compiled
+                    return out
+            compiled, storable = _compile(self._jit.lower(**arguments))
+            if storable:
+                self._store(path, compiled)
+            self.counts["compiled"] += 1
             self._loaded[key] = compiled
-        return compiled(**{k: v for k, v in arguments.items() if k not in self._static})
+        return compiled(**dynamic)
 
 
 def cached_jit(fun=None, *, static_argnames=()):

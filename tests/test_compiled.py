@@ -57,6 +57,24 @@ def test_damaged_entry_is_compiled_anew(cache):
     assert again._jit._cache_size() == 0
 
 
+def test_entry_that_fails_to_run_is_compiled_anew(cache):
+    """An entry that loads but fails on its first run (here the program of another argument shape
+    under this key; in the wild, an executable that XLA:CPU re-serialised from JAX's cache) is
+    deleted and the program compiled anew."""
+    x3, x4 = jnp.arange(3.0), jnp.arange(4.0)
+    fun = cached_jit(_scaled, static_argnames="n")
+    fun(x3, 2)
+    (entry,) = _entries(cache)
+    wrong = fun._entry(fun._key((x4, 2), {})[0])
+    wrong.write_bytes(entry.read_bytes())
+    fresh = cached_jit(_scaled, static_argnames="n")
+    np.testing.assert_array_equal(fresh(x4, 2), 2 * x4)
+    assert fresh.counts == {"loaded": 0, "compiled": 1}
+    again = cached_jit(_scaled, static_argnames="n")
+    np.testing.assert_array_equal(again(x4, 2), 2 * x4)
+    assert again.counts == {"loaded": 1, "compiled": 0}
+
+
 def test_transformations_and_debugging_go_through_jit(cache):
     """Tracers and jax.debug_nans: jax.jit, nothing stored (arrays committed to other devices, the
     blocks of a sharded sweep, are the third case: tests/test_scaleout.py)."""
