@@ -54,10 +54,16 @@ BYPASS_OPTIONS = ("jax_debug_nans", "jax_debug_infs", "jax_disable_jit", "jax_en
 """JAX options under which every call goes through ``jax.jit`` (they act at tracing or dispatch)."""
 
 
+def cache_off() -> bool:
+    """``JAXDEA_CACHE_DIR=off``: no cache on disk (read at every call, cheaply)."""
+    return os.environ.get("JAXDEA_CACHE_DIR", "").lower() == "off"
+
+
 def cache_root() -> Path | None:
     """The cache root (``JAXDEA_CACHE_DIR``, default ``~/.cache/jaxdea``), or None when it is off."""
-    where = os.environ.get("JAXDEA_CACHE_DIR", os.path.join("~", ".cache", "jaxdea"))
-    return None if where.lower() == "off" else Path(where).expanduser()
+    if cache_off():
+        return None
+    return Path(os.environ.get("JAXDEA_CACHE_DIR", os.path.join("~", ".cache", "jaxdea"))).expanduser()
 
 
 def _cpu() -> str:
@@ -116,7 +122,6 @@ class CachedJit:
     the underlying jitted function."""
 
     def __init__(self, fun, static_argnames=()):
-        self._fun = fun
         self._static = (static_argnames,) if isinstance(static_argnames, str) else tuple(
             static_argnames)
         self._jit = jax.jit(fun, static_argnames=self._static)
@@ -180,8 +185,7 @@ class CachedJit:
                 Path(stream.name).unlink(missing_ok=True)
 
     def __call__(self, *args, **kwargs):
-        off = os.environ.get("JAXDEA_CACHE_DIR", "").lower() == "off"
-        found = None if off else self._key(args, kwargs)
+        found = None if cache_off() else self._key(args, kwargs)
         if found is None:
             return self._jit(*args, **kwargs)
         key, arguments = found

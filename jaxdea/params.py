@@ -172,10 +172,10 @@ def wall_constant(lambda_z, eta):
     return (1.0 - eta) * (1.0 + eta) / (eta**2 * lambda_z)
 
 
-def width_excess(lambda_i, lambda_z, eta):
-    """λ_z r̂_o² / WIDTH_MAX (numpy; > 1, inf or NaN: too wide to resolve in float64)."""
-    with np.errstate(all="ignore"):
-        return lambda_z * (lambda_i**2 + wall_constant(lambda_z, eta)) / WIDTH_MAX
+def wall_width(lambda_i, lambda_z, eta):
+    """λ_z r̂_o² = λ_z (λ_i² + c), the measure of the rounding of the radii (WIDTH_MAX; numpy or
+    jax.numpy, inf or NaN on overflow: too wide to resolve in float64)."""
+    return lambda_z * (lambda_i**2 + wall_constant(lambda_z, eta))
 
 
 def _face_excess(lambda_i, lambda_z, eta, xp):
@@ -198,7 +198,7 @@ def admissible(tube: Tube, alpha=1.0, fluid: Fluid | None = None) -> jax.Array:
     positive = [x > 0 for x in (li, lz, length)] + [a >= ALPHA_MIN, (eta > 0) & (eta < 1),
                                                     g >= GENT_MIN]
     ok = functools.reduce(jnp.logical_and, finite + positive) & ~jnp.isnan(g)
-    ok &= lz * (li**2 + wall_constant(lz, eta)) <= WIDTH_MAX  # NaN and inf fail
+    ok &= wall_width(li, lz, eta) <= WIDTH_MAX  # NaN and inf fail
     if tube.material == "gent":
         excess = _face_excess(li, lz, eta, jnp)
         ok &= jnp.isfinite(excess) & (excess < g)
@@ -259,9 +259,10 @@ def validate_tube(tube: Tube, scalar: bool = True) -> dict:
     li, lz, eta, g = (checks[k] for k in ("lambda_i", "lambda_z", "eta", "gent"))
     if li is None or lz is None or eta is None:
         return checks
-    width = width_excess(li, lz, eta)
-    if not np.all(width <= 1.0):
-        worst = float(np.max(np.where(np.isnan(width), np.inf, width))) * WIDTH_MAX
+    with np.errstate(all="ignore"):
+        width = wall_width(li, lz, eta)
+    if not np.all(width <= WIDTH_MAX):
+        worst = float(np.max(np.where(np.isnan(width), np.inf, width)))
         raise ValueError(
             "lambda_i, lambda_z, eta give a deformed tube too wide to resolve in float64: "
             f"lambda_z * r_o**2 must be <= {WIDTH_MAX:g} (r_o the deformed outer radius over R_i; "
