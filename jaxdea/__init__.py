@@ -17,6 +17,7 @@ from .base_state import (
     with_thickness_ratio,
 )
 from .counting import CountStatus, RootCount, count_roots
+from .curves import Curve, dispersion_curve
 from .design import DesignResult, DesignStatus, design_for_frequency, maximise_tunability, tunability
 from .dispersion import characteristic
 from .modes import fluid_pressure, mode_shape
@@ -42,6 +43,7 @@ __all__ = [
     "Branch",
     "BranchEnd",
     "CountStatus",
+    "Curve",
     "DesignResult",
     "DesignStatus",
     "Estimate",
@@ -57,6 +59,7 @@ __all__ = [
     "critical_voltage",
     "critical_voltages",
     "design_for_frequency",
+    "dispersion_curve",
     "fluid_pressure",
     "frequencies",
     "frequencies_with_error",

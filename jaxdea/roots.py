@@ -271,15 +271,21 @@ def invalid_where(ok, roots: Roots) -> Roots:
                  jnp.where(ok, roots.status, Status.INVALID).astype(jnp.int32))
 
 
+def scan_roots(wall: Wall, fun, alpha, fluid, omega_max, n_roots: int) -> Roots:
+    """The ``n_roots`` lowest roots of ``fun`` in (0, omega_max] (None: :func:`default_omega_max`)
+    by the guaranteed scan on ``wall``; INVALID where the search limit is not finite and > 0."""
+    end = default_omega_max(wall, alpha, n_roots) if omega_max is None else as_float(omega_max)
+    ok = jnp.isfinite(end) & (end > 0)
+    step = jnp.minimum(scan_step(wall, fluid), end / CHUNK)
+    return invalid_where(ok, _scan_for_roots(fun, step, end, n_roots,
+                                             cutoff_steps(wall, alpha, fluid, step)))
+
+
 def frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, order) -> Roots:
     """The ``n_roots`` lowest roots for one case (traceable; ``order`` may be traced)."""
     ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
     wall, fun = _problem(tube, alpha, fluid, n_layers, order)
-    end = default_omega_max(wall, alpha, n_roots) if omega_max is None else as_float(omega_max)
-    ok &= jnp.isfinite(end) & (end > 0)
-    step = jnp.minimum(scan_step(wall, fluid), end / CHUNK)
-    return invalid_where(ok, _scan_for_roots(fun, step, end, n_roots,
-                                             cutoff_steps(wall, alpha, fluid, step)))
+    return invalid_where(ok, scan_roots(wall, fun, alpha, fluid, omega_max, n_roots))
 
 
 _solve_frequencies = cached_jit(frequencies_unchecked, static_argnames=("n_roots", "n_layers", "order"))

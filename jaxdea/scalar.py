@@ -172,6 +172,16 @@ def lanes_from_slots(a, b, fa, fb, dfa, dfb, kind, side, max_step=None):
 
 
 def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
+    """The roots of :func:`iterate_lanes`: ``(roots, keys, status)``, roots NaN unless converged;
+    keys order them (inf = no root)."""
+    lanes = iterate_lanes(fun, lanes, rtol, max_iter)
+    roots = jnp.where(lanes.status == Status.CONVERGED, lanes.x, jnp.nan)
+    fallback = jnp.where(jnp.isfinite(lanes.key), lanes.key, 0.5 * (lanes.a + lanes.b))
+    keys = jnp.where(lanes.status == Status.NO_ROOT, jnp.inf, fallback)
+    return roots, keys, lanes.status
+
+
+def iterate_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200) -> Lanes:
     """Iterate all lanes until every one is IDLE; one vectorised (f, f') evaluation per iteration.
 
     BRACKET lanes follow Numerical Recipes' rtsafe (a Newton step that leaves the bracket or does
@@ -190,8 +200,11 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
     them); that step is then applied without another evaluation (quadratic convergence: the root to
     rounding, one evaluation fewer than waiting for a step below rtol·|x|).
 
+    IDLE lanes are evaluated too, at their x (their fx, dfx then hold f, f' there).
+
     Returns:
-        (roots, keys, status): roots NaN unless converged; keys order them (inf = no root).
+        the final lanes: status MAX_ITER where a lane was still running; x, fx, dfx the last
+        iterate and f, f' at the last point evaluated.
     """
     evaluate = jax.vmap(lambda x: value_and_slope(fun, x))
 
@@ -289,10 +302,7 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
 
     lanes, _ = jax.lax.while_loop(cond, body, (lanes, 0))
     status = jnp.where(lanes.mode != IDLE, Status.MAX_ITER, lanes.status).astype(jnp.int32)
-    roots = jnp.where(status == Status.CONVERGED, lanes.x, jnp.nan)
-    fallback = jnp.where(jnp.isfinite(lanes.key), lanes.key, 0.5 * (lanes.a + lanes.b))
-    keys = jnp.where(status == Status.NO_ROOT, jnp.inf, fallback)
-    return roots, keys, status
+    return lanes._replace(status=status)
 
 
 def bracketed_root(fun, lo, hi, f_lo, f_hi):

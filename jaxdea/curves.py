@@ -1,0 +1,210 @@
+"""Dispersion curves by continuation: the K lowest roots along a grid of α̂, each step certified.
+
+:func:`jaxdea.frequencies` isolates the roots of every α̂ by a guaranteed scan of f(Ω) from Ω = 0
+(:mod:`jaxdea.roots`), which costs tens of evaluations per root. Along a curve the roots of the
+next α̂ are close to a polynomial extrapolation of the previous ones, and Newton from there needs
+two or three. :func:`dispersion_curve` follows the K lowest roots that way and checks every step;
+a step that fails a check is solved by the scan instead, so the result is that of ``frequencies``
+at every α̂ (the same roots, to the solver tolerance), only cheaper where the curve is smooth.
+
+Step j (α̂_j, after accepted roots at up to three earlier α̂):
+
+1. Predictor: p_k = the Lagrange polynomial through the last m ≤ 3 accepted (α̂, Ω_k), at α̂_j.
+2. Corrector: K Newton lanes from p_k (:func:`jaxdea.scalar.iterate_lanes`, FREE lanes: steps
+   capped at ρ_k = ¼ of the distance from p_k to its neighbours p_{k±1}, with p_0 = 0; a lane that
+   brackets a sign change finishes by safeguarded Newton), and one lane that evaluates f(0).
+3. Checks, all required: every lane converged within ``TRACK_ITERATIONS``; 0 < Ω_1 < … < Ω_K;
+   |Ω_k − p_k| ≤ ρ_k; and the signs alternate,
+
+       sign f'(Ω_k) = (−1)^k sign f(0),   k = 1 … K.
+
+   f is continuous and changes sign at each simple root, so the number of roots in (0, Ω_1) and
+   in each gap (Ω_k, Ω_{k+1}) is even exactly when these signs alternate: a single root missed
+   below Ω_K, one that came in through Ω = 0 (an unstable mode turning stable: f(0) changes
+   sign), one that came down from above, or a lane that jumped to a neighbouring branch, all fail
+   the test. Otherwise the scan of :func:`jaxdea.roots.scan_roots` solves the step.
+
+What the checks cannot see is an even number of new roots in one gap within one step: two roots
+entering through Ω = 0, or two coming down into the same gap, between consecutive α̂. Roots of a
+conservative problem (the empty tube, the acoustic coupling) move continuously with α̂ and do not
+appear in pairs inside a gap, so this needs two branches that cross the same gap within one grid
+step; the scan has its own limit of the same kind (two extrema of f within one scan step). The
+paper's follower-pressure coupling is not conservative, and there roots are born in pairs (a pair
+at Ω = 0.044 and 0.047 appears between α̂ = 0.16 and 0.17 and is gone at 0.2, on λ_i = 1.1,
+λ_z = 1.2, η = 0.85, ρ̂_f = 0.13, ĉ_f = 0.27, ν = 0; continuation followed the other roots past it,
+unseen by the checks): with that coupling every α̂ is scanned.
+
+After a fallback the history restarts from the scanned roots (one point: a constant predictor),
+unless the scanned roots lie within ρ_k of the prediction (the branches were followed correctly
+and only a check was too strict), when the history goes on.
+
+Cost: a step costs 2–4 evaluations of (f, f') on K + 1 lanes; the scan of one α̂ costs one or more
+32-point chunks plus the lanes. Inside ``jax.vmap`` the fallback (a ``lax.cond``) turns into a
+select that runs the scan at every step: vmap the curve only where few steps would succeed anyway,
+and loop in Python (or use :func:`jaxdea.sweep`) otherwise.
+"""
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .compiled import cached_jit
+from .dispersion import characteristic_on_wall, check_inputs
+from .params import ALPHA_MIN, Fluid, Tube, as_float, canonical, guard, validate_range
+from .roots import Roots, _with_derivatives, scan_roots
+from .scalar import Status, iterate_lanes, lanes_from_slots
+from .transfer import discretize
+
+HISTORY = 3  # points of the predictor (quadratic extrapolation)
+SHARE_OF_GAP = 0.25  # a lane may move at most this share of the distance to its neighbours
+TRACK_ITERATIONS = 16  # corrector iterations before the step is handed to the scan
+
+
+class Curve(NamedTuple):
+    """The K lowest roots along a grid of α̂.
+
+    Attributes:
+        alpha: the grid α̂, shape (M,).
+        omega: roots, shape (M, K), ascending in each row, NaN where not found.
+        status: :class:`~jaxdea.Status` per root, shape (M, K).
+        scanned: shape (M,), True where the guaranteed scan solved the step (the first α̂, and
+            steps whose continuation failed a check).
+    """
+
+    alpha: jax.Array
+    omega: jax.Array
+    status: jax.Array
+    scanned: jax.Array
+
+
+def _extrapolate(hist_alpha, hist_omega, n_hist, alpha):
+    """p(α̂) of the Lagrange polynomial through the newest ``n_hist`` (≤ 3) rows of the history
+    (newest last)."""
+    a0, a1, a2 = hist_alpha
+    x = alpha
+    w3 = jnp.stack([(x - a1) * (x - a2) / ((a0 - a1) * (a0 - a2)),
+                    (x - a0) * (x - a2) / ((a1 - a0) * (a1 - a2)),
+                    (x - a0) * (x - a1) / ((a2 - a0) * (a2 - a1))])
+    w2 = jnp.stack([jnp.zeros_like(x), (x - a2) / (a1 - a2), (x - a1) / (a2 - a1)])
+    w1 = jnp.array([0.0, 0.0, 1.0])
+    w = jnp.where(n_hist >= 3, w3, jnp.where(n_hist == 2, w2, w1))
+    rows = jnp.where(jnp.isfinite(hist_omega), hist_omega, 0.0)
+    return w @ rows
+
+
+def _room(pred):
+    """ρ_k = SHARE_OF_GAP · the distance from p_k to p_{k±1} (p_0 = 0; none above p_K)."""
+    below = jnp.concatenate([jnp.zeros(1), pred[:-1]])
+    above = jnp.concatenate([pred[1:], jnp.full(1, jnp.inf)])
+    return SHARE_OF_GAP * jnp.minimum(pred - below, above - pred)
+
+
+def _track(fun, pred):
+    """(Ω, accepted): K corrector lanes from ``pred`` and the checks of the module docstring."""
+    k = pred.shape[0]
+    room = _room(pred)
+    x0 = jnp.concatenate([pred, jnp.zeros(1)])  # the last lane evaluates f(0)
+    nan = jnp.full(k + 1, jnp.nan)
+    kind = jnp.concatenate([jnp.full(k, 3), jnp.zeros(1, jnp.int32)])
+    lanes = lanes_from_slots(x0, x0, nan, nan, nan, nan, kind, jnp.zeros(k + 1, jnp.int32),
+                             max_step=jnp.concatenate([room, jnp.full(1, jnp.inf)]))
+    lanes = iterate_lanes(fun, lanes, max_iter=TRACK_ITERATIONS)
+    omega, slope, f0 = lanes.x[:k], lanes.dfx[:k], lanes.fx[k]
+    alternating = jnp.sign(f0) * (-1.0) ** jnp.arange(1, k + 1)
+    ok = jnp.all(lanes.status[:k] == Status.CONVERGED) & jnp.all(jnp.isfinite(omega))
+    ok &= jnp.isfinite(f0) & (f0 != 0) & jnp.all(room > 0)
+    ok &= jnp.all(jnp.diff(jnp.concatenate([jnp.zeros(1), omega])) > 0)
+    ok &= jnp.all(jnp.abs(omega - pred) <= room)
+    ok &= jnp.all(jnp.sign(slope) == alternating)
+    return omega, ok
+
+
+def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order) -> Curve:
+    """The curve for one tube (traceable; the grid ``alpha`` has shape (M,))."""
+    ok_tube, tube, _, fluid = guard(tube, 1.0, fluid)
+    alpha = as_float(alpha)
+    ok_alpha = ok_tube & jnp.isfinite(alpha) & (alpha >= ALPHA_MIN)
+    wall = discretize(tube, n_layers)
+    conservative = fluid is None or fluid.coupling == "acoustic"
+
+    def at(a):
+        return lambda om: characteristic_on_wall(wall, om, a, fluid, order, "adaptive")
+
+    def step(carry, inputs):
+        hist_alpha, hist_omega, n_hist = carry
+        a, ok = inputs
+        a = jnp.where(ok, a, 1.0)
+        pred = _extrapolate(hist_alpha, hist_omega, n_hist, a)
+        tried = ok & (n_hist > 0)
+        if conservative:
+            omega, accepted = jax.lax.cond(tried, lambda: _track(at(a), pred),
+                                           lambda: (pred, jnp.array(False)))
+        else:  # roots are born in pairs: scan every α̂
+            omega, accepted = pred, jnp.array(False)
+        scan = ok & ~accepted
+        roots = jax.lax.cond(scan, lambda: scan_roots(wall, at(a), a, fluid, None, n_roots),
+                             lambda: Roots(omega, jnp.full(n_roots, Status.CONVERGED, jnp.int32)))
+        complete = jnp.all(roots.status == Status.CONVERGED)
+        on_track = tried & jnp.all(jnp.abs(roots.omega - pred) <= _room(pred))
+        n_new = jnp.where(on_track, jnp.minimum(n_hist + 1, HISTORY), 1)
+        n_new = jnp.where(ok & complete, n_new, 0)
+        carry = (jnp.concatenate([hist_alpha[1:], a[None]]),
+                 jnp.concatenate([hist_omega[1:], roots.omega[None]]), n_new)
+        status = jnp.where(ok, roots.status, Status.INVALID).astype(jnp.int32)
+        return carry, (jnp.where(ok, roots.omega, jnp.nan), status, scan)
+
+    init = (jnp.arange(HISTORY, dtype=jnp.float64), jnp.zeros((HISTORY, n_roots)), jnp.array(0))
+    _, (omega, status, scanned) = jax.lax.scan(step, init, (alpha, ok_alpha))
+    return Curve(alpha, omega, status, scanned)
+
+
+_solve_curve = cached_jit(curve_unchecked, static_argnames=("n_roots", "n_layers", "order"))
+
+
+def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
+                     n_layers: int = 30) -> Curve:
+    """The ``n_roots`` lowest frequencies at every α̂ of a grid, by certified continuation.
+
+    The roots at each α̂ are those of :func:`jaxdea.frequencies` (search range ``omega_max=None``),
+    found by Newton from an extrapolation of the previous α̂ and checked (module docstring); the
+    guaranteed scan runs at the first α̂ and wherever a check fails. An ordered grid fine enough
+    to resolve the branches makes most steps cheap; any grid gives correct roots. Derivatives are
+    implicit, as for ``frequencies``.
+
+    Args:
+        tube: the :class:`~jaxdea.Tube`.
+        alpha: the grid α̂, a 1-D array of finite values >= 1e-12 (ordered for continuation).
+        fluid: a :class:`~jaxdea.Fluid` or None (empty tube); the ``paper`` coupling needs an
+            explicit ``bessel_order`` (one order for the whole curve).
+        n_roots: K, the number of roots at each α̂ (static).
+        n_layers: sublayers N (static).
+
+    Returns:
+        :class:`Curve` (omega, status of shape (M, K); ``scanned`` says where the scan ran).
+
+    Raises:
+        ValueError: naming the parameter, for invalid concrete inputs (as ``frequencies``; alpha
+            must also be 1-D and non-empty).
+
+    Example:
+        >>> c = dispersion_curve(Tube(), np.linspace(0.05, 5, 100), n_roots=4, n_layers=10)
+        >>> c.omega.shape, int(c.scanned.sum())   # (100, 4), 1
+    """
+    a = validate_range("alpha", alpha, f">= {ALPHA_MIN!r} and finite (the axial wavenumber α̂ = α R_i)",
+                       lambda v: v >= ALPHA_MIN, scalar=False)
+    if a is not None and (a.ndim != 1 or a.size == 0):
+        raise ValueError(f"alpha must be a non-empty 1-D array of axial wavenumbers, got shape {a.shape}")
+    if fluid is not None and fluid.coupling == "paper" and fluid.bessel_order is None:
+        raise ValueError("fluid.bessel_order must be set for a dispersion curve with the 'paper' "
+                         "coupling (one Bessel order for every α̂ of the curve), got None")
+    order = check_inputs(tube, 1.0, fluid, n_layers)
+    if not isinstance(n_roots, (int, np.integer)) or isinstance(n_roots, bool) or n_roots < 1:
+        raise ValueError(f"n_roots must be an integer >= 1, got {n_roots!r}")
+    tube, alpha, fluid = canonical(tube, alpha, fluid)
+    curve = _solve_curve(*jax.lax.stop_gradient((tube, alpha, fluid)), int(n_roots), int(n_layers),
+                         order)
+    with_derivatives = jax.vmap(lambda w, s, x: _with_derivatives(Roots(w, s), (tube, x, fluid),
+                                                                  int(n_layers), order).omega)
+    return curve._replace(alpha=alpha, omega=with_derivatives(curve.omega, curve.status, alpha))

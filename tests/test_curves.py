@@ -1,0 +1,157 @@
+"""Dispersion curves by certified continuation (jaxdea.curves): the same roots as jd.frequencies at
+every α̂, continuation where it is safe, the scan where a check fails."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxdea as jd
+from jaxdea.curves import _track
+from jaxdea.dispersion import characteristic_on_wall
+from jaxdea.transfer import discretize
+
+
+def per_alpha(tube, alphas, fluid, n_roots, n_layers):
+    """The reference: jd.frequencies (the guaranteed scan) at each α̂ separately."""
+    return np.array([np.asarray(jd.frequencies(tube, float(a), fluid, n_roots=n_roots,
+                                               n_layers=n_layers)) for a in alphas])
+
+
+def assert_same_roots(curve, reference, rtol=1e-12):
+    omega = np.asarray(curve.omega)
+    np.testing.assert_array_equal(np.isnan(omega), np.isnan(reference))
+    np.testing.assert_allclose(omega, reference, rtol=rtol)
+
+
+def test_unstretched_curve_is_continued_and_equals_the_scan():
+    """200 α̂ × 3 roots of the unstretched empty tube: the scan runs on a few of the 200 α̂ (the
+    first, and steps near α̂ → 0 where the lowest root moves by more than a quarter of its distance
+    to Ω = 0); every root equals jd.frequencies at its α̂ to 1e-12 (on every 5th α̂)."""
+    alphas = np.linspace(0.025, 5.0, 200)
+    curve = jd.dispersion_curve(jd.Tube(), alphas)
+    assert curve.omega.shape == (200, 3) and curve.status.shape == (200, 3)
+    assert np.all(np.asarray(curve.status) == jd.Status.CONVERGED)
+    scanned = np.asarray(curve.scanned)
+    assert scanned[0] and scanned.sum() <= 6
+    np.testing.assert_array_equal(curve.alpha, alphas)
+    reference = per_alpha(jd.Tube(), alphas[::5], None, 3, 30)
+    assert_same_roots(curve._replace(omega=curve.omega[::5]), reference)
+
+
+def test_fluid_veering_and_descending_grid():
+    """Tube filled with a very light fluid through the veering of gap 3.5e-4 (test_trace): the
+    continued roots equal the scan at every α̂, on an ascending and a descending grid."""
+    tube = jd.Tube(lambda_i=1.1, lambda_z=1.2, eta=0.85)
+    fluid = jd.Fluid(density_ratio=1e-6, speed_ratio=0.27)
+    alphas = np.linspace(0.6, 0.8, 41)
+    reference = per_alpha(tube, alphas, fluid, 3, 30)
+    for order in (slice(None), slice(None, None, -1)):
+        curve = jd.dispersion_curve(tube, alphas[order], fluid, n_roots=3)
+        assert_same_roots(curve, reference[order], rtol=1e-11)
+        assert 1 <= np.asarray(curve.scanned).sum() < 41  # continued where it could be
+
+
+def test_fig3_line_along_n_and_a_coarse_grid():
+    """Steps of whole axial modes (Fig. 3, n = 1..20) and a grid of 6 α̂ over [0.1, 8]: the checks
+    send the steps that continuation cannot follow to the scan, and every root equals the scan."""
+    tube = jd.Tube(lambda_i=1.1, lambda_z=1.2, voltage=0.2)
+    fluid = jd.Fluid()
+    for alphas in (np.asarray(jd.axial_wavenumber(tube, np.arange(1, 21))), np.linspace(0.1, 8, 6)):
+        curve = jd.dispersion_curve(tube, alphas, fluid)
+        assert_same_roots(curve, per_alpha(tube, alphas, fluid, 3, 30), rtol=1e-11)
+
+
+def _case(alpha=0.445, n_layers=30):
+    wall = discretize(jd.Tube(), n_layers)
+    fun = lambda om: characteristic_on_wall(wall, om, jnp.asarray(alpha), None, 0, "adaptive")  # noqa: E731
+    return fun, np.asarray(jd.frequencies(jd.Tube(), alpha, n_roots=4, n_layers=n_layers))
+
+
+def test_checks_accept_the_branches_and_refuse_shifted_ones():
+    """_track from predictions 1e-3 off the roots: accepted, the roots to 1e-13. From the roots
+    of the next branches (a lane per branch jumped, or a root came in below): every lane converges
+    and the order and distance checks pass, but the signs of f(0), f'(Ω_k) do not alternate."""
+    fun, roots = _case()
+    track = jax.jit(lambda pred: _track(fun, pred))
+    omega, ok = track(jnp.asarray(roots[:3] * (1 + 1e-3)))
+    assert bool(ok)
+    np.testing.assert_allclose(omega, roots[:3], rtol=1e-13)
+    for lanes in ([1, 2, 3], [0, 2, 3]):  # lanes on the next branches; a root between lanes missing
+        omega, ok = track(jnp.asarray(roots[lanes]))
+        np.testing.assert_allclose(omega, roots[lanes], rtol=1e-13)
+        assert not bool(ok)
+    _, ok = track(jnp.asarray(roots[:3] + np.array([0.0, 0.4, 0.0]) * (roots[2] - roots[1])))
+    assert not bool(ok)  # a lane that must move by more than a quarter of the gap
+
+
+def test_paper_coupling_scans_every_alpha():
+    """The paper's coupling is not conservative: a pair of roots near Ω = 0.045 exists at α̂ = 0.175
+    but not at 0.15 or 0.2 (invisible to the sign checks), so every α̂ is scanned and the pair is
+    found."""
+    tube = jd.Tube(lambda_i=1.1, lambda_z=1.2, eta=0.85)
+    fluid = jd.Fluid(coupling="paper", bessel_order=0)
+    alphas = np.linspace(0.05, 0.25, 9)
+    curve = jd.dispersion_curve(tube, alphas, fluid)
+    assert np.all(np.asarray(curve.scanned))
+    reference = per_alpha(tube, alphas, fluid, 3, 30)
+    assert_same_roots(curve, reference, rtol=1e-11)
+    assert np.any(reference[:, 1] < 0.05) and np.any(reference[:, 1] > 0.2)  # the pair is there
+    with pytest.raises(ValueError, match="bessel_order"):
+        jd.dispersion_curve(tube, alphas, jd.Fluid(coupling="paper"))
+
+
+def test_implicit_derivatives_match_frequency():
+    """d/dV̂ and d/dα̂-free leaves: the gradient of one continued root equals that of jd.frequency
+    (implicit derivatives, exact for the laminate) at the same point, and central differences."""
+    alphas = np.linspace(0.3, 1.5, 13)
+
+    def root(v, j, k):
+        tube = jd.Tube(lambda_i=1.1, lambda_z=1.2, voltage=v)
+        return jd.dispersion_curve(tube, alphas).omega[j, k]
+
+    def single(v, j, w):
+        return jd.frequency(jd.Tube(lambda_i=1.1, lambda_z=1.2, voltage=v), alphas[j], w)
+
+    v = 0.1
+    for j, k in ((4, 0), (12, 2)):
+        g = float(jax.grad(root)(v, j, k))
+        ref = float(jax.grad(single)(v, j, float(root(v, j, k))))
+        np.testing.assert_allclose(g, ref, rtol=1e-12)
+        # fourth-order central difference: truncation 2e-11 (root 0 is strongly curved in V̂),
+        # rounding ≈ 1e-14/h from the roots' last digits
+        h = 1e-4
+        fd = (8 * (float(root(v + h, j, k)) - float(root(v - h, j, k)))
+              - (float(root(v + 2 * h, j, k)) - float(root(v - 2 * h, j, k)))) / (12 * h)
+        np.testing.assert_allclose(g, fd, rtol=1e-9, atol=2e-10)
+
+
+def test_traced_invalid_inputs_give_nan_and_status():
+    """Under jit: an inadmissible tube gives NaN and INVALID everywhere; a NaN α̂ only its row,
+    and the rows after it equal the untraced curve (the history restarts with a scan)."""
+    alphas = jnp.linspace(0.3, 1.5, 7)
+    good = jd.dispersion_curve(jd.Tube(eta=0.5), alphas)
+    run = jax.jit(lambda eta, a: jd.dispersion_curve(jd.Tube(eta=eta), a))
+    bad = run(1.5, alphas)
+    assert np.all(np.isnan(bad.omega)) and np.all(np.asarray(bad.status) == jd.Status.INVALID)
+    holed = run(0.5, alphas.at[3].set(jnp.nan))
+    assert np.all(np.isnan(holed.omega[3])) and np.all(np.asarray(holed.status[3]) == jd.Status.INVALID)
+    keep = np.r_[0:3, 4:7]
+    np.testing.assert_allclose(holed.omega[keep], good.omega[keep], rtol=1e-13)
+    assert bool(holed.scanned[4])
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(alpha=np.ones((2, 2))), "alpha"),
+    (dict(alpha=np.array([])), "alpha"),
+    (dict(alpha=np.array([0.5, -1.0])), "alpha"),
+    (dict(alpha=np.array([0.5, np.inf])), "alpha"),
+    (dict(n_roots=0), "n_roots"),
+    (dict(n_layers=0), "n_layers"),
+    (dict(tube=jd.Tube(eta=1.2)), "eta"),
+])
+def test_bad_inputs_name_the_parameter(kwargs, name):
+    args = dict(tube=jd.Tube(), alpha=np.array([0.5, 1.0]))
+    args.update(kwargs)
+    with pytest.raises(ValueError, match=name):
+        jd.dispersion_curve(**args)
