@@ -186,9 +186,24 @@ def work_fig3(impl: str, cfg: dict) -> dict:
                             lambda_i=np.array(FIG3["lambda_i"]), voltage=np.array(FIG3["voltage"]),
                             n=np.array(FIG3["n"]), progress=False).omega
 
+    def run_curves():
+        """The same roots by continuation along n: one dispersion_curve per (λ_i, V̂)."""
+        out = []
+        for li in FIG3["lambda_i"]:
+            for v in FIG3["voltage"]:
+                tube = jaxdea.Tube(lambda_z=FIG3["lambda_z"], lambda_i=li, voltage=v)
+                alphas = jaxdea.axial_wavenumber(tube, np.array(FIG3["n"]))
+                out.append(jaxdea.dispersion_curve(tube, alphas, n_roots=FIG3["n_roots"]).omega)
+        return jax.numpy.stack(out)
+
     sec, first, omega = best_time(run, cfg["solve_repeats"], 0.0)
     omega = np.asarray(omega).reshape(len(points), FIG3["n_roots"])
-    return dict(points=len(points), seconds=sec, first_call_s=first, roots=omega.tolist())
+    sec_c, first_c, omega_c = best_time(run_curves, cfg["solve_repeats"], 0.0)
+    omega_c = np.asarray(omega_c).reshape(len(points), FIG3["n_roots"])
+    return dict(points=len(points), seconds=sec, first_call_s=first, roots=omega.tolist(),
+                seconds_curve=sec_c, first_call_curve_s=first_c,
+                curve_vs_sweep=float(np.nanmax(np.abs(omega_c / omega - 1.0))),
+                curve_nan_match=bool(np.array_equal(np.isnan(omega_c), np.isnan(omega))))
 
 
 def _curve_alphas():
@@ -251,12 +266,24 @@ def work_curve_jaxdea(cfg: dict) -> dict:
     if chosen is None:
         return dict(checks=checks, chosen=None, n_subset=len(subset))
 
+    def continued(alpha, n_layers):
+        """The same chain by continuation in α̂ (dispersion_curve) on both laminates."""
+        coarse, fine = (jaxdea.dispersion_curve(tube, alpha, n_roots=CURVE["n_roots"], n_layers=n)
+                        for n in (n_layers, 2 * n_layers))
+        return _richardson(coarse.omega, fine.omega), int(coarse.scanned.sum() + fine.scanned.sum())
+
     sec, first, omega = best_time(lambda: curve(alphas, chosen), cfg["solve_repeats"], 0.0)
-    sub = omega[::10]
+    sec_c, first_c, (omega_c, scans) = best_time(lambda: continued(alphas, chosen),
+                                                 cfg["solve_repeats"], 0.0)
+    sub, sub_c = omega[::10], omega_c[::10]
     return dict(checks=checks, chosen=chosen, seconds=sec, first_call_s=first,
                 finite=int(np.sum(np.isfinite(omega))), roots=sub.tolist(),
                 measured_rel_error=float(np.nanmax(np.abs(sub / reference - 1.0))),
-                reference=reference.tolist(), n_subset=len(subset))
+                reference=reference.tolist(), n_subset=len(subset),
+                seconds_curve=sec_c, first_call_curve_s=first_c, curve_scans=scans,
+                curve_rel_error=float(np.nanmax(np.abs(sub_c / reference - 1.0))),
+                curve_vs_sweep=float(np.nanmax(np.abs(omega_c / omega - 1.0))),
+                curve_nan_match=bool(np.array_equal(np.isnan(omega_c), np.isnan(omega))))
 
 
 def work_curve_scipy(cfg: dict, n_layers: int) -> dict:
@@ -507,6 +534,10 @@ def render(res: dict, provisional: bool) -> str:
               f"{fmt(fs['seconds_extrapolated'] / fj['seconds'])}× |",
               f"| Fig. 3 sweep: root solves per second | {fmt(fig_roots / fj['seconds'])} | "
               f"{fmt(fig_roots / fs['seconds_extrapolated'])} | |"]
+    if "seconds_curve" in fj:
+        lines += [f"| Fig. 3 by continuation along n (`dispersion_curve`, 4 lines of 20 modes): "
+                  f"seconds | {fmt(fj['seconds_curve'])} | {fmt(fs['seconds_extrapolated'])} | "
+                  f"{fmt(fs['seconds_extrapolated'] / fj['seconds_curve'])}× |"]
     if cvj.get("chosen"):
         n_curve = CURVE["points"] * CURVE["n_roots"]
         cdiff, conly_s, conly_j = compare([cvs["roots"][k] for k in cvs["roots"]],
@@ -519,6 +550,15 @@ def render(res: dict, provisional: bool) -> str:
                   f"{fmt(cvs['seconds_extrapolated'] / cvj['seconds'])}× |",
                   f"| curve: root solves per second | {fmt(n_curve / cvj['seconds'])} | "
                   f"{fmt(n_curve / cvs['seconds_extrapolated'])} | |"]
+        if "seconds_curve" in cvj:
+            lines += [f"| curve by continuation in α̂ (`dispersion_curve` at N = {cvj['chosen']} "
+                      f"and {2 * cvj['chosen']}, Richardson; {cvj['curve_scans']} of "
+                      f"{2 * CURVE['points']} steps scanned; measured rel. error "
+                      f"{cvj['curve_rel_error']:.1e}): seconds | {fmt(cvj['seconds_curve'])} | "
+                      f"{fmt(cvs['seconds_extrapolated'])} | "
+                      f"{fmt(cvs['seconds_extrapolated'] / cvj['seconds_curve'])}× |",
+                      f"| curve by continuation: root solves per second | "
+                      f"{fmt(n_curve / cvj['seconds_curve'])} | | |"]
     lines += ["", f"Agreement (roots matched by value, below the highest root of both): Fig. 3, the "
               f"{fs['solved']} points solved by both: max relative difference {diff:.1e}; "
               f"{only_j} roots found by jaxdea only (missed by the SciPy sign-change scan: two roots "
@@ -526,6 +566,11 @@ def render(res: dict, provisional: bool) -> str:
     if cvj.get("chosen"):
         lines += [f"Curve, {cvs['solved']} α̂: max relative difference {cdiff:.1e}; {conly_j} roots "
                   f"found by jaxdea only, {conly_s} by SciPy only."]
+    for name, r in (("Fig. 3", fj), ("Curve", cvj)):
+        if "curve_vs_sweep" in r:
+            same = "the same" if r["curve_nan_match"] else "NOT the same"
+            lines += [f"{name}: continuation against `sweep` (the scan at every point): max relative "
+                      f"difference {r['curve_vs_sweep']:.1e}, {same} missing roots."]
     lines += ["", f"Accuracy of the curve (every 10th α̂, {cvj.get('n_subset', '?')} α̂ × {CURVE['n_roots']} "
               f"roots, against Richardson(N = {REFERENCE_LAYERS}, {2 * REFERENCE_LAYERS})):", "",
               "| N | Ω(2N): max rel. error | Richardson (4Ω(2N) − Ω(N))/3: max rel. error |",

@@ -38,10 +38,11 @@ After a fallback the history restarts from the scanned roots (one point: a const
 unless the scanned roots lie within ρ_k of the prediction (the branches were followed correctly
 and only a check was too strict), when the history goes on.
 
-Cost: a step costs 2–4 evaluations of (f, f') on K + 1 lanes; the scan of one α̂ costs one or more
-32-point chunks plus the lanes. Inside ``jax.vmap`` the fallback (a ``lax.cond``) turns into a
-select that runs the scan at every step: vmap the curve only where few steps would succeed anyway,
-and loop in Python (or use :func:`jaxdea.sweep`) otherwise.
+Cost: a step costs 2 evaluations of (f, f') on K + 1 lanes where the prediction is good (3 or
+more where it is not); the scan of one α̂ costs one or more 32-point chunks plus the lanes. Inside
+``jax.vmap`` the fallback (a ``lax.cond``) turns into a select that runs the scan at every step:
+vmap the curve only where few steps would succeed anyway, and loop in Python (or use
+:func:`jaxdea.sweep`) otherwise.
 """
 
 from typing import NamedTuple

@@ -265,8 +265,12 @@ def iterate_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200) -> Lanes:
 
         # FREE update
         in_free = s.mode == FREE
-        crossed = in_free & (jnp.sign(f_new) * jnp.sign(s.fx) < 0)
-        free_done = in_free & ~crossed & (((step_new <= tol) & ~fresh) | (f_new == 0) | finish_step)
+        # a FREE lane whose last step crossed the root finishes like a BRACKET lane when the next
+        # Newton step is converged (kept inside [x, x_new]); otherwise it enters that bracket
+        sign_change = in_free & (jnp.sign(f_new) * jnp.sign(s.fx) < 0)
+        free_done = in_free & (((step_new <= tol) & ~fresh & ~sign_change) | (f_new == 0)
+                               | finish_step)
+        crossed = sign_change & ~free_done
 
         s = s._replace(
             lo=jnp.where(in_ext, e_lo, lo), hi=jnp.where(in_ext, x_new, hi),
@@ -279,7 +283,9 @@ def iterate_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200) -> Lanes:
         # converged lanes take the last Newton step (kept inside the bracket for BRACKET lanes)
         x_last = x_new + jnp.where(finish_step & (f_new != 0), last_step, 0.0)
         x_done = jnp.where(converged, jnp.clip(x_last, jnp.minimum(lo, hi), jnp.maximum(lo, hi)),
-                           jnp.where(free_done, x_last, x_new))
+                           jnp.where(free_done, jnp.where(sign_change, jnp.clip(
+                               x_last, jnp.minimum(x_prev, x_new), jnp.maximum(x_prev, x_new)), x_last),
+                               x_new))
         s = s._replace(x=x_done, fx=f_new, dfx=df_new, guess=jnp.full_like(s.guess, jnp.nan))
 
         # extremum found: split into the two root brackets if f changes sign there

@@ -155,3 +155,30 @@ def test_bad_inputs_name_the_parameter(kwargs, name):
     args.update(kwargs)
     with pytest.raises(ValueError, match=name):
         jd.dispersion_curve(**args)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(8))
+def test_random_tubes_fluids_and_grids_equal_the_scan(seed):
+    """Random tube (neo-Hookean or Gent, λ_i, λ_z ∈ [0.8, 2], η ∈ [0.3, 0.95], V̂ ≤ 0.15), empty or
+    filled (ρ̂_f ∈ [0.05, 2], ĉ_f ∈ [0.1, 3]), grid of 20–120 α̂ over up to [0.01, 9], ascending or
+    descending, K ≤ 5, N ∈ {8, 12, 20}: the curve equals jd.frequencies at every α̂ (to 1e-12)."""
+    rng = np.random.default_rng(1000 + seed)
+    gent = rng.random() < 0.4
+    tube = jd.Tube(lambda_i=rng.uniform(0.8, 2.0), lambda_z=rng.uniform(0.8, 2.0),
+                   eta=rng.uniform(0.3, 0.95), voltage=rng.uniform(0, 0.15),
+                   material="gent" if gent else "neo_hookean",
+                   gent=rng.uniform(20, 100) if gent else 97.2)
+    fluid = (jd.Fluid(density_ratio=rng.uniform(0.05, 2), speed_ratio=rng.uniform(0.1, 3))
+             if rng.random() < 0.6 else None)
+    lo = rng.uniform(0.01, 1.0)
+    alphas = np.linspace(lo, lo + rng.uniform(0.5, 8.0), int(rng.integers(20, 121)))
+    if rng.random() < 0.3:
+        alphas = alphas[::-1].copy()
+    k, n = int(rng.integers(1, 6)), int(rng.choice([8, 12, 20]))
+    try:
+        jd.pressure_difference(tube)
+    except ValueError:
+        pytest.skip("past Gent locking")
+    curve = jd.dispersion_curve(tube, alphas, fluid, n_roots=k, n_layers=n)
+    assert_same_roots(curve, per_alpha(tube, alphas, fluid, k, n))
