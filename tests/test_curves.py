@@ -182,3 +182,19 @@ def test_random_tubes_fluids_and_grids_equal_the_scan(seed):
         pytest.skip("past Gent locking")
     curve = jd.dispersion_curve(tube, alphas, fluid, n_roots=k, n_layers=n)
     assert_same_roots(curve, per_alpha(tube, alphas, fluid, k, n))
+
+
+def test_root_entering_and_leaving_through_zero():
+    """λ_i = 1.5 at V̂ = 0.095: V̂_cr(α̂) rises from 0.084 (α̂ → 0) to 0.107 (α̂ = 3), so the lowest
+    mode is unstable (Ω² < 0, no real root) below α̂ ≈ 0.8 and its root comes in through Ω = 0 above.
+    Ascending, the new root appears below the followed ones (f(0) changes sign: the check fails,
+    the scan finds it); descending, it leaves through 0. Both equal the scan at every α̂."""
+    tube = jd.Tube(lambda_i=1.5, lambda_z=1.2, eta=0.85, voltage=0.095)
+    alphas = np.linspace(0.3, 2.0, 35)
+    reference = per_alpha(tube, alphas, None, 3, 30)
+    assert np.min(reference[:, 0]) < 0.1  # a root just come in through Ω = 0 (0.071 at α̂ = 0.93)
+    assert reference[0, 1] > 10 > 3 > reference[-1, 1]  # one real root more at α̂ = 2 than at 0.3
+    for order in (slice(None), slice(None, None, -1)):
+        curve = jd.dispersion_curve(tube, alphas[order], n_roots=3)
+        assert_same_roots(curve, reference[order], rtol=1e-11)
+        assert np.asarray(curve.scanned).sum() < 35
