@@ -22,7 +22,9 @@ Step j (α̂_j, after accepted roots at up to three earlier α̂):
    in each gap (Ω_k, Ω_{k+1}) is even exactly when these signs alternate: a single root missed
    below Ω_K, one that came in through Ω = 0 (an unstable mode turning stable: f(0) changes
    sign), one that came down from above, or a lane that jumped to a neighbouring branch, all fail
-   the test. Otherwise the scan of :func:`jaxdea.roots.scan_roots` solves the step.
+   the test. A step that fails is tried again in two halves (the midpoint, accepted by the same
+   checks, joins the history); if a half fails too, the scan of
+   :func:`jaxdea.roots.scan_roots` solves the step.
 
 What the checks cannot see is an even number of new roots in one gap within one step: two roots
 entering through Ω = 0, or two coming down into the same gap, between consecutive α̂. Roots of a
@@ -133,17 +135,38 @@ def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order) -> Curve:
     def at(a):
         return lambda om: characteristic_on_wall(wall, om, a, fluid, order, "adaptive")
 
+    def follow(history, a):
+        """Continuation to α̂ = a: the whole step; if it fails a check, the two halves of it (the
+        midpoint, accepted by the same checks, joins the history). Returns (Ω, accepted, the
+        history used, the last prediction)."""
+        def attempt(c):
+            hist, stage, _, _, _ = c
+            target = jnp.where(stage == 1, 0.5 * (hist[0][-1] + a), a)
+            pred = _extrapolate(*hist, target)
+            omega, ok = _track(at(target), pred)
+            pushed = (jnp.concatenate([hist[0][1:], target[None]]),
+                      jnp.concatenate([hist[1][1:], omega[None]]), jnp.minimum(hist[2] + 1, HISTORY))
+            hist = jax.tree_util.tree_map(lambda x, y: jnp.where((stage == 1) & ok, x, y), pushed, hist)
+            done = (stage != 1) & ok
+            stage = jnp.where(ok | (stage == 0), stage + 1, 3)  # a failed half ends the attempts
+            return hist, stage, omega, done, pred
+
+        hist, _, omega, done, pred = jax.lax.while_loop(
+            lambda c: ~c[3] & (c[1] < 3), attempt,
+            (history, jnp.array(0), jnp.zeros(n_roots), jnp.array(False), jnp.zeros(n_roots)))
+        return omega, done, hist, pred
+
     def step(carry, inputs):
-        hist_alpha, hist_omega, n_hist = carry
         a, ok = inputs
         a = jnp.where(ok, a, 1.0)
-        pred = _extrapolate(hist_alpha, hist_omega, n_hist, a)
-        tried = ok & (n_hist > 0)
+        tried = ok & (carry[2] > 0)
         if conservative:
-            omega, accepted = jax.lax.cond(tried, lambda: _track(at(a), pred),
-                                           lambda: (pred, jnp.array(False)))
+            omega, accepted, carry, pred = jax.lax.cond(
+                tried, lambda: follow(carry, a),
+                lambda: (jnp.zeros(n_roots), jnp.array(False), carry, jnp.zeros(n_roots)))
         else:  # roots are born in pairs: scan every α̂
-            omega, accepted = pred, jnp.array(False)
+            omega, accepted, pred = jnp.zeros(n_roots), jnp.array(False), jnp.zeros(n_roots)
+        hist_alpha, hist_omega, n_hist = carry
         scan = ok & ~accepted
         roots = jax.lax.cond(scan, lambda: scan_roots(wall, at(a), a, fluid, None, n_roots),
                              lambda: Roots(omega, jnp.full(n_roots, Status.CONVERGED, jnp.int32)))
