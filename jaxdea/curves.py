@@ -73,7 +73,7 @@ class Curve(NamedTuple):
         omega: roots, shape (M, K), ascending in each row, NaN where not found.
         status: :class:`~jaxdea.Status` per root, shape (M, K).
         scanned: shape (M,), True where the guaranteed scan solved the step (the first α̂, and
-            steps whose continuation failed a check).
+            steps whose continuation failed the checks).
     """
 
     alpha: jax.Array
@@ -193,9 +193,9 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
 
     The roots at each α̂ are those of :func:`jaxdea.frequencies` (search range ``omega_max=None``),
     found by Newton from an extrapolation of the previous α̂ and checked (module docstring); the
-    guaranteed scan runs at the first α̂ and wherever a check fails. An ordered grid fine enough
-    to resolve the branches makes most steps cheap; any grid gives correct roots. Derivatives are
-    implicit, as for ``frequencies``.
+    guaranteed scan runs at the first α̂ and where a step and its two halves fail the checks. An
+    ordered grid fine enough to resolve the branches makes most steps cheap; any grid gives correct
+    roots. Derivatives are implicit, as for ``frequencies``.
 
     Args:
         tube: the :class:`~jaxdea.Tube`.
@@ -214,7 +214,7 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
 
     Example:
         >>> c = dispersion_curve(Tube(), np.linspace(0.05, 5, 100), n_roots=4, n_layers=10)
-        >>> c.omega.shape, int(c.scanned.sum())   # (100, 4), 1
+        >>> c.omega.shape, int(c.scanned.sum())   # (100, 4), 2
     """
     a = validate_range("alpha", alpha, f">= {ALPHA_MIN!r} and finite (the axial wavenumber α̂ = α R_i)",
                        lambda v: v >= ALPHA_MIN, scalar=False)

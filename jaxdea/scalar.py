@@ -188,7 +188,8 @@ def iterate_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200) -> Lanes:
     not halve the previous step becomes a bisection): guaranteed convergence, quadratic near a
     simple root. EXTREMUM lanes use Illinois regula falsi on f'. FREE lanes take Newton steps capped
     at ``max_step`` (f is even in Ω, so iterates stay positive) and hand over to BRACKET as soon as
-    two iterates bracket a sign change.
+    two iterates bracket a sign change, unless the stopping test below already holds at the new
+    iterate (the last Newton step is then applied inside the two iterates: one evaluation fewer).
 
     A BRACKET lane evaluates the root of the Hermite cubic of its interval first
     (:func:`hermite_root`), then goes on with Newton.
