@@ -51,11 +51,10 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from .compiled import cached_jit
 from .dispersion import characteristic_on_wall, check_inputs
-from .params import ALPHA_MIN, Fluid, Tube, as_float, canonical, guard, validate_range
+from .params import ALPHA_MIN, Fluid, Tube, as_float, canonical, guard, validate_count, validate_range
 from .roots import Roots, _with_derivatives, scan_roots
 from .scalar import Status, iterate_lanes, lanes_from_slots
 from .transfer import discretize
@@ -224,11 +223,9 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
         raise ValueError("fluid.bessel_order must be set for a dispersion curve with the 'paper' "
                          "coupling (one Bessel order for every α̂ of the curve), got None")
     order = check_inputs(tube, 1.0, fluid, n_layers)
-    if not isinstance(n_roots, (int, np.integer)) or isinstance(n_roots, bool) or n_roots < 1:
-        raise ValueError(f"n_roots must be an integer >= 1, got {n_roots!r}")
+    n_roots = validate_count("n_roots", n_roots)
     tube, alpha, fluid = canonical(tube, alpha, fluid)
-    curve = _solve_curve(*jax.lax.stop_gradient((tube, alpha, fluid)), int(n_roots), int(n_layers),
-                         order)
+    curve = _solve_curve(*jax.lax.stop_gradient((tube, alpha, fluid)), n_roots, int(n_layers), order)
     with_derivatives = jax.vmap(lambda w, s, x: _with_derivatives(Roots(w, s), (tube, x, fluid),
                                                                   int(n_layers), order).omega)
     return curve._replace(alpha=alpha, omega=with_derivatives(curve.omega, curve.status, alpha))

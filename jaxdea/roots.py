@@ -43,6 +43,7 @@ from .params import (
     real_value,
     require_x64,
     validate_broadcast,
+    validate_count,
     validate_positive,
     validate_range,
 )
@@ -299,13 +300,12 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
         :class:`Roots` (omega ascending, NaN-padded; status CONVERGED, NO_ROOT or NOT_FINITE).
     """
     order = check_inputs(tube, alpha, fluid, n_layers)
-    if not isinstance(n_roots, (int, np.integer)) or isinstance(n_roots, bool) or n_roots < 1:
-        raise ValueError(f"n_roots must be an integer >= 1, got {n_roots!r}")
+    n_roots = validate_count("n_roots", n_roots)
     if omega_max is not None:
         validate_positive("omega_max", omega_max)
     tube, alpha, fluid, omega_max = canonical(tube, alpha, fluid, omega_max)
     roots = _solve_frequencies(*jax.lax.stop_gradient((tube, alpha, fluid, omega_max)),
-                               int(n_roots), int(n_layers), order)
+                               n_roots, int(n_layers), order)
     return _with_derivatives(roots, (tube, alpha, fluid), int(n_layers), order)
 
 

@@ -283,10 +283,11 @@ def iterate_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200) -> Lanes:
         x_prev, f_prev, df_prev = s.x, s.fx, s.dfx
         # converged lanes take the last Newton step (kept inside the bracket for BRACKET lanes)
         x_last = x_new + jnp.where(finish_step & (f_new != 0), last_step, 0.0)
+        # (a FREE lane that finished across a sign change stays between its last two iterates)
+        x_free = jnp.where(sign_change, jnp.clip(x_last, jnp.minimum(x_prev, x_new),
+                                                 jnp.maximum(x_prev, x_new)), x_last)
         x_done = jnp.where(converged, jnp.clip(x_last, jnp.minimum(lo, hi), jnp.maximum(lo, hi)),
-                           jnp.where(free_done, jnp.where(sign_change, jnp.clip(
-                               x_last, jnp.minimum(x_prev, x_new), jnp.maximum(x_prev, x_new)), x_last),
-                               x_new))
+                           jnp.where(free_done, x_free, x_new))
         s = s._replace(x=x_done, fx=f_new, dfx=df_new, guess=jnp.full_like(s.guess, jnp.nan))
 
         # extremum found: split into the two root brackets if f changes sign there
