@@ -20,11 +20,12 @@ import numpy as np
 
 from .leaves import FLUID_LEAVES, NAMES, TUBE_LEAVES
 from .params import COUPLINGS, MATERIALS
+from .transfer import SCHEMES
 
 TOP_KEYS = ("tube", "fluid", "axes", "solver", "output")
 TUBE_KEYS = (*TUBE_LEAVES, "thickness_ratio", "material")
 FLUID_KEYS = (*FLUID_LEAVES, "coupling", "bessel_order")
-SOLVER_KEYS = ("n_roots", "n_layers", "jacobian", "omega_max")
+SOLVER_KEYS = ("n_roots", "n_layers", "scheme", "jacobian", "omega_max")
 OUTPUT_KEYS = ("dir", "name", "formats", "plot", "title")
 LINSPACE_KEYS = ("start", "stop", "num")
 FORMATS = ("csv", "npz")
@@ -43,6 +44,7 @@ FORMAT = f"""\
           in [tube]/[fluid] or swept here, not both; the plot's x axis is the first axis with more
           than one value
 [solver]  n_roots = 3 (K lowest roots per point), n_layers = 30 (sublayers N),
+          scheme = "midpoint" | "magnus4" | "magnus6" (how a sublayer is crossed),
           jacobian = false | true | [names] (dΩ/dθ and dΩ/dα̂ too), omega_max = a number
           (default: automatic)
 [output]  name = the config file's stem, formats = {json.dumps(list(FORMATS))}, plot = true (NAME.png),
@@ -76,6 +78,7 @@ class SweepConfig:
             last, as an axis of length 1).
         n_roots: K, roots per point.
         n_layers: sublayers N.
+        scheme: the propagation scheme (``jaxdea.sweep``'s ``scheme``).
         jacobian: False, True or a tuple of parameter names (``jaxdea.sweep``'s ``jacobian``).
         omega_max: upper end of each root search, or None (automatic).
         out_dir: output folder as written in the config (relative to the config file), or None.
@@ -90,6 +93,7 @@ class SweepConfig:
     axes: dict
     n_roots: int = 3
     n_layers: int = 30
+    scheme: str = "midpoint"
     jacobian: bool | tuple = False
     omega_max: float | None = None
     out_dir: str | None = None
@@ -105,7 +109,7 @@ class SweepConfig:
 
     def sweep_arguments(self) -> dict:
         """Keyword arguments of :func:`jaxdea.sweep` besides ``tube`` and ``fluid``."""
-        return dict(n_roots=self.n_roots, n_layers=self.n_layers,
+        return dict(n_roots=self.n_roots, n_layers=self.n_layers, scheme=self.scheme,
                     jacobian=self.jacobian if self.jacobian else None, omega_max=self.omega_max,
                     **self.axes)
 
@@ -230,6 +234,8 @@ def _parse_solver(data, fluid: dict | None) -> dict:
     for k in ("n_roots", "n_layers"):
         if k in table:
             out[k] = _integer(f"solver.{k}", table[k], 1)
+    if "scheme" in table:
+        out["scheme"] = _choice("solver.scheme", table["scheme"], tuple(SCHEMES))
     if "omega_max" in table:
         v = table["omega_max"]
         if not _is_number(v) or not (math.isfinite(v) and v > 0):

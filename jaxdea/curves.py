@@ -57,7 +57,7 @@ from .dispersion import characteristic_on_wall, check_inputs
 from .params import ALPHA_MIN, Fluid, Tube, as_float, canonical, guard, validate_count, validate_range
 from .roots import Roots, _with_derivatives, scan_roots
 from .scalar import Status, iterate_lanes, lanes_from_slots
-from .transfer import discretize
+from .transfer import discretize, laminate
 
 HISTORY = 3  # points of the predictor (quadratic extrapolation)
 SHARE_OF_GAP = 0.25  # a lane may move at most this share of the distance to its neighbours
@@ -187,7 +187,7 @@ _solve_curve = cached_jit(curve_unchecked, static_argnames=("n_roots", "n_layers
 
 
 def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
-                     n_layers: int = 30) -> Curve:
+                     n_layers: int = 30, scheme: str = "midpoint") -> Curve:
     """The ``n_roots`` lowest frequencies at every α̂ of a grid, by certified continuation.
 
     The roots at each α̂ are those of :func:`jaxdea.frequencies` (search range ``omega_max=None``),
@@ -203,6 +203,7 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
             explicit ``bessel_order`` (one order for the whole curve).
         n_roots: K, the number of roots at each α̂ (static).
         n_layers: sublayers N (static).
+        scheme: ``"midpoint"``, ``"magnus4"`` or ``"magnus6"`` (static; :func:`jaxdea.frequencies`).
 
     Returns:
         :class:`Curve` (omega, status of shape (M, K); ``scanned`` says where the scan ran).
@@ -222,10 +223,11 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
     if fluid is not None and fluid.coupling == "paper" and fluid.bessel_order is None:
         raise ValueError("fluid.bessel_order must be set for a dispersion curve with the 'paper' "
                          "coupling (one Bessel order for every α̂ of the curve), got None")
-    order = check_inputs(tube, 1.0, fluid, n_layers)
+    order = check_inputs(tube, 1.0, fluid, n_layers, scheme)
     n_roots = validate_count("n_roots", n_roots)
     tube, alpha, fluid = canonical(tube, alpha, fluid)
-    curve = _solve_curve(*jax.lax.stop_gradient((tube, alpha, fluid)), n_roots, int(n_layers), order)
+    layers = laminate(n_layers, scheme)
+    curve = _solve_curve(*jax.lax.stop_gradient((tube, alpha, fluid)), n_roots, layers, order)
     with_derivatives = jax.vmap(lambda w, s, x: _with_derivatives(Roots(w, s), (tube, x, fluid),
-                                                                  int(n_layers), order).omega)
+                                                                  layers, order).omega)
     return curve._replace(alpha=alpha, omega=with_derivatives(curve.omega, curve.status, alpha))

@@ -33,7 +33,7 @@ from .params import (
     validate_real,
     validate_tube,
 )
-from .transfer import Wall, discretize, propagate_basis, transfer_matrix
+from .transfer import Wall, discretize, laminate, propagate_basis, transfer_matrix, validate_scheme
 
 U, W, PHI, T, S, D = range(6)
 OUTER_ROWS = jnp.array([PHI, T, S])
@@ -96,17 +96,19 @@ def resolve_order(tube: Tube, alpha, fluid: Fluid | None) -> int:
     return mode_number(tube, alpha)
 
 
-def check_inputs(tube, alpha, fluid, n_layers):
+def check_inputs(tube, alpha, fluid, n_layers, scheme="midpoint"):
     """Validate the public inputs (concrete values) and return the static Bessel order."""
     require_x64()
     validate_tube(tube)
     validate_fluid(fluid)
     validate_layers(n_layers)
+    validate_scheme(scheme)
     validate_alpha(alpha)
     return resolve_order(tube, alpha, fluid)
 
 
-def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layers: int = 30):
+def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layers: int = 30,
+                   scheme: str = "midpoint"):
     """The real characteristic function whose zeros in Ω are the frequencies.
 
     f(Ω) = det(B Q_N) (module docstring): finite, pole-free, even in Ω, |f| ≤ 1, with the zeros and
@@ -118,6 +120,8 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
         alpha: α̂ = α R_i >= ALPHA_MIN = 1e-12 (:data:`jaxdea.params.ALPHA_MIN`).
         fluid: a :class:`~jaxdea.Fluid`, or None for the empty tube.
         n_layers: number of sublayers N (static).
+        scheme: how a sublayer is crossed (static): ``"midpoint"`` (the paper's laminate, error
+            O(N⁻²)), ``"magnus4"`` or ``"magnus6"`` (O(N⁻⁴), O(N⁻⁶); :mod:`jaxdea.transfer`).
 
     Raises:
         ValueError: for invalid concrete inputs, naming the parameter and its allowed range (past
@@ -127,10 +131,10 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
     Example:
         >>> f = characteristic(Tube(), 1.0, 0.445)
     """
-    order = check_inputs(tube, alpha, fluid, n_layers)
+    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
     validate_real("omega", omega)
     tube, omega, alpha, fluid = canonical(tube, omega, alpha, fluid)
-    return _characteristic(tube, omega, alpha, fluid, int(n_layers), order)
+    return _characteristic(tube, omega, alpha, fluid, laminate(n_layers, scheme), order)
 
 
 @cached_jit(static_argnames=("n_layers", "order"))

@@ -48,7 +48,7 @@ from .params import (
     validate_range,
 )
 from .scalar import Status, lanes_from_slots, run_lanes, start_lanes, value_and_slope
-from .transfer import Wall, discretize
+from .transfer import Wall, discretize, laminate
 
 CHUNK = 32  # points per scan chunk: 64 cost twice the work where one chunk holds the roots
 GEOMETRIC_RATIO = 64.0
@@ -293,24 +293,25 @@ _solve_frequencies = cached_jit(frequencies_unchecked, static_argnames=("n_roots
 
 
 def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
-                      omega_max=None, n_layers: int = 30) -> Roots:
+                      omega_max=None, n_layers: int = 30, scheme: str = "midpoint") -> Roots:
     """The ``n_roots`` lowest roots in (0, omega_max] with a status per root (module docstring).
 
     Returns:
         :class:`Roots` (omega ascending, NaN-padded; status CONVERGED, NO_ROOT or NOT_FINITE).
     """
-    order = check_inputs(tube, alpha, fluid, n_layers)
+    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
     n_roots = validate_count("n_roots", n_roots)
     if omega_max is not None:
         validate_positive("omega_max", omega_max)
     tube, alpha, fluid, omega_max = canonical(tube, alpha, fluid, omega_max)
+    layers = laminate(n_layers, scheme)
     roots = _solve_frequencies(*jax.lax.stop_gradient((tube, alpha, fluid, omega_max)),
-                               n_roots, int(n_layers), order)
-    return _with_derivatives(roots, (tube, alpha, fluid), int(n_layers), order)
+                               n_roots, layers, order)
+    return _with_derivatives(roots, (tube, alpha, fluid), layers, order)
 
 
 def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
-                omega_max=None, n_layers: int = 30):
+                omega_max=None, n_layers: int = 30, scheme: str = "midpoint"):
     """The ``n_roots`` lowest frequencies Ω in (0, omega_max], ascending, NaN-padded.
 
     Every root in the range is found, including close pairs and roots near Ω = 0 (scan with Hermite
@@ -325,11 +326,14 @@ def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
         n_roots: number of roots (static).
         omega_max: upper end of the search (None: automatic).
         n_layers: sublayers N (static; laminate error O(N⁻²)).
+        scheme: ``"midpoint"`` (the laminate), ``"magnus4"`` or ``"magnus6"`` (errors O(N⁻⁴),
+            O(N⁻⁶); static, see :mod:`jaxdea.transfer`).
 
     Example:
         >>> frequencies(Tube(eta=0.85), 0.445, n_roots=3)  # ≈ [0.745, 1.910, 17.844]
+        >>> frequencies(Tube(eta=0.85), 0.445, n_layers=6, scheme="magnus6")  # the wall to ≈ 1e-9
     """
-    return solve_frequencies(tube, alpha, fluid, n_roots, omega_max, n_layers).omega
+    return solve_frequencies(tube, alpha, fluid, n_roots, omega_max, n_layers, scheme).omega
 
 
 def _newton_from_guess(fun, guess, max_step):
@@ -354,30 +358,33 @@ def _solve_frequency(tube, alpha, guess, fluid, n_layers, order):
 
 
 def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
-                    n_layers: int = 30) -> Roots:
+                    n_layers: int = 30, scheme: str = "midpoint") -> Roots:
     """The root reached by safeguarded Newton from ``guess``, with its status (scalar Roots)."""
-    order = check_inputs(tube, alpha, fluid, n_layers)
+    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
     validate_positive("guess", guess)
     tube, alpha, guess, fluid = canonical(tube, alpha, guess, fluid)
-    roots = _solve_frequency(*jax.lax.stop_gradient((tube, alpha, guess, fluid)), int(n_layers),
-                             order)
-    return _with_derivatives(roots, (tube, alpha, fluid), int(n_layers), order)
+    layers = laminate(n_layers, scheme)
+    roots = _solve_frequency(*jax.lax.stop_gradient((tube, alpha, guess, fluid)), layers, order)
+    return _with_derivatives(roots, (tube, alpha, fluid), layers, order)
 
 
-def frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, n_layers: int = 30):
+def frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, n_layers: int = 30,
+              scheme: str = "midpoint"):
     """The root Ω reached by safeguarded Newton from ``guess``, with implicit derivatives.
 
     ``jax.grad``/``jax.jacfwd`` with respect to any Tube/Fluid leaf, α̂ and the ``h_over_Ri`` of
     :func:`jaxdea.with_thickness_ratio` give dΩ/dθ = −(∂f/∂θ)/(∂f/∂Ω) (exact for the discretisation).
-    NaN if Newton fails (see :func:`solve_frequency` for the status).
+    NaN if Newton fails (see :func:`solve_frequency` for the status). ``scheme`` as in
+    :func:`frequencies`.
 
     Example:
         >>> jax.grad(lambda v: frequency(Tube(voltage=v), 0.445, 0.7))(0.1)
     """
-    return solve_frequency(tube, alpha, guess, fluid, n_layers).omega
+    return solve_frequency(tube, alpha, guess, fluid, n_layers, scheme).omega
 
 
-def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: int = 30):
+def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: int = 30,
+                   scheme: str = "midpoint"):
     """dΩ/dα̂ on the branch through the root ``omega``: −(∂f/∂α̂)/(∂f/∂Ω) (implicit function theorem).
 
     ``omega`` should be a root (e.g. from :func:`frequencies`); the formula is exact for the
@@ -390,16 +397,17 @@ def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layer
         omega: a root Ω > 0, finite (at Ω = 0 the even f has ∂f/∂Ω = 0).
         fluid: a :class:`~jaxdea.Fluid`, or None for the empty tube.
         n_layers: number of sublayers N (static; use the value the root was found with).
+        scheme: the propagation scheme the root was found with (:func:`frequencies`).
 
     Raises:
         ValueError: for invalid concrete inputs, naming the parameter. Traced invalid inputs give
             NaN.
     """
-    order = check_inputs(tube, alpha, fluid, n_layers)
+    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
     validate_range("omega", omega, "a finite real number > 0 (a root of the characteristic function)",
                    lambda v: v > 0)
     tube, alpha, omega, fluid = canonical(tube, alpha, omega, fluid)
-    return _group_velocity(tube, alpha, omega, fluid, int(n_layers), order)
+    return _group_velocity(tube, alpha, omega, fluid, laminate(n_layers, scheme), order)
 
 
 @cached_jit(static_argnames=("n_layers", "order"))

@@ -47,7 +47,7 @@ from .params import (
 )
 from .roots import frequencies_unchecked, guard
 from .scalar import Status
-from .transfer import discretize
+from .transfer import discretize, laminate, validate_scheme
 
 SENSITIVITY = ("voltage", "lambda_i", "lambda_z", "density_ratio", "speed_ratio", "thickness_ratio",
                "gent")
@@ -270,8 +270,8 @@ def _axis(name, values):
 
 
 def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max=None,
-          n_layers: int = 30, jacobian=None, chunk_size: int = CHUNK_SIZE, batch_size=None,
-          progress=None, devices=None, client=None, **axes) -> SweepResult:
+          n_layers: int = 30, scheme: str = "midpoint", jacobian=None, chunk_size: int = CHUNK_SIZE,
+          batch_size=None, progress=None, devices=None, client=None, **axes) -> SweepResult:
     """The ``n_roots`` lowest frequencies over the grid spanned by ``axes``.
 
     Args:
@@ -280,6 +280,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         n_roots: K, roots per point (static).
         omega_max: upper end of each root search (None: automatic, see :func:`jaxdea.frequencies`).
         n_layers: sublayers N (static).
+        scheme: ``"midpoint"``, ``"magnus4"`` or ``"magnus6"`` (static; :func:`jaxdea.frequencies`).
         jacobian: None (no derivatives), True (the sensitivity set (V̂, λ_i, λ_z, ρ̂_f, ĉ_f, h/R_i,
             G), fluid names dropped for an empty tube), or a sequence of parameter names. With it
             come the group velocities dΩ/dα̂.
@@ -333,6 +334,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
     if progress is not None and not isinstance(progress, bool):
         raise ValueError(f"progress must be None, True or False, got {progress!r}")
     validate_layers(n_layers)
+    validate_scheme(scheme)
     auto_batch = batch_size is None  # with a client, chosen in each worker for its own backend
     if batch_size is None:
         batch_size = 1 if jax.default_backend() == "cpu" else chunk_size
@@ -364,7 +366,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
     size = min(int(chunk_size), 1 << (per_device - 1).bit_length())  # power of two ≤ chunk_size
     size *= max(len(devices), 1)  # points per chunk, a multiple of the device count
     grids = [g.ravel() for g in np.meshgrid(*axes.values(), indexing="ij")]
-    static = dict(names=tuple(axes), n_roots=int(n_roots), n_layers=int(n_layers), order=order,
+    static = dict(names=tuple(axes), n_roots=int(n_roots), n_layers=laminate(n_layers, scheme), order=order,
                   jac_names=jac_names, batch_size=min(int(batch_size), size))
     starts = range(0, total, size)
 
@@ -400,7 +402,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
             reshape(outputs[4]) if jac_names else np.empty((*shape, n_roots, 0))),
         jacobian_names=jac_names or (),
         group_velocity=None if jac_names is None else reshape(outputs[3]),
-        settings=_settings(tube, fluid, n_roots, omega_max, n_layers),
+        settings=_settings(tube, fluid, n_roots, omega_max, n_layers, scheme),
     )
 
 
@@ -464,10 +466,11 @@ def _order(fluid, axes):
     return "n"
 
 
-def _settings(tube, fluid, n_roots, omega_max, n_layers):
+def _settings(tube, fluid, n_roots, omega_max, n_layers, scheme):
     leaf = lambda x: float(np.asarray(x)) if np.ndim(x) == 0 else np.asarray(x).tolist()  # noqa: E731
     out = {"tube": {k: leaf(getattr(tube, k)) for k in TUBE_LEAVES}, "material": tube.material,
-           "n_roots": int(n_roots), "omega_max": omega_max, "n_layers": int(n_layers)}
+           "n_roots": int(n_roots), "omega_max": omega_max, "n_layers": int(n_layers),
+           "scheme": scheme}
     if fluid is not None:
         out["fluid"] = {k: leaf(getattr(fluid, k)) for k in FLUID_LEAVES}
         out["coupling"] = fluid.coupling

@@ -154,6 +154,8 @@ BAD_CONFIGS = [
     ({"axes": {"n": [1]}, "solver": {"jacobian": ["voltage", "speed_ratio"]}},
      "'solver.jacobian[1]' = 'speed_ratio' is no parameter of this case"),
     ({"axes": {"n": [1]}, "solver": {"omega_max": -1}}, "'solver.omega_max' must be a finite number > 0"),
+    ({"axes": {"n": [1]}, "solver": {"scheme": "rk4"}},
+     "'solver.scheme' must be one of midpoint, magnus4, magnus6, got 'rk4'"),
     ({"axes": {"n": [1]}, "output": {"formats": ["png"]}}, "'output.formats[0]' must be one of csv, npz"),
     ({"axes": {"n": [1]}, "output": {"name": "a/b"}}, "'output.name' must be a file stem without folders"),
     ({"axes": {"n": [1]}, "output": {"formats": [], "plot": False}}, "nothing would be written"),
@@ -198,6 +200,9 @@ def test_parse_config_defaults_and_derived_axes():
     assert (cfg.name, cfg.formats, cfg.plot, cfg.out_dir) == ("stem", ("csv", "npz"), True, None)
     args = cfg.sweep_arguments()
     assert (args["n_roots"], args["n_layers"], args["jacobian"], args["omega_max"]) == (3, 30, None, None)
+    assert args["scheme"] == "midpoint"
+    magnus = config.parse_config({"axes": {"alpha": [1.0]}, "solver": {"scheme": "magnus6"}})
+    assert magnus.sweep_arguments()["scheme"] == "magnus6"
     gent_inf = config.parse_config({"tube": {"gent": float("inf")}, "axes": {"alpha": [1.0]}})
     assert gent_inf.tube["gent"] == np.inf
 
