@@ -230,8 +230,9 @@ EXPONENTIALS = {"taylor": expm_taylor, "adaptive": expm_taylor_adaptive,
 
 
 def _commutator(a, b):
-    """[a, b] = ab − ba, materialised (see :func:`_product`)."""
-    return jax.lax.optimization_barrier(matmul_small(a, b) - matmul_small(b, a))
+    """[a, b] = ab − ba, materialised (see :func:`_product`). ``@`` here, not :func:`matmul_small`:
+    a value-and-slope of the magnus6 laminate ran 2.0× faster at 5 lanes, 1.5× at 40 (measured)."""
+    return jax.lax.optimization_barrier(a @ b - b @ a)
 
 
 def layer_generator(step, coef: Coefficients, radius, omega, alpha):
