@@ -18,6 +18,10 @@ Near the critical voltage the lowest root behaves like sqrt(V̂_cr(N) − V̂): 
 V̂_cr is amplified by ≈ V̂_cr/(2(V̂_cr − V̂)) in Ω, and the levels see it (their V̂_cr(N) differ), so
 the estimate grows accordingly; if V̂ lies above V̂_cr of some level the root vanishes there and
 the status says so (NO_ROOT / MAX_ITER) instead of extrapolating across the instability.
+
+The Magnus schemes (``scheme="magnus4"``, ``"magnus6"``, :mod:`jaxdea.transfer`) are symmetric
+too, with expansions in N⁻⁴, N⁻⁶, … and N⁻⁶, N⁻⁸, …: their levels are combined as
+R_j = (2^p Ω_{j+1} − Ω_j)/(2^p − 1) with p = 4, 6 (error O(N⁻⁶), O(N⁻⁸)).
 """
 
 from typing import NamedTuple
@@ -30,6 +34,7 @@ from .dispersion import check_inputs
 from .params import Fluid, Tube, canonical, validate_layers
 from .roots import _problem, guard, scan_step, solve_frequencies
 from .scalar import Status, run_lanes, start_lanes
+from .transfer import SCHEME_ORDER, laminate
 
 
 class Estimate(NamedTuple):
@@ -71,7 +76,7 @@ def _follow(tube, alpha, fluid, guesses, n_layers, order):
 
 def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
                            omega_max=None, n_layers: int = 30, rtol=None,
-                           max_layers: int = 1920) -> Estimate:
+                           max_layers: int = 1920, scheme: str = "midpoint") -> Estimate:
     """The ``n_roots`` lowest roots with an error estimate each (module docstring).
 
     Levels N, 2N, 4N (at least three, for two Richardson values); with ``rtol`` further doublings
@@ -83,6 +88,8 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
         n_layers: the coarsest level N, where the roots are isolated.
         rtol: requested relative accuracy, or None for the three levels N, 2N, 4N.
         max_layers: finest level allowed.
+        scheme: the propagation scheme of every level (:func:`jaxdea.frequencies`); its order p
+            sets the Richardson factor 2^p.
 
     Returns:
         :class:`Estimate`.
@@ -91,26 +98,27 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
         >>> est = frequencies_with_error(Tube(), 0.445, rtol=1e-10)
         >>> est.omega, est.error
     """
-    order = check_inputs(tube, alpha, fluid, n_layers)
+    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
     validate_layers(max_layers)
     if max_layers < 4 * n_layers:
         raise ValueError(f"max_layers must be >= 4 * n_layers = {4 * n_layers}, got {max_layers!r}")
     if rtol is not None and not (np.isfinite(rtol) and rtol > 0):
         raise ValueError(f"rtol must be a finite number > 0, got {rtol!r}")
-    first = solve_frequencies(tube, alpha, fluid, n_roots, omega_max, n_layers)
+    first = solve_frequencies(tube, alpha, fluid, n_roots, omega_max, n_layers, scheme)
     tube, alpha, fluid = canonical(tube, alpha, fluid)
     levels = [np.asarray(first.omega)]
     status = np.asarray(first.status).copy()
     layers = [int(n_layers)]
     while True:
         n = 2 * layers[-1]
-        omega, stat = (np.asarray(x) for x in _follow(tube, alpha, fluid, levels[-1], n, order))
+        omega, stat = (np.asarray(x) for x in _follow(tube, alpha, fluid, levels[-1],
+                                                      laminate(n, scheme), order))
         status = np.where(status == Status.CONVERGED, stat, status)
         levels.append(omega)
         layers.append(n)
         if len(levels) < 3:
             continue
-        value, error = _richardson(levels)
+        value, error = _richardson(levels, SCHEME_ORDER[scheme])
         converged = status == Status.CONVERGED
         met = ~converged | (error <= (rtol or np.inf) * np.abs(value))
         if rtol is None or np.all(met) or 2 * n > max_layers:
@@ -127,10 +135,11 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
                     n_layers=np.asarray(layers))
 
 
-def _richardson(levels):
-    """(R_last, |R_last − R_prev|) from the last three levels (N⁻² elimination)."""
+def _richardson(levels, order=2):
+    """(R_last, |R_last − R_prev|) from the last three levels (N^−order elimination)."""
     a, b, c = levels[-3:]
-    prev, last = (4.0 * b - a) / 3.0, (4.0 * c - b) / 3.0
+    factor = 2.0**order
+    prev, last = (factor * b - a) / (factor - 1.0), (factor * c - b) / (factor - 1.0)
     return last, np.abs(last - prev)
 
 
