@@ -3,16 +3,19 @@
 :func:`jaxdea.frequencies` isolates the roots of every α̂ by a guaranteed scan of f(Ω) from Ω = 0
 (:mod:`jaxdea.roots`), which costs tens of evaluations per root. Along a curve the roots of the
 next α̂ are close to a polynomial extrapolation of the previous ones, and Newton from there needs
-two or three. :func:`dispersion_curve` follows the K lowest roots that way and checks every step;
+one to three evaluations. :func:`dispersion_curve` follows the K lowest roots that way and checks every step;
 a step that fails a check is solved by the scan instead, so the result is that of ``frequencies``
 at every α̂ (the same roots, to the solver tolerance), only cheaper where the curve is smooth.
 
-Step j (α̂_j, after accepted roots at up to three earlier α̂):
+Step j (α̂_j, after accepted roots at up to HISTORY = 6 earlier α̂):
 
-1. Predictor: p_k = the Lagrange polynomial through the last m ≤ 3 accepted (α̂, Ω_k), at α̂_j.
+1. Predictor: p_k = the Lagrange polynomial through the last m ≤ 6 accepted (α̂, Ω_k), at α̂_j.
 2. Corrector: K Newton lanes from p_k (:func:`jaxdea.scalar.iterate_lanes`, FREE lanes: steps
    capped at ρ_k = ¼ of the distance from p_k to its neighbours p_{k±1}, with p_0 = 0; a lane that
-   brackets a sign change finishes by safeguarded Newton), and one lane that evaluates f(0).
+   brackets a sign change finishes by safeguarded Newton), and one lane that evaluates f(0). Each
+   lane starts with the curvature K_k = |f''/(2f')| its branch had at the previous step (measured
+   from the slopes of its last two iterates there): where the first Newton step δ from p_k leaves
+   an error K_k δ² below 1/16 of the tolerance, the lane stops after that one evaluation.
 3. Checks, all required: every lane converged within ``TRACK_ITERATIONS``; 0 < Ω_1 < … < Ω_K;
    |Ω_k − p_k| ≤ ρ_k; and the signs alternate,
 
@@ -40,11 +43,11 @@ After a fallback the history restarts from the scanned roots (one point: a const
 unless the scanned roots lie within ρ_k of the prediction (the branches were followed correctly
 and only a check was too strict), when the history goes on.
 
-Cost: a step costs 2 evaluations of (f, f') on K + 1 lanes where the prediction is good (3 or
-more where it is not); the scan of one α̂ costs one or more 32-point chunks plus the lanes. Inside
-``jax.vmap`` the fallback (a ``lax.cond``) turns into a select that runs the scan at every step:
-vmap the curve only where few steps would succeed anyway, and loop in Python (or use
-:func:`jaxdea.sweep`) otherwise.
+Cost: a step costs 1 evaluation of (f, f') on K + 1 lanes where the prediction is within about
+1e-8 of the roots, 2 where it is good (3 or more where it is not); the scan of one α̂ costs one
+or more 32-point chunks plus the lanes. Inside ``jax.vmap`` the fallback (a ``lax.cond``) turns
+into a select that runs the scan at every step: vmap the curve only where few steps would succeed
+anyway, and loop in Python (or use :func:`jaxdea.sweep`) otherwise.
 """
 
 from typing import NamedTuple
@@ -59,7 +62,7 @@ from .roots import Roots, _with_derivatives, scan_roots
 from .scalar import Status, iterate_lanes, lanes_from_slots
 from .transfer import discretize, laminate
 
-HISTORY = 3  # points of the predictor (quadratic extrapolation)
+HISTORY = 6  # points of the predictor (quintic extrapolation; 3, 4, 5, 6, 8 measured: 6 fastest)
 SHARE_OF_GAP = 0.25  # a lane may move at most this share of the distance to its neighbours
 TRACK_ITERATIONS = 16  # corrector iterations before the step is handed to the scan
 
@@ -82,16 +85,23 @@ class Curve(NamedTuple):
 
 
 def _extrapolate(hist_alpha, hist_omega, n_hist, alpha):
-    """p(α̂) of the Lagrange polynomial through the newest ``n_hist`` (≤ 3) rows of the history
-    (newest last)."""
-    a0, a1, a2 = hist_alpha
-    x = alpha
-    w3 = jnp.stack([(x - a1) * (x - a2) / ((a0 - a1) * (a0 - a2)),
-                    (x - a0) * (x - a2) / ((a1 - a0) * (a1 - a2)),
-                    (x - a0) * (x - a1) / ((a2 - a0) * (a2 - a1))])
-    w2 = jnp.stack([jnp.zeros_like(x), (x - a2) / (a1 - a2), (x - a1) / (a2 - a1)])
-    w1 = jnp.array([0.0, 0.0, 1.0])
-    w = jnp.where(n_hist >= 3, w3, jnp.where(n_hist == 2, w2, w1))
+    """p(α̂) of the Lagrange polynomial through the newest ``n_hist`` (≤ HISTORY) rows of the
+    history (newest last)."""
+    h = hist_alpha.shape[0]
+
+    def weights(m):  # Lagrange weights of the newest m rows at α̂, zero for the older ones
+        w = []
+        for i in range(h):
+            wi = jnp.zeros_like(alpha) if i < h - m else jnp.ones_like(alpha)
+            for j in range(max(h - m, 0), h):
+                if i >= h - m and j != i:
+                    wi = wi * (alpha - hist_alpha[j]) / (hist_alpha[i] - hist_alpha[j])
+            w.append(wi)
+        return jnp.stack(w)
+
+    w = weights(1)
+    for m in range(2, h + 1):
+        w = jnp.where(n_hist >= m, weights(m), w)
     rows = jnp.where(jnp.isfinite(hist_omega), hist_omega, 0.0)
     return w @ rows
 
@@ -103,15 +113,17 @@ def _room(pred):
     return SHARE_OF_GAP * jnp.minimum(pred - below, above - pred)
 
 
-def _track(fun, pred):
-    """(Ω, accepted): K corrector lanes from ``pred`` and the checks of the module docstring."""
+def _track(fun, pred, curvature=None):
+    """(Ω, accepted, K): K corrector lanes from ``pred`` (with prior curvatures ``curvature``, see
+    :func:`jaxdea.scalar.iterate_lanes`) and the checks of the module docstring."""
     k = pred.shape[0]
     room = _room(pred)
     x0 = jnp.concatenate([pred, jnp.zeros(1)])  # the last lane evaluates f(0)
     nan = jnp.full(k + 1, jnp.nan)
+    prior = nan if curvature is None else jnp.concatenate([curvature, jnp.full(1, jnp.nan)])
     kind = jnp.concatenate([jnp.full(k, 3), jnp.zeros(1, jnp.int32)])
     lanes = lanes_from_slots(x0, x0, nan, nan, nan, nan, kind, jnp.zeros(k + 1, jnp.int32),
-                             max_step=jnp.concatenate([room, jnp.full(1, jnp.inf)]))
+                             max_step=jnp.concatenate([room, jnp.full(1, jnp.inf)]), curvature=prior)
     lanes = iterate_lanes(fun, lanes, max_iter=TRACK_ITERATIONS)
     omega, slope, f0 = lanes.x[:k], lanes.dfx[:k], lanes.fx[k]
     alternating = jnp.sign(f0) * (-1.0) ** jnp.arange(1, k + 1)
@@ -120,7 +132,7 @@ def _track(fun, pred):
     ok &= jnp.all(jnp.diff(jnp.concatenate([jnp.zeros(1), omega])) > 0)
     ok &= jnp.all(jnp.abs(omega - pred) <= room)
     ok &= jnp.all(jnp.sign(slope) == alternating)
-    return omega, ok
+    return omega, ok, lanes.curvature[:k]
 
 
 def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order) -> Curve:
@@ -137,35 +149,39 @@ def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order) -> Curve:
     def follow(history, a):
         """Continuation to α̂ = a: the whole step; if it fails a check, the two halves of it (the
         midpoint, accepted by the same checks, joins the history). Returns (Ω, accepted, the
-        history used, the last prediction)."""
+        history used, the last prediction, the lanes' curvatures)."""
         def attempt(c):
-            hist, stage, _, _, _ = c
+            hist, stage = c[:2]
             target = jnp.where(stage == 1, 0.5 * (hist[0][-1] + a), a)
-            pred = _extrapolate(*hist, target)
-            omega, ok = _track(at(target), pred)
+            pred = _extrapolate(*hist[:3], target)
+            omega, ok, curvature = _track(at(target), pred, hist[3])
             pushed = (jnp.concatenate([hist[0][1:], target[None]]),
-                      jnp.concatenate([hist[1][1:], omega[None]]), jnp.minimum(hist[2] + 1, HISTORY))
+                      jnp.concatenate([hist[1][1:], omega[None]]), jnp.minimum(hist[2] + 1, HISTORY),
+                      curvature)
             hist = jax.tree_util.tree_map(lambda x, y: jnp.where((stage == 1) & ok, x, y), pushed, hist)
             done = (stage != 1) & ok
             stage = jnp.where(ok | (stage == 0), stage + 1, 3)  # a failed half ends the attempts
-            return hist, stage, omega, done, pred
+            return hist, stage, omega, done, pred, curvature
 
-        hist, _, omega, done, pred = jax.lax.while_loop(
+        hist, _, omega, done, pred, curvature = jax.lax.while_loop(
             lambda c: ~c[3] & (c[1] < 3), attempt,
-            (history, jnp.array(0), jnp.zeros(n_roots), jnp.array(False), jnp.zeros(n_roots)))
-        return omega, done, hist, pred
+            (history, jnp.array(0), jnp.zeros(n_roots), jnp.array(False), jnp.zeros(n_roots),
+             jnp.full(n_roots, jnp.nan)))
+        return omega, done, hist, pred, curvature
 
     def step(carry, inputs):
         a, ok = inputs
         a = jnp.where(ok, a, 1.0)
         tried = ok & (carry[2] > 0)
         if conservative:
-            omega, accepted, carry, pred = jax.lax.cond(
+            omega, accepted, carry, pred, curvature = jax.lax.cond(
                 tried, lambda: follow(carry, a),
-                lambda: (jnp.zeros(n_roots), jnp.array(False), carry, jnp.zeros(n_roots)))
+                lambda: (jnp.zeros(n_roots), jnp.array(False), carry, jnp.zeros(n_roots),
+                         jnp.full(n_roots, jnp.nan)))
         else:  # roots are born in pairs: scan every α̂
             omega, accepted, pred = jnp.zeros(n_roots), jnp.array(False), jnp.zeros(n_roots)
-        hist_alpha, hist_omega, n_hist = carry
+            curvature = jnp.full(n_roots, jnp.nan)
+        hist_alpha, hist_omega, n_hist, _ = carry
         scan = ok & ~accepted
         roots = jax.lax.cond(scan, lambda: scan_roots(wall, at(a), a, fluid, None, n_roots),
                              lambda: Roots(omega, jnp.full(n_roots, Status.CONVERGED, jnp.int32)))
@@ -174,11 +190,13 @@ def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order) -> Curve:
         n_new = jnp.where(on_track, jnp.minimum(n_hist + 1, HISTORY), 1)
         n_new = jnp.where(ok & complete, n_new, 0)
         carry = (jnp.concatenate([hist_alpha[1:], a[None]]),
-                 jnp.concatenate([hist_omega[1:], roots.omega[None]]), n_new)
+                 jnp.concatenate([hist_omega[1:], roots.omega[None]]), n_new,
+                 jnp.where(scan, jnp.nan, curvature))
         status = jnp.where(ok, roots.status, Status.INVALID).astype(jnp.int32)
         return carry, (jnp.where(ok, roots.omega, jnp.nan), status, scan)
 
-    init = (jnp.arange(HISTORY, dtype=jnp.float64), jnp.zeros((HISTORY, n_roots)), jnp.array(0))
+    init = (jnp.arange(HISTORY, dtype=jnp.float64), jnp.zeros((HISTORY, n_roots)), jnp.array(0),
+            jnp.full(n_roots, jnp.nan))
     _, (omega, status, scanned) = jax.lax.scan(step, init, (alpha, ok_alpha))
     return Curve(alpha, omega, status, scanned)
 

@@ -51,6 +51,7 @@ def implicit_root(fun, solve, x0):
 
 # ------------------------------------------------------------------------- vectorised lane solver
 IDLE, EXTREMUM, BRACKET, FREE = 0, 1, 2, 3
+PRIOR_MARGIN = 1.0 / 16.0  # a prior curvature must promise an error ≤ this share of the tolerance
 
 
 class Lanes(NamedTuple):
@@ -83,6 +84,7 @@ class Lanes(NamedTuple):
     guess: jax.Array  # BRACKET lanes: the next point to evaluate, if finite (Hermite-cubic root)
     key: jax.Array  # sort key of the root (inf: none)
     status: jax.Array
+    curvature: jax.Array  # K = |f''/(2f')| from the last two iterates; a FREE lane may start with a prior
 
 
 def hermite_root(a, b, fa, fb, dfa, dfb, iterations: int = 8):
@@ -153,10 +155,11 @@ def start_lanes(a, b, fa, fb, dfa, dfb, kind, max_step=None, pairs=True):
                             None if max_step is None else rep(max_step))
 
 
-def lanes_from_slots(a, b, fa, fb, dfa, dfb, kind, side, max_step=None):
+def lanes_from_slots(a, b, fa, fb, dfa, dfb, kind, side, max_step=None, curvature=None):
     """Lanes with one slot each: the candidate's interval data, its ``kind`` (as in
     :func:`start_lanes`) and the ``side`` of a hidden pair this lane takes (0: left, 1: right).
-    FREE and sign-change candidates run on their side-0 lane only."""
+    FREE and sign-change candidates run on their side-0 lane only. ``curvature``: a prior K for
+    FREE lanes (:func:`iterate_lanes`), NaN (none) by default."""
     a, b, fa, fb, dfa, dfb = (jnp.asarray(v, jnp.float64) for v in (a, b, fa, fb, dfa, dfb))
     max_step = jnp.full_like(a, jnp.inf) if max_step is None else max_step
     mode = jnp.where((kind == 2) | ((kind == 3) & (side == 0)), jnp.where(kind == 2, EXTREMUM, FREE),
@@ -167,6 +170,7 @@ def lanes_from_slots(a, b, fa, fb, dfa, dfb, kind, side, max_step=None):
         x=a, fx=fa, dfx=dfa, step=jnp.abs(b - a), step_old=2.0 * jnp.abs(b - a),
         max_step=max_step, guess=jnp.full_like(a, jnp.nan), key=jnp.full_like(a, jnp.inf),
         status=jnp.full(a.shape, Status.NO_ROOT, jnp.int32),
+        curvature=jnp.full_like(a, jnp.nan) if curvature is None else curvature,
     )
     return _enter_bracket(lanes, (kind == 1) & (side == 0), a, b, fa, fb, dfa, dfb)
 
@@ -199,7 +203,10 @@ def iterate_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200) -> Lanes:
     or a next Newton step |f/f'| that is ≤ rtol·|x| or leaves an error K·(f/f')² ≤ rtol·|x| (K =
     |f''/(2f')| from the slopes of the last two iterates, trusted where f' changed by ≤ 20 % between
     them); that step is then applied without another evaluation (quadratic convergence: the root to
-    rounding, one evaluation fewer than waiting for a step below rtol·|x|).
+    rounding, one evaluation fewer than waiting for a step below rtol·|x|). A FREE lane started with
+    a finite ``curvature`` (a prior K, e.g. that of the same branch at the previous point of a
+    continuation) may stop so at its first evaluation, where K·(f/f')² ≤ PRIOR_MARGIN·rtol·|x| and
+    K·|f/f'| ≤ 0.05; every lane's ``curvature`` ends as the last K it measured (or its prior).
 
     IDLE lanes are evaluated too, at their x (their fx, dfx then hold f, f' there).
 
@@ -250,8 +257,13 @@ def iterate_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200) -> Lanes:
         # K = |f''/(2f')| estimated from the slopes at x and x_new, is below tol (quadratic
         # convergence; trusted only where K·|x_new − x| ≤ 0.1, i.e. f' varies by ≤ 20 % between)
         curvature = jnp.abs(df_new - s.dfx) / (2.0 * jnp.abs(df_new) * step_new)
-        settled = (curvature * last_step**2 <= tol) & (curvature * step_new <= 0.1)
-        finish_step = finite & ((jnp.abs(last_step) <= tol) | (settled & (step_new > 0)))
+        trusted = (curvature * step_new <= 0.1) & (step_new > 0)
+        settled = (curvature * last_step**2 <= tol) & trusted
+        # a FREE lane's first evaluation, with a prior K (continuation: K of the same branch at
+        # the previous α̂): finished if that K leaves an error far below tol after the step
+        prior = fresh & (s.mode == FREE) & (s.curvature * last_step**2 <= PRIOR_MARGIN * tol)
+        prior &= s.curvature * jnp.abs(last_step) <= 0.05
+        finish_step = finite & ((jnp.abs(last_step) <= tol) | settled | prior)
         # (a step from the guess is no Newton step: its length says nothing of convergence)
         converged = in_bracket & (((step_new <= tol) & ~from_guess) | (f_new == 0)
                                   | (jnp.abs(hi - lo) <= tol) | finish_step)
@@ -288,7 +300,8 @@ def iterate_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200) -> Lanes:
                                                  jnp.maximum(x_prev, x_new)), x_last)
         x_done = jnp.where(converged, jnp.clip(x_last, jnp.minimum(lo, hi), jnp.maximum(lo, hi)),
                            jnp.where(free_done, x_free, x_new))
-        s = s._replace(x=x_done, fx=f_new, dfx=df_new, guess=jnp.full_like(s.guess, jnp.nan))
+        s = s._replace(x=x_done, fx=f_new, dfx=df_new, guess=jnp.full_like(s.guess, jnp.nan),
+                       curvature=jnp.where(trusted & jnp.isfinite(curvature), curvature, s.curvature))
 
         # extremum found: split into the two root brackets if f changes sign there
         pair = ext_done & (jnp.sign(f_new) != jnp.sign(s.fa))

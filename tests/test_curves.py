@@ -9,6 +9,7 @@ import pytest
 import jaxdea as jd
 from jaxdea.curves import _track
 from jaxdea.dispersion import characteristic_on_wall
+from jaxdea.scalar import iterate_lanes, lanes_from_slots
 from jaxdea.transfer import discretize
 
 
@@ -73,7 +74,7 @@ def test_checks_accept_the_branches_and_refuse_shifted_ones():
     of the next branches (a lane per branch jumped, or a root came in below): every lane converges
     and the order and distance checks pass, but the signs of f(0), f'(Ω_k) do not alternate."""
     fun, roots = _case()
-    track = jax.jit(lambda pred: _track(fun, pred))
+    track = jax.jit(lambda pred: _track(fun, pred)[:2])
     omega, ok = track(jnp.asarray(roots[:3] * (1 + 1e-3)))
     assert bool(ok)
     np.testing.assert_allclose(omega, roots[:3], rtol=1e-13)
@@ -83,6 +84,32 @@ def test_checks_accept_the_branches_and_refuse_shifted_ones():
         assert not bool(ok)
     _, ok = track(jnp.asarray(roots[:3] + np.array([0.0, 0.4, 0.0]) * (roots[2] - roots[1])))
     assert not bool(ok)  # a lane that must move by more than a quarter of the gap
+
+
+def test_a_prior_curvature_finishes_a_lane_at_its_first_evaluation():
+    """f(x) = x² − 2 from x0 = √2(1 + 1e-9): with the true K = |f''/(2f')| = 1/(2√2) as a prior,
+    the Newton step from x0 leaves an error K·δ² ≈ 7e-19, so the lane finishes after one
+    evaluation, at √2 to rounding. Without a prior, or with a start 1e-3 off (K·δ² ≈ 7e-7 > tol),
+    it needs more; the lanes report the curvature they measured (what continuation carries on)."""
+    fun = lambda x: x * x - 2.0  # noqa: E731
+    root, k_true = np.sqrt(2.0), 1.0 / (2.0 * np.sqrt(2.0))
+
+    @jax.jit
+    def run(x0, prior, iterations):
+        one = lambda v: jnp.reshape(jnp.asarray(v, jnp.float64), (1,))  # noqa: E731
+        nan = one(jnp.nan)
+        lanes = lanes_from_slots(one(x0), one(x0), nan, nan, nan, nan, jnp.array([3]),
+                                 jnp.array([0]), curvature=one(prior))
+        return iterate_lanes(fun, lanes, max_iter=iterations)
+
+    done = run(root * (1 + 1e-9), k_true, 1)
+    assert int(done.status[0]) == jd.Status.CONVERGED
+    np.testing.assert_allclose(done.x[0], root, rtol=2e-16)
+    assert int(run(root * (1 + 1e-9), np.nan, 1).status[0]) == jd.Status.MAX_ITER
+    assert int(run(root * (1 + 1e-3), k_true, 1).status[0]) == jd.Status.MAX_ITER
+    measured = run(root * (1 + 1e-3), np.nan, 20)
+    assert int(measured.status[0]) == jd.Status.CONVERGED
+    np.testing.assert_allclose(measured.curvature[0], k_true, rtol=1e-2)
 
 
 def test_paper_coupling_scans_every_alpha():
