@@ -34,7 +34,7 @@ from .dispersion import check_inputs
 from .params import Fluid, Tube, canonical, validate_layers
 from .roots import _problem, guard, scan_step, solve_frequencies
 from .scalar import Status, run_lanes, start_lanes
-from .transfer import SCHEME_ORDER, laminate
+from .transfer import laminate, scheme_order
 
 
 class Estimate(NamedTuple):
@@ -118,7 +118,7 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
         layers.append(n)
         if len(levels) < 3:
             continue
-        value, error = _richardson(levels, SCHEME_ORDER[scheme])
+        value, error = _richardson(levels, scheme_order(scheme))
         converged = status == Status.CONVERGED
         met = ~converged | (error <= (rtol or np.inf) * np.abs(value))
         if rtol is None or np.all(met) or 2 * n > max_layers:
