@@ -74,7 +74,7 @@ from .compiled import cached_jit
 from .dispersion import characteristic_on_wall, check_inputs
 from .params import Fluid, Tube, as_float, canonical, validate_positive
 from .roots import guard, scan_step
-from .transfer import discretize
+from .transfer import discretize, laminate
 
 LANES = 64  # midpoints evaluated per iteration (one vmapped call)
 STACK = 4096  # pending segments held at most
@@ -250,7 +250,7 @@ def _count_roots(tube, alpha, omega_lo, omega_hi, fluid, height, max_evaluations
 
 def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = None,
                 n_layers: int = 30, height=None, max_evaluations: int = 65536,
-                symmetric: bool = True) -> RootCount:
+                symmetric: bool = True, scheme: str = "midpoint") -> RootCount:
     """The number of frequencies in (omega_lo, omega_hi), by the argument principle.
 
     Counts the zeros of det(B A S)(Ω), the characteristic function of the ``n_layers`` laminate
@@ -270,6 +270,8 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
             new value does not recompile).
         symmetric: integrate the upper half of the box only, using F(Ω̄) = conj F(Ω) (static; False
             integrates the whole rectangle: twice the cost, the same count).
+        scheme: the propagation scheme (static; :func:`jaxdea.frequencies`): the roots counted
+            are those of that discretisation.
 
     Returns:
         :class:`RootCount` (count, status): int32 arrays; count −1 unless status is
@@ -281,7 +283,7 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
     Example:
         >>> count_roots(Tube(), 0.445, 0.5, 3.0)  # RootCount(count=2, status=0)
     """
-    order = check_inputs(tube, alpha, fluid, n_layers)
+    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
     validate_positive("omega_hi", omega_hi)
     lo, hi = (np.asarray(v, dtype=np.float64) if not isinstance(v, jax.core.Tracer) else None
               for v in (omega_lo, omega_hi))
@@ -300,6 +302,6 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
     default = height is None
     height = as_float(1.0 if default else height)
     count, status, _ = _count_roots(tube, alpha, omega_lo, omega_hi, fluid, height,
-                                    jnp.asarray(max_evaluations), int(n_layers), order,
+                                    jnp.asarray(max_evaluations), laminate(n_layers, scheme), order,
                                     bool(symmetric), default)
     return RootCount(count, status)

@@ -49,9 +49,10 @@ import optax
 
 from .compiled import cached_jit
 from .dispersion import characteristic
-from .params import Fluid, Tube, as_float, canonical, mode_wavenumber, require_x64
+from .params import Fluid, Tube, as_float, canonical, mode_wavenumber, require_x64, validate_layers
 from .roots import frequencies, solve_critical_voltage, solve_frequency
 from .scalar import Status, implicit_root
+from .transfer import validate_scheme
 
 DECAY = 0.97  # learning-rate factor per step
 FLOOR = 1e-9  # the rate never falls below FLOOR x its initial value
@@ -106,7 +107,8 @@ class DesignResult(NamedTuple):
 # ----------------------------------------------------------------------------- building blocks
 
 
-def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: int = 30):
+def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: int = 30,
+               scheme: str = "midpoint"):
     """dΩ/dV̂ on the branch through the root ``omega``: T = −(∂f/∂V̂)/(∂f/∂Ω) (implicit function theorem).
 
     ``omega`` should be a root (from :func:`jaxdea.frequency` or :func:`jaxdea.frequencies`). When it
@@ -119,6 +121,7 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
         omega: a root Ω at that α̂.
         fluid: a :class:`~jaxdea.Fluid` or None.
         n_layers: sublayers N (static).
+        scheme: the propagation scheme (static; :func:`jaxdea.frequencies`), that of the root.
 
     Example:
         >>> t = Tube(voltage=0.1, lambda_i=1.1, lambda_z=1.2)
@@ -130,7 +133,7 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
     voltage = as_float(tube.voltage)
 
     def f(om, v):
-        return characteristic(tube.replace(voltage=v), om, alpha, fluid, n_layers)
+        return characteristic(tube.replace(voltage=v), om, alpha, fluid, n_layers, scheme)
 
     f_omega = jax.jvp(lambda om: f(om, voltage), (omega,), (jnp.ones_like(omega),))[1]
     f_voltage = jax.jvp(lambda v: f(omega, v), (voltage,), (jnp.ones_like(voltage),))[1]
@@ -174,21 +177,22 @@ def _point(x, setting, kind):
     return tube, alpha, fraction
 
 
-def _objective(x, omega_root, v_cr_root, setting, kind, n_layers):
+def _objective(x, omega_root, v_cr_root, setting, kind, n_layers, scheme):
     """(loss, aux) at x, given the roots solved there (values); differentiable through them."""
     tube, alpha, fraction = _point(x, setting, kind)
     v_cr = _with_implicit_derivatives(
-        lambda v: characteristic(tube.replace(voltage=v), jnp.zeros_like(v), alpha, n_layers=n_layers),
+        lambda v: characteristic(tube.replace(voltage=v), jnp.zeros_like(v), alpha, n_layers=n_layers,
+                                 scheme=scheme),
         v_cr_root)
     biased = tube.replace(voltage=fraction * setting["margin"] * v_cr)
-    omega = _with_implicit_derivatives(lambda om: characteristic(biased, om, alpha, n_layers=n_layers),
-                                       omega_root)
+    omega = _with_implicit_derivatives(
+        lambda om: characteristic(biased, om, alpha, n_layers=n_layers, scheme=scheme), omega_root)
     if kind == "frequency":  # the tunability is left to _finish: a smaller program to compile
         slope = jnp.full_like(omega, jnp.nan)
         miss = omega / setting["target"] - 1.0
         loss = miss**2 + (fraction - setting["s_op"]) ** 2
     else:
-        slope = tunability(biased, alpha, omega, n_layers=n_layers)
+        slope = tunability(biased, alpha, omega, n_layers=n_layers, scheme=scheme)
         miss = jnp.zeros_like(omega)
         loss = -jnp.abs(slope)
     aux = dict(loss=loss, omega=omega, alpha=alpha, critical_voltage=v_cr, tube=biased,
@@ -196,30 +200,31 @@ def _objective(x, omega_root, v_cr_root, setting, kind, n_layers):
     return loss, aux
 
 
-@cached_jit(static_argnames=("kind", "n_layers"))
-def _loss_and_gradient(x, omega_root, v_cr_root, setting, kind, n_layers):
+@cached_jit(static_argnames=("kind", "n_layers", "scheme"))
+def _loss_and_gradient(x, omega_root, v_cr_root, setting, kind, n_layers, scheme):
     """(aux, dloss/dx) by forward mode (at most two design variables)."""
-    grad, aux = jax.jacfwd(_objective, has_aux=True)(x, omega_root, v_cr_root, setting, kind, n_layers)
+    grad, aux = jax.jacfwd(_objective, has_aux=True)(x, omega_root, v_cr_root, setting, kind, n_layers,
+                                                     scheme)
     return jax.lax.stop_gradient(aux), grad
 
 
-def _evaluate(x, guess, setting, kind, n_layers):
+def _evaluate(x, guess, setting, kind, n_layers, scheme):
     """Solve the roots at x (values) and return (aux, gradient), or None where a solve failed."""
     tube, alpha, fraction = _point(x, setting, kind)
-    v_cr, status = solve_critical_voltage(tube, alpha, n_layers=n_layers)
+    v_cr, status = solve_critical_voltage(tube, alpha, n_layers=n_layers, scheme=scheme)
     if int(status) != Status.CONVERGED:
         return None
     biased = tube.replace(voltage=fraction * setting["margin"] * v_cr)
-    omega, status = solve_frequency(biased, alpha, guess, n_layers=n_layers)
+    omega, status = solve_frequency(biased, alpha, guess, n_layers=n_layers, scheme=scheme)
     if int(status) != Status.CONVERGED:
         return None
-    aux, grad = _loss_and_gradient(x, omega, v_cr, setting, kind, n_layers)
+    aux, grad = _loss_and_gradient(x, omega, v_cr, setting, kind, n_layers, scheme)
     if not (math.isfinite(float(aux["loss"])) and bool(jnp.all(jnp.isfinite(grad)))):
         return None
     return aux, grad
 
 
-def _run(x0, guess, setting, kind, n_layers, learning_rate, max_steps, done):
+def _run(x0, guess, setting, kind, n_layers, scheme, learning_rate, max_steps, done):
     """adam with a geometrically decaying rate, each step from the previous root."""
     schedule = optax.exponential_decay(learning_rate, transition_steps=1, decay_rate=DECAY,
                                        end_value=FLOOR * learning_rate)
@@ -228,7 +233,7 @@ def _run(x0, guess, setting, kind, n_layers, learning_rate, max_steps, done):
     state = optimiser.init(x)
     history, last, status = [], None, DesignStatus.MAX_STEPS
     for _ in range(max_steps):
-        out = _evaluate(x, guess, setting, kind, n_layers)
+        out = _evaluate(x, guess, setting, kind, n_layers, scheme)
         if out is None:
             status = DesignStatus.NOT_FINITE
             break
@@ -247,7 +252,7 @@ def _run(x0, guess, setting, kind, n_layers, learning_rate, max_steps, done):
     return last, history, status, x
 
 
-def _newton_finish(x, guess, setting, n_layers, history, done):
+def _newton_finish(x, guess, setting, n_layers, scheme, history, done):
     """Newton on the thickness variable at s = s_op exactly, from adam's last iterate.
 
     adam's decaying rate can freeze the iterate just short of the tolerance (measured: a miss of
@@ -259,7 +264,7 @@ def _newton_finish(x, guess, setting, n_layers, history, done):
     """
     x = jnp.asarray([x[0], _sigmoid_inverse(float(setting["s_op"]), 0.0, 1.0)], jnp.float64)
     for _ in range(NEWTON_STEPS):
-        out = _evaluate(x, guess, setting, "frequency", n_layers)
+        out = _evaluate(x, guess, setting, "frequency", n_layers, scheme)
         if out is None:
             return None
         aux, grad = out
@@ -274,20 +279,21 @@ def _newton_finish(x, guess, setting, n_layers, history, done):
     return None
 
 
-def _finish(aux, history, status, margin, material, n_layers):
+def _finish(aux, history, status, margin, material, n_layers, scheme):
     """Verify the tracked root with :func:`jaxdea.frequencies` and build the result."""
     leaves = {k: float(getattr(aux["tube"], k)) for k in ("voltage", "lambda_i", "lambda_z", "eta",
                                                           "gent", "length_ratio")}
     tube = Tube(**leaves, material=material)
     alpha = float(aux["alpha"])
-    lowest = float(frequencies(tube, alpha, n_roots=1, n_layers=n_layers)[0])
+    lowest = float(frequencies(tube, alpha, n_roots=1, n_layers=n_layers, scheme=scheme)[0])
     tracked = float(aux["omega"])
     if status == DesignStatus.CONVERGED and not abs(lowest - tracked) <= 1e-9 * abs(tracked):
         status = DesignStatus.WRONG_BRANCH
     v_cr = float(aux["critical_voltage"])
     slope = float(aux["tunability"])
     if not math.isfinite(slope):
-        slope = float(jax.jit(tunability, static_argnames="n_layers")(tube, alpha, lowest, n_layers=n_layers))
+        slope = float(jax.jit(tunability, static_argnames=("n_layers", "scheme"))(
+            tube, alpha, lowest, n_layers=n_layers, scheme=scheme))
     return DesignResult(
         tube=tube, alpha=alpha, omega=lowest, critical_voltage=v_cr, thickness=1.0 / tube.eta - 1.0,
         voltage=tube.voltage, voltage_fraction=float(aux["fraction"]),
@@ -315,8 +321,10 @@ def _check_bounds(name, bounds, lo, hi, allowed):
     return a, b
 
 
-def _check_common(tube, n, margin, learning_rate, max_steps, rtol):
+def _check_common(tube, n, margin, learning_rate, max_steps, rtol, n_layers, scheme):
     require_x64()
+    validate_layers(n_layers)
+    validate_scheme(scheme)
     if not isinstance(tube, Tube):
         raise ValueError(f"tube must be a jaxdea.Tube, got {type(tube).__name__}")
     if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 1:
@@ -328,15 +336,15 @@ def _check_common(tube, n, margin, learning_rate, max_steps, rtol):
     _check_open("rtol", rtol, 0.0, 1.0, "(0, 1)")
 
 
-def _seed(tube, alpha, fraction, margin, n_layers, what):
+def _seed(tube, alpha, fraction, margin, n_layers, scheme, what):
     """V̂_cr at the start and the lowest root there (the first Newton guess)."""
-    v_cr = float(solve_critical_voltage(tube, alpha, n_layers=n_layers)[0])
+    v_cr = float(solve_critical_voltage(tube, alpha, n_layers=n_layers, scheme=scheme)[0])
     if not math.isfinite(v_cr):
         raise ValueError(f"the tube has no critical voltage at the starting {what} (no zero "
                          "frequency below pull-in): the constraint V̂ <= voltage_margin * V̂_cr is "
                          "undefined there")
     biased = tube.replace(voltage=fraction * margin * v_cr)
-    guess = float(frequencies(biased, alpha, n_roots=1, n_layers=n_layers)[0])
+    guess = float(frequencies(biased, alpha, n_roots=1, n_layers=n_layers, scheme=scheme)[0])
     if not math.isfinite(guess):
         raise ValueError(f"no frequency found at the starting {what}")
     return guess
@@ -348,7 +356,7 @@ def _seed(tube, alpha, fraction, margin, n_layers, what):
 def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0.5, thickness=None,
                          voltage_fraction=None, thickness_bounds=(0.05, 1.0), voltage_margin=0.8,
                          learning_rate=0.2, max_steps=500, rtol=1e-6,
-                         n_layers: int = 30) -> DesignResult:
+                         n_layers: int = 30, scheme: str = "midpoint") -> DesignResult:
     """Undeformed thickness H/R_i and voltage V̂ that put the lowest frequency of mode n at ``target``.
 
     Fluid-free tube; λ_i, λ_z, G, L/R_o are kept. Design variables, mapped onto their ranges:
@@ -386,6 +394,8 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
         max_steps: step limit (>= 1).
         rtol: tolerance of the convergence test, in (0, 1).
         n_layers: sublayers N (static).
+        scheme: the propagation scheme (:func:`jaxdea.frequencies`); ``"magnus6"`` with
+            ``n_layers=6`` is faster than the default and far more accurate.
 
     Returns:
         :class:`DesignResult`.
@@ -397,7 +407,7 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
         >>> res = design_for_frequency(Tube(lambda_i=1.1, lambda_z=1.2), target=0.72)
         >>> res.thickness, res.voltage, res.omega  # Ω = 0.72 at V̂ = 0.4 V̂_cr
     """
-    _check_common(tube, n, voltage_margin, learning_rate, max_steps, rtol)
+    _check_common(tube, n, voltage_margin, learning_rate, max_steps, rtol, n_layers, scheme)
     target = _check_open("target", target, 0.0, math.inf, "(0, inf)")
     s_op = _check_open("operating_fraction", operating_fraction, 0.0, 1.0, "(0, 1)")
     h_lo, h_hi = _check_bounds("thickness_bounds", thickness_bounds, 0.0, 100.0,
@@ -413,19 +423,20 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
     setting = jax.tree_util.tree_map(as_float, setting)
     x0 = [_sigmoid_inverse(h0, h_lo, h_hi), _sigmoid_inverse(s0, 0.0, 1.0)]
     start, alpha, _ = _point(jnp.asarray(x0), setting, "frequency")
-    guess = _seed(start, alpha, s0, voltage_margin, n_layers, "thickness")
+    guess = _seed(start, alpha, s0, voltage_margin, n_layers, scheme, "thickness")
 
     def done(aux, grad):
         del grad
         return abs(float(aux["miss"])) <= rtol and abs(float(aux["fraction"]) - s_op) <= rtol
 
-    aux, history, status, x = _run(x0, guess, setting, "frequency", int(n_layers), learning_rate,
-                                   max_steps, done)
+    aux, history, status, x = _run(x0, guess, setting, "frequency", int(n_layers), scheme,
+                                   learning_rate, max_steps, done)
     if status == DesignStatus.MAX_STEPS and abs(float(aux["miss"])) <= NEWTON_START:
-        finished = _newton_finish(x, aux["omega"], setting, int(n_layers), history, done)
+        finished = _newton_finish(x, aux["omega"], setting, int(n_layers), scheme, history, done)
         if finished is not None:
             aux, status = finished
-    return _finish(aux, np.asarray(history), status, voltage_margin, tube.material, int(n_layers))
+    return _finish(aux, np.asarray(history), status, voltage_margin, tube.material, int(n_layers),
+                   scheme)
 
 
 # ----------------------------------------------------------------------------- problem 2
@@ -433,7 +444,7 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
 
 def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage_fraction=0.5,
                         lambda_i=None, voltage_margin=0.8, learning_rate=0.3, max_steps=300,
-                        rtol=1e-9, n_layers: int = 30) -> DesignResult:
+                        rtol=1e-9, n_layers: int = 30, scheme: str = "midpoint") -> DesignResult:
     """Voltage (and optionally λ_i) that maximise the tunability |dΩ/dV̂| of the lowest frequency.
 
     Fixed thickness (η), λ_z, G; fluid-free. Loss −|T| with T = dΩ/dV̂ = −(∂f/∂V̂)/(∂f/∂Ω) at the
@@ -460,7 +471,8 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
         voltage_fraction: starting s in (0, 1).
         lambda_i: starting λ_i inside the bounds (default the tube's, moved 5 % inside if outside).
         rtol: tolerance of the plateau test, in (0, 1).
-        voltage_margin, learning_rate, max_steps, n_layers: as in :func:`design_for_frequency`.
+        voltage_margin, learning_rate, max_steps, n_layers, scheme: as in
+            :func:`design_for_frequency`.
 
     Returns:
         :class:`DesignResult` (``tunability`` is T at the optimum, negative where Ω falls with V̂).
@@ -472,7 +484,7 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
         >>> res = maximise_tunability(Tube(lambda_i=1.1, lambda_z=1.2))
         >>> res.voltage_fraction, res.tunability  # 1.0 (V̂ = 0.8 V̂_cr), T ≈ −5.30
     """
-    _check_common(tube, n, voltage_margin, learning_rate, max_steps, rtol)
+    _check_common(tube, n, voltage_margin, learning_rate, max_steps, rtol, n_layers, scheme)
     s0 = _check_open("voltage_fraction", voltage_fraction, 0.0, 1.0, "(0, 1)")
     free = lambda_i_bounds is not None
     if free:
@@ -493,7 +505,7 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
     kind = "tunability_lambda" if free else "tunability"
     x0 = [_cosine_inverse(s0, 0.0, 1.0)] + ([_cosine_inverse(li0, li_lo, li_hi)] if free else [])
     start, alpha, _ = _point(jnp.asarray(x0), setting, kind)
-    guess = _seed(start, alpha, s0, voltage_margin, n_layers, "lambda_i")
+    guess = _seed(start, alpha, s0, voltage_margin, n_layers, scheme, "lambda_i")
 
     recent = []
 
@@ -502,6 +514,7 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
         recent.append(float(aux["loss"]))
         return len(recent) > PLATEAU and abs(recent[-1] - recent[-1 - PLATEAU]) <= rtol * abs(recent[-1])
 
-    aux, history, status, _ = _run(x0, guess, setting, kind, int(n_layers), learning_rate,
+    aux, history, status, _ = _run(x0, guess, setting, kind, int(n_layers), scheme, learning_rate,
                                    max_steps, done)
-    return _finish(aux, np.asarray(history), status, voltage_margin, tube.material, int(n_layers))
+    return _finish(aux, np.asarray(history), status, voltage_margin, tube.material, int(n_layers),
+                   scheme)

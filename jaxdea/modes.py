@@ -138,7 +138,9 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
         omega: a root Ω of the characteristic function (e.g. from :func:`jaxdea.frequencies`).
         fluid: a :class:`~jaxdea.Fluid`, or None for the empty tube.
         n_points: number of radii sampled across the wall (static).
-        n_layers: number of sublayers N (static; use the value the root was found with).
+        n_layers: number of sublayers N of the midpoint laminate (static; use the value the root
+            was found with; for a root from a Magnus scheme, an N whose laminate resolves the
+            shape: the fields inside a sublayer need the midpoint exponential).
 
     Returns:
         (r, fields): radii r̂ (n_points,) from r̂_i to r̂_o and fields (6, n_points).

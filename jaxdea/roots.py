@@ -423,13 +423,14 @@ def _group_velocity(tube, alpha, omega, fluid, n_layers, order):
 
 
 def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
-                           n_layers: int = 30):
+                           n_layers: int = 30, scheme: str = "midpoint"):
     """(V̂_cr, status): the smallest V̂ > 0 with f(Ω = 0; V̂) = 0 (see :func:`critical_voltage`)."""
-    order = check_inputs(tube, alpha, fluid, n_layers)
+    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
     tube, alpha, fluid = canonical(tube, alpha, fluid)
-    roots = Roots(*_solve_critical_voltage(*jax.lax.stop_gradient((tube, alpha, fluid)),
-                                           int(n_layers), order))
-    return _with_derivatives(roots, (tube, alpha, fluid), int(n_layers), order, "voltage")
+    layers = laminate(n_layers, scheme)
+    roots = Roots(*_solve_critical_voltage(*jax.lax.stop_gradient((tube, alpha, fluid)), layers,
+                                           order))
+    return _with_derivatives(roots, (tube, alpha, fluid), layers, order, "voltage")
 
 
 def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=128, v_end=None):
@@ -471,20 +472,22 @@ _solve_critical_voltage = cached_jit(critical_voltage_unchecked,
                                      static_argnames=("n_layers", "order", "n_grid"))
 
 
-def critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None, n_layers: int = 30):
+def critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None, n_layers: int = 30,
+                     scheme: str = "midpoint"):
     """The smallest V̂ > 0 at which the lowest frequency at α̂ reaches zero.
 
     Solves f(Ω = 0; V̂) = 0 in V̂ directly (the tube's ``voltage`` is ignored; λ_i, λ_z fixed): scan of
     (0, V̂_lim] with Hermite classification, then safeguarded Newton; implicit derivatives. V̂_lim is
     the pull-in limit: the largest voltage of the static response of the tube held at its zero-voltage
     pressure difference (:func:`jaxdea.base_state.voltage_limit`). Fluids do not change V̂_cr (their
-    terms vanish like Ω²). NaN (status NO_ROOT) if no root below V̂_lim.
+    terms vanish like Ω²). NaN (status NO_ROOT) if no root below V̂_lim. ``n_layers`` and
+    ``scheme`` as in :func:`frequencies`.
     """
-    return solve_critical_voltage(tube, alpha, fluid, n_layers)[0]
+    return solve_critical_voltage(tube, alpha, fluid, n_layers, scheme)[0]
 
 
 def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
-                            n_layers: int = 30) -> Roots:
+                            n_layers: int = 30, scheme: str = "midpoint") -> Roots:
     """(V̂_cr, status) for every axial mode n = 1 … n_max in one compiled call.
 
     α̂_n = 2nπη/(length_ratio λ_z) (:func:`jaxdea.axial_wavenumber`); each entry as
@@ -494,10 +497,10 @@ def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
     Returns:
         :class:`Roots` whose ``omega`` field holds V̂_cr, shape (n_max,).
     """
-    check_inputs(tube, 1.0, fluid, n_layers)
+    check_inputs(tube, 1.0, fluid, n_layers, scheme)
     if not isinstance(n_max, (int, np.integer)) or isinstance(n_max, bool) or n_max < 1:
         raise ValueError(f"n_max must be an integer >= 1, got {n_max!r}")
-    return _critical_voltages(canonical(tube), int(n_max), int(n_layers))
+    return _critical_voltages(canonical(tube), int(n_max), laminate(n_layers, scheme))
 
 
 @cached_jit(static_argnames=("n_max", "n_layers"))
@@ -512,9 +515,10 @@ def _critical_voltages(tube, n_max, n_layers):
     return jax.lax.map(one, alphas)
 
 
-def critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None, n_layers: int = 30):
+def critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None, n_layers: int = 30,
+                      scheme: str = "midpoint"):
     """V̂_cr of the axial modes n = 1 … n_max, shape (n_max,) (see :func:`solve_critical_voltages`)."""
-    return solve_critical_voltages(tube, n_max, fluid, n_layers).omega
+    return solve_critical_voltages(tube, n_max, fluid, n_layers, scheme).omega
 
 
 def phase_velocity(omega, alpha):

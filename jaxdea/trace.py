@@ -92,7 +92,7 @@ from .params import (
     validate_tube,
 )
 from .roots import scan_step
-from .transfer import discretize
+from .transfer import discretize, laminate
 
 DEFAULT_MAX_STEP = 0.1  # scaled arclength: at least ten points between the start and ``stop``
 MIN_STEP = 1e-10  # scaled arclength below which the trace gives up
@@ -410,7 +410,8 @@ def _validate_finite(name, x):
 
 
 def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along: str = "alpha",
-                 stop, max_points: int = 256, max_step=None, n_layers: int = 30) -> Branch:
+                 stop, max_points: int = 256, max_step=None, n_layers: int = 30,
+                 scheme: str = "midpoint") -> Branch:
     """Follow the dispersion branch through the root ``omega`` along the parameter ``along``.
 
     The branch is the curve f(Ω; s) = 0 through (s_0, Ω_0), with f the characteristic function of
@@ -439,6 +440,7 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
         max_step: largest step of the scaled arclength, in which the range s_0 → stop has length 1
             (None: 0.1, i.e. at least ten points on a straight branch).
         n_layers: sublayers N (static).
+        scheme: the propagation scheme (static; :func:`jaxdea.frequencies`).
 
     Returns:
         :class:`Branch`: ``parameter``, ``omega``, ``slope`` (dΩ/ds), NaN-padded to ``max_points``;
@@ -455,7 +457,7 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
         >>> k = int(branch.n_points)  # 24 points, status REACHED_STOP, last Ω(2.0) ≈ 3.8956
         >>> alphas, omegas = branch.parameter[:k], branch.omega[:k]
     """
-    order = check_inputs(tube, alpha, fluid, n_layers)
+    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
     if not isinstance(along, str):
         raise ValueError(f"along must be a parameter name (str), got {along!r}")
     try:
@@ -478,5 +480,5 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
         except ValueError as exc:
             raise ValueError(f"stop = {stop!r} is outside the valid range of {along!r}: {exc}") from exc
     args = jax.lax.stop_gradient(canonical(tube, alpha, omega, fluid, stop, max_step))
-    return _trace_branch(*args, along=along, max_points=int(max_points), n_layers=int(n_layers),
+    return _trace_branch(*args, along=along, max_points=int(max_points), n_layers=laminate(n_layers, scheme),
                          order=order)

@@ -109,12 +109,97 @@ def test_sweep_and_curve_with_a_scheme_equal_frequencies():
     assert np.max(np.abs(midpoint / reference[0] - 1.0)) > 1e-5  # a different discretisation
 
 
+@pytest.mark.slow
+def test_critical_voltage_with_a_scheme_is_a_zero_frequency_of_that_scheme():
+    """V̂_cr with scheme="magnus6" is the zero of f(Ω = 0; V̂) of the magnus6 wall (f changes sign
+    across it, not across the midpoint laminate's V̂_cr 1.3e-6 away), with implicit derivatives."""
+    tube = TUBE.replace(voltage=0.0)
+    v_cr = float(jd.critical_voltage(tube, ALPHA, n_layers=6, scheme="magnus6"))
+
+    def f(v, scheme):
+        return float(jd.characteristic(tube.replace(voltage=v), 0.0, ALPHA, n_layers=6, scheme=scheme))
+
+    assert f(v_cr * (1 - 1e-9), "magnus6") * f(v_cr * (1 + 1e-9), "magnus6") < 0
+    assert f(v_cr * (1 - 1e-9), "midpoint") * f(v_cr * (1 + 1e-9), "midpoint") > 0
+
+    def v_of_eta(eta):
+        return jd.critical_voltage(tube.replace(eta=eta), ALPHA, n_layers=6, scheme="magnus6")
+
+    np.testing.assert_allclose(jax.grad(v_of_eta)(0.8), fd_derivative(v_of_eta, 0.8), rtol=1e-7)
+
+
+@pytest.mark.slow
+def test_count_roots_and_tunability_with_a_scheme_see_that_discretisation():
+    """count_roots(scheme=...) counts the roots of that scheme's wall: with ω_hi between the third
+    root of magnus6 and that of the midpoint laminate (N = 6, 1e-4 apart), the counts differ as
+    the roots do. tunability(scheme=...) equals a central difference of that scheme's root."""
+    r6, rm = (np.asarray(jd.frequencies(TUBE, ALPHA, FLUID, n_roots=3, n_layers=6, scheme=s))
+              for s in ("magnus6", "midpoint"))
+    hi = 0.5 * (r6[2] + rm[2])
+    counts = [int(jd.count_roots(TUBE, ALPHA, 0.0, hi, FLUID, n_layers=6, scheme=s).count)
+              for s in ("magnus6", "midpoint")]
+    assert counts == [int(np.sum(r6 < hi)), int(np.sum(rm < hi))]
+    assert counts[0] != counts[1]
+
+    def omega(v):
+        return jd.frequency(TUBE.replace(voltage=v), ALPHA, r6[0], FLUID, n_layers=6, scheme="magnus6")
+
+    slope = jd.tunability(TUBE, ALPHA, omega(0.1), FLUID, n_layers=6, scheme="magnus6")
+    np.testing.assert_allclose(slope, fd_derivative(omega, 0.1), rtol=1e-7)
+
+
+@pytest.mark.slow
+def test_trace_and_critical_voltages_with_a_scheme():
+    """trace_branch(scheme=...) lands on that scheme's root at its stop; critical_voltages equals
+    critical_voltage mode by mode; magnus6's V̂_cr converges at sixth order (N = 3 → 6 divides the
+    error by ≈ 64) to the midpoint laminate's Richardson limit (N = 120, 240), measured error
+    8.5e-11 at N = 6 (the midpoint laminate at N = 240: 8.0e-8)."""
+    omega = np.asarray(jd.frequencies(TUBE, ALPHA, FLUID, n_roots=2, n_layers=6, scheme="magnus6"))
+    branch = jd.trace_branch(TUBE, ALPHA, omega[1], FLUID, along="alpha", stop=2.0, n_layers=6,
+                             scheme="magnus6")
+    end = int(branch.n_points) - 1
+    assert int(branch.status) == jd.BranchEnd.REACHED_STOP and float(branch.parameter[end]) == 2.0
+    at_stop = np.asarray(jd.frequencies(TUBE, 2.0, FLUID, n_roots=2, n_layers=6, scheme="magnus6"))
+    np.testing.assert_allclose(float(branch.omega[end]), at_stop[1], rtol=1e-10)
+
+    tube = TUBE.replace(voltage=0.0)
+    many = np.asarray(jd.critical_voltages(tube, 2, n_layers=6, scheme="magnus6"))
+    single = [float(jd.critical_voltage(tube, jd.axial_wavenumber(tube, n), n_layers=6, scheme="magnus6"))
+              for n in (1, 2)]
+    np.testing.assert_allclose(many, single, rtol=1e-13)
+
+    coarse, fine = (float(jd.critical_voltage(tube, ALPHA, n_layers=n, scheme="magnus6")) for n in (3, 6))
+    mid = [float(jd.critical_voltage(tube, ALPHA, n_layers=n)) for n in (120, 240)]
+    limit = (4.0 * mid[1] - mid[0]) / 3.0
+    assert abs(fine / limit - 1.0) < 1e-9
+    assert 0.8 * 64 < (coarse - limit) / (fine - limit) < 1.25 * 64
+
+
+@pytest.mark.slow
+def test_design_with_a_scheme_meets_the_target_on_that_discretisation():
+    """design_for_frequency(scheme="magnus6", n_layers=6): the design's lowest root, solved directly
+    on the same discretisation, is the target."""
+    tube = jd.Tube(lambda_i=1.1, lambda_z=1.2)
+    res = jd.design_for_frequency(tube, 0.72, rtol=1e-6, n_layers=6, scheme="magnus6")
+    assert res.converged, res.status
+    lowest = float(jd.frequencies(res.tube, res.alpha, n_roots=1, n_layers=6, scheme="magnus6")[0])
+    assert abs(lowest / 0.72 - 1.0) <= 1e-6 + 1e-12
+    assert res.omega == pytest.approx(lowest, rel=1e-12)
+
+
 @pytest.mark.parametrize("call", [
     lambda: jd.characteristic(TUBE, 1.0, ALPHA, scheme="rk4"),
     lambda: jd.frequencies(TUBE, ALPHA, scheme="Magnus6"),
     lambda: jd.frequency(TUBE, ALPHA, 1.0, scheme=None),
     lambda: jd.dispersion_curve(TUBE, [1.0, 2.0], scheme="magnus8"),
     lambda: jd.sweep(TUBE, alpha=[1.0], scheme="euler", progress=False),
+    lambda: jd.critical_voltage(TUBE, ALPHA, scheme="magnus5"),
+    lambda: jd.critical_voltages(TUBE, 2, scheme="Midpoint"),
+    lambda: jd.count_roots(TUBE, ALPHA, 0.0, 1.0, scheme="rk4"),
+    lambda: jd.trace_branch(TUBE, ALPHA, 1.0, along="alpha", stop=2.0, scheme="rk4"),
+    lambda: jd.tunability(TUBE, ALPHA, 1.0, scheme="rk4"),
+    lambda: jd.design_for_frequency(TUBE, 0.7, scheme="rk4"),
+    lambda: jd.maximise_tunability(TUBE, scheme="rk4"),
 ])
 def test_unknown_scheme_is_a_value_error(call):
     with pytest.raises(ValueError, match="scheme must be one of 'midpoint', 'magnus4', 'magnus6'"):
