@@ -33,6 +33,7 @@ import numpy as np  # noqa: E402
 FIG3 = dict(lambda_z=1.2, lambda_i=[0.9, 1.1], voltage=[0.0, 0.2], n=list(range(1, 21)), n_roots=3)
 CURVE = dict(alpha_min=0.025, alpha_max=5.0, points=200, n_roots=4, rtol=1e-8)
 REFERENCE_LAYERS = 240  # the reference curve: Richardson of N = 240 and 480 (on every 10th α̂)
+FIRST_CALLS = ("characteristic", "frequencies", "critical_voltage")  # (d): first calls timed
 
 
 def settings(quick: bool) -> dict:
@@ -359,6 +360,8 @@ def work_compile(what: str, cache: bool = False) -> dict:
     tube = jaxdea.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
     if what == "frequencies":
         call = lambda a: jaxdea.frequencies(tube, a)  # noqa: E731
+    elif what == "critical_voltage":
+        call = lambda a: jaxdea.critical_voltage(tube, a)  # noqa: E731
     else:
         call = lambda a: jaxdea.characteristic(tube, 1.0, a)  # noqa: E731
     start = time.perf_counter()
@@ -477,12 +480,12 @@ def run_all(cfg: dict, partial: str, reuse: bool) -> dict:
     chosen = spawn("curve_jaxdea", "curve_jaxdea", dict(cfg=cfg)).get("chosen") or cfg["curve_levels"][-1]
     spawn("curve_scipy", "curve_scipy", dict(cfg=cfg, n_layers=chosen))
     print("first-call compile, no persistent cache (d) ...", flush=True)
-    for what in ("characteristic", "frequencies"):
+    for what in FIRST_CALLS:
         spawn(f"compile_{what}", "compile", dict(what=what, cfg=cfg),
               env_extra=dict(JAXDEA_CACHE_DIR="off"))
     print("first call with a warm persistent cache (d) ...", flush=True)
     with tempfile.TemporaryDirectory() as cache_dir:
-        for what in ("characteristic", "frequencies"):
+        for what in FIRST_CALLS:
             for key in (f"cache_fill_{what}", f"cache_warm_{what}"):  # the first run fills it
                 done.pop(key, None)  # a reused entry would not have filled this directory
                 spawn(key, "compile", dict(what=what, cache=True, cfg=cfg),
@@ -629,18 +632,18 @@ def render(res: dict, provisional: bool) -> str:
               "| function | import jaxdea (s) | first call (s) | second call (s) "
               "| compile ≈ first − second (s) |",
               "|---|---:|---:|---:|---:|"]
-    for what in ("characteristic", "frequencies"):
+    for what in FIRST_CALLS:
         c = res[f"compile_{what}"]
         lines.append(f"| `{what}` | {fmt(c['import_s'])} | {fmt(c['first_call_s'])} | "
                      f"{fmt(c['second_call_s'])} | {fmt(c['compile_s'])} |")
-    if all(f"cache_warm_{what}" in res for what in ("characteristic", "frequencies")):
+    if all(f"cache_warm_{what}" in res for what in FIRST_CALLS):
         lines += ["", "With the persistent caches on (a fresh directory; one process fills it, the "
                   "next one is timed): the first call then loads the compiled program from disk "
                   "without tracing it (`jaxdea.compiled`: keyed by the function, its static "
                   "arguments and argument types, the jaxdea sources and the versions).", "",
                   "| function | first call, filling the cache (s) | first call, warm cache (s) "
                   "| second call (s) |", "|---|---:|---:|---:|"]
-        for what in ("characteristic", "frequencies"):
+        for what in FIRST_CALLS:
             fill, warm = res[f"cache_fill_{what}"], res[f"cache_warm_{what}"]
             lines.append(f"| `{what}` | {fmt(fill['first_call_s'])} | {fmt(warm['first_call_s'])} "
                          f"| {fmt(warm['second_call_s'])} |")
