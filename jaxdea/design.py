@@ -394,8 +394,8 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
         max_steps: step limit (>= 1).
         rtol: tolerance of the convergence test, in (0, 1).
         n_layers: sublayers N (static).
-        scheme: the propagation scheme (:func:`jaxdea.frequencies`); ``"magnus6"`` with
-            ``n_layers=6`` is faster than the default and far more accurate.
+        scheme: the propagation scheme (:func:`jaxdea.frequencies`) of every solve; ``"magnus6"``
+            with ``n_layers=6`` resolves the wall to about 1e-9 (the default N = 30: 1e-5).
 
     Returns:
         :class:`DesignResult`.
