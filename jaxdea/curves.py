@@ -88,23 +88,15 @@ class Curve(NamedTuple):
 
 
 def _extrapolate(hist_alpha, hist_omega, n_hist, alpha):
-    """p(α̂) of the Lagrange polynomial through the newest ``n_hist`` (≤ HISTORY) rows of the
-    history (newest last)."""
-    h = hist_alpha.shape[0]
-
-    def weights(m):  # Lagrange weights of the newest m rows at α̂, zero for the older ones
-        w = []
-        for i in range(h):
-            wi = jnp.zeros_like(alpha) if i < h - m else jnp.ones_like(alpha)
-            for j in range(max(h - m, 0), h):
-                if i >= h - m and j != i:
-                    wi = wi * (alpha - hist_alpha[j]) / (hist_alpha[i] - hist_alpha[j])
-            w.append(wi)
-        return jnp.stack(w)
-
-    w = weights(1)
-    for m in range(2, h + 1):
-        w = jnp.where(n_hist >= m, weights(m), w)
+    """p(α̂) of the Lagrange polynomial through the newest max(``n_hist``, 1) (≤ HISTORY) rows of
+    the history (newest last): weights w_i = Π_{j used, j ≠ i} (α̂ − α̂_j)/(α̂_i − α̂_j) on the rows
+    used, zero on the older ones."""
+    row = jnp.arange(hist_alpha.shape[0])
+    used = row >= hist_alpha.shape[0] - jnp.maximum(n_hist, 1)
+    w = jnp.where(used, 1.0, 0.0)
+    for j in range(hist_alpha.shape[0]):
+        w = jnp.where(used & used[j] & (row != j),
+                      w * (alpha - hist_alpha[j]) / (hist_alpha - hist_alpha[j]), w)
     rows = jnp.where(jnp.isfinite(hist_omega), hist_omega, 0.0)
     return w @ rows
 
