@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .compiled import jit
 from .moduli import energy_derivatives
 from .params import (
     Tube,
@@ -139,7 +140,7 @@ def pressure_difference(tube: Tube):
     return _pressure_difference(canonical(tube))
 
 
-@jax.jit
+@jit
 def _pressure_difference(tube: Tube):
     """ΔP̂, NaN where the (traced) tube is not admissible (never a plausible number there)."""
     return jnp.where(admissible(tube), pressure_difference_unchecked(tube), jnp.nan)
@@ -251,7 +252,7 @@ def inner_stretch(tube: Tube, delta_p=0.0):
     return _inner_stretch(*canonical(tube, delta_p))
 
 
-@jax.jit
+@jit
 def _inner_stretch(tube: Tube, delta_p):
     """(λ_i, status); NaN and INVALID where the traced inputs are not admissible."""
     ok = admissible(tube) & jnp.isfinite(as_float(delta_p))
@@ -337,7 +338,7 @@ def voltage_limit(tube: Tube):
     return jax.lax.stop_gradient(jnp.where(status == Status.CONVERGED, v_pull, v_sup))
 
 
-@jax.jit
+@jit
 def _pull_in(tube: Tube, delta_p):
     """(λ_i, V̂, status) of :func:`pull_in`; NaN and INVALID where the traced inputs are not
     admissible."""

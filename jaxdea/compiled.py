@@ -49,6 +49,12 @@ KEYED_OPTIONS = ("jax_enable_x64", "jax_default_matmul_precision", "jax_numpy_ra
                  "jax_numpy_dtype_promotion", "jax_default_prng_impl", "jax_threefry_partitionable",
                  "jax_platforms", "jax_use_shardy_partitioner")
 """JAX options that enter the key (they change the program a function traces to)."""
+COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+"""XLA options of every program jaxdea compiles (:func:`jit`). XLA:CPU's newer fusion emitters
+(the default) took 1.6–1.9× longer to compile the solvers for no faster code here: the first
+``frequencies`` call 6.1 → 4.0 s, ``critical_voltage`` 12.8 → 8.1 s, ``characteristic`` 1.25 →
+0.78 s (caches off), while ``characteristic`` at batch 4096, the Fig. 3 sweep and the continuation
+curves ran as fast or 5–10 % faster (README, Performance). Other backends ignore the option."""
 BYPASS_OPTIONS = ("jax_debug_nans", "jax_debug_infs", "jax_disable_jit", "jax_enable_checks",
                   "jax_check_tracer_leaks", "jax_default_device")
 """JAX options under which every call goes through ``jax.jit`` (they act at tracing or dispatch)."""
@@ -124,7 +130,7 @@ class CachedJit:
     def __init__(self, fun, static_argnames=()):
         self._static = (static_argnames,) if isinstance(static_argnames, str) else tuple(
             static_argnames)
-        self._jit = jax.jit(fun, static_argnames=self._static)
+        self._jit = jit(fun, static_argnames=self._static)
         self._signature = inspect.signature(fun)
         self._name = f"{fun.__module__}.{fun.__qualname__}"
         self._loaded = {}  # key -> compiled program, this process
@@ -210,6 +216,46 @@ class CachedJit:
             self.counts["compiled"] += 1
             self._loaded[key] = compiled
         return compiled(**dynamic)
+
+
+class Jitted:
+    """``jax.jit(fun, ...)`` compiled with :data:`COMPILER_OPTIONS` where it is the top-level
+    program; inside another trace (a caller's ``jit``, ``grad``, ``lax.map``...) it is the plain
+    ``jax.jit``, since JAX accepts compiler options on top-level programs only (the enclosing
+    program's options then apply). Other attributes (``lower``, ``trace``...) are the top-level
+    function's."""
+
+    def __init__(self, fun, **kwargs):
+        self._top = jax.jit(fun, compiler_options=COMPILER_OPTIONS, **kwargs)
+        self._nested = jax.jit(fun, **kwargs)
+        functools.update_wrapper(self, fun)
+
+    def __getattr__(self, name):
+        return getattr(self._top, name)
+
+    def _cache_size(self) -> int:
+        return self._top._cache_size() + self._nested._cache_size()
+
+    def __call__(self, *args, **kwargs):
+        if any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves((args, kwargs))):
+            return self._nested(*args, **kwargs)
+        try:
+            return self._top(*args, **kwargs)
+        except ValueError as error:  # concrete arguments, but staged into a caller's trace
+            if "compiler_options" not in str(error):
+                raise
+            return self._nested(*args, **kwargs)
+
+
+def jit(fun=None, **kwargs):
+    """:class:`Jitted`: ``jax.jit`` with jaxdea's :data:`COMPILER_OPTIONS` (``@jit`` or
+    ``@jit(static_argnames=...)``).
+
+    A caller's own ``jax.jit`` around jaxdea functions compiles with the caller's options: pass
+    ``compiler_options=jaxdea.compiled.COMPILER_OPTIONS`` to it for the same compile times."""
+    if fun is None:
+        return functools.partial(jit, **kwargs)
+    return Jitted(fun, **kwargs)
 
 
 def cached_jit(fun=None, *, static_argnames=()):

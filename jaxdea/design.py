@@ -47,7 +47,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from .compiled import cached_jit
+from .compiled import cached_jit, jit
 from .dispersion import characteristic
 from .params import Fluid, Tube, as_float, canonical, mode_wavenumber, require_x64, validate_layers
 from .roots import frequencies, solve_critical_voltage, solve_frequency
@@ -292,7 +292,7 @@ def _finish(aux, history, status, margin, material, n_layers, scheme):
     v_cr = float(aux["critical_voltage"])
     slope = float(aux["tunability"])
     if not math.isfinite(slope):
-        slope = float(jax.jit(tunability, static_argnames=("n_layers", "scheme"))(
+        slope = float(jit(tunability, static_argnames=("n_layers", "scheme"))(
             tube, alpha, lowest, n_layers=n_layers, scheme=scheme))
     return DesignResult(
         tube=tube, alpha=alpha, omega=lowest, critical_voltage=v_cr, thickness=1.0 / tube.eta - 1.0,

@@ -30,7 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base_state import _squared_voltage, pull_in, with_thickness_ratio_unchecked
-from .compiled import cached_jit
+from .compiled import cached_jit, jit
 from .leaves import apply_parameters
 from .params import Fluid, Tube
 from .roots import critical_voltage_unchecked
@@ -405,7 +405,7 @@ def figure_static_response(ctx: Context) -> None:
     stretches = np.geomspace(0.6, lock, ctx.res.static_points)
     fig, (ax,) = _figure(ncols=1)
     table = Table(name)
-    v2 = jax.jit(jax.vmap(lambda li, dp: _squared_voltage(tube, li, dp), (0, None)))
+    v2 = jit(jax.vmap(lambda li, dp: _squared_voltage(tube, li, dp), (0, None)))
     found = 0
     for c, dp in enumerate((-0.05, 0.0, 0.05, 0.1)):
         vsq = np.asarray(v2(jnp.asarray(stretches), dp))

@@ -31,7 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base_state import voltage_limit
-from .compiled import cached_jit
+from .compiled import cached_jit, jit
 from .dispersion import characteristic_on_wall, check_inputs
 from .params import (
     Fluid,
@@ -222,7 +222,7 @@ def _residual(x, tube, alpha, fluid, n_layers, order, unknown, method="taylor"):
     return characteristic_on_wall(discretize(tube, n_layers), x, alpha, fluid, order, method)
 
 
-@functools.partial(jax.jit, static_argnames=("n_layers", "order", "unknown"))
+@jit(static_argnames=("n_layers", "order", "unknown"))
 def _root_tangent(x, params, dparams, n_layers, order, unknown):
     """ẋ = −(∂f/∂θ · θ̇)/(∂f/∂x) at a root x (implicit function theorem), vectorised over roots."""
     def one(x):

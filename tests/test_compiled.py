@@ -98,6 +98,8 @@ FRESH_PROCESS = textwrap.dedent("""
     jax.config.update("jax_enable_x64", True)
     import jaxdea as jd
     from jaxdea import dispersion, roots
+    # every program into JAX's cache, however fast it compiled (the third process reads them there)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     tube = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
     f = jd.characteristic(tube, 1.3, 0.445, n_layers=8)
     omega = jd.frequencies(tube, 0.445, n_roots=2, n_layers=8)
@@ -135,3 +137,23 @@ def test_a_fresh_process_loads_the_programs_without_tracing(cache):
         entry.unlink()
     third, from_xla = run()
     assert from_xla == "[(0, 1, 0), (0, 1, 0)]" and third == first and _entries(cache) == []
+
+
+def test_compiler_options_on_top_level_programs_only():
+    """jaxdea.compiled.jit: a top-level call runs the program compiled with COMPILER_OPTIONS, a
+    call inside a caller's trace (tracers, or concrete arguments staged into a jit) the plain
+    jax.jit, as JAX requires (options on a nested jit raise); the values agree."""
+    from jaxdea.compiled import jit
+
+    fun = jit(_scaled, static_argnames="n")
+    plain, calls = fun._nested, []
+    fun._nested = lambda *a, **k: calls.append(1) or plain(*a, **k)
+    x = jnp.arange(3.0)
+    np.testing.assert_array_equal(fun(x, 2), 2 * x)
+    assert fun._top._cache_size() == 1 and not calls
+    np.testing.assert_array_equal(jax.jit(lambda y: fun(y, 2))(x), 2 * x)  # tracers
+    np.testing.assert_array_equal(jax.jit(lambda: fun(x, 3))(), 3 * x)  # concrete, staged
+    assert float(jax.grad(lambda y: fun(y, 3))(1.0)) == 3.0
+    assert len(calls) == 3
+    with pytest.raises(ValueError, match="compiler_options"):  # why the plain jit is needed
+        jax.jit(lambda: fun._top(x, 3))()
