@@ -72,6 +72,40 @@ def test_magnus_generator_reduces_to_the_midpoint_one_for_a_homogeneous_layer():
         np.testing.assert_allclose(g, mid, rtol=1e-14, atol=1e-15)
 
 
+def _direct_generator(step, coef, radius, omega, alpha):
+    """The scheme's generator from the state matrices at Ω itself (the formulas of
+    jaxdea.transfer.layer_generator written out, with no polynomial in Ω²)."""
+    from math import sqrt
+
+    from jaxdea.state_matrix import state_matrix
+
+    m = jax.vmap(state_matrix, (0, 0, None, None))(coef, radius, omega, alpha)
+    comm = lambda a, b: a @ b - b @ a  # noqa: E731
+    if radius.shape[0] == 1:
+        return step * m[0]
+    if radius.shape[0] == 2:
+        return 0.5 * step * (m[0] + m[1]) + sqrt(3.0) / 12.0 * step**2 * comm(m[1], m[0])
+    b1, b2 = step * m[1], sqrt(15.0) / 3.0 * step * (m[2] - m[0])
+    b3 = 10.0 / 3.0 * step * (m[2] - 2.0 * m[1] + m[0])
+    c1 = comm(b1, b2)
+    return b1 + b3 / 12.0 + comm(-20.0 * b1 - b3 + c1, b2 - comm(b1, 2.0 * b3 + c1) / 60.0) / 240.0
+
+
+@pytest.mark.parametrize("scheme", ["midpoint", "magnus4", "magnus6"])
+def test_generator_polynomial_in_omega_squared_equals_the_direct_formula(scheme):
+    """G(Ω) formed once per α̂ as a polynomial in Ω² (jaxdea.transfer.generator_coefficients)
+    equals the scheme's formula evaluated on M(Ω) at every node, for real Ω up to 40 and complex Ω
+    (root counting), on a stretched tube under voltage, to rounding."""
+    wall = discretize(TUBE, laminate(4, scheme))
+    for omega in (0.0, 0.7, 3.1, 12.0, 40.0, 2.0 + 0.5j):
+        for k in range(4):
+            coef = jax.tree_util.tree_map(lambda x, k=k: x[k], wall.coef)  # the nodes of sublayer k
+            new = layer_generator(wall.step, coef, wall.radii[k], omega, ALPHA)
+            nodes = jax.tree_util.tree_map(jnp.atleast_1d, (coef, wall.radii[k]))
+            ref = _direct_generator(wall.step, *nodes, omega, ALPHA)
+            np.testing.assert_allclose(new, ref, rtol=0, atol=1e-14 * np.max(np.abs(ref)))
+
+
 def test_magnus_characteristic_equals_the_expm_reference():
     """f·exp(log scale) of the stable 6×3 propagation (Taylor exponential) equals det(B A S) of the
     full product of jax.scipy.linalg.expm on the same Magnus generators, to 1e-12."""
