@@ -210,9 +210,9 @@ def work_fig3(impl: str, cfg: dict) -> dict:
     def flat(x):
         return np.asarray(x).reshape(len(points), FIG3["n_roots"])
 
-    sec, first, omega = best_time(run, cfg["solve_repeats"], 0.0)
+    sec, first, omega = best_time(run, cfg["solve_repeats"], cfg["min_time"])
     omega = flat(omega)
-    sec_c, first_c, omega_c = best_time(run_curves, cfg["solve_repeats"], 0.0)
+    sec_c, first_c, omega_c = best_time(run_curves, cfg["solve_repeats"], cfg["min_time"])
     omega_c = flat(omega_c)
     # at the baseline's accuracy: the error of N = 30 (SciPy's laminate; its roots equal jaxdea's to
     # ~1e-13) against the sixth-order scheme at N = FIG3_REFERENCE, and the fewest magnus6 sublayers
@@ -233,8 +233,9 @@ def work_fig3(impl: str, cfg: dict) -> dict:
             break
     extra = dict(laminate_rel_error=laminate_error, magnus_checks=checks, magnus_chosen=chosen)
     if chosen is not None:
-        sec_m, _, omega_m = best_time(lambda: run_scheme(chosen, "magnus6"), cfg["solve_repeats"], 0.0)
-        sec_mc, _, omega_mc = best_time(lambda: run_curves(chosen, "magnus6"), cfg["solve_repeats"], 0.0)
+        repeats, min_time = cfg["solve_repeats"], cfg["min_time"]
+        sec_m, _, omega_m = best_time(lambda: run_scheme(chosen, "magnus6"), repeats, min_time)
+        sec_mc, _, omega_mc = best_time(lambda: run_curves(chosen, "magnus6"), repeats, min_time)
         extra.update(magnus_seconds=sec_m, magnus_seconds_curve=sec_mc,
                      magnus_rel_error=error(flat(omega_m)),
                      magnus_curve_vs_sweep=float(np.nanmax(np.abs(flat(omega_mc) / flat(omega_m) - 1.0))))
@@ -310,9 +311,9 @@ def work_curve_jaxdea(cfg: dict) -> dict:
                         for n in (n_layers, 2 * n_layers))
         return _richardson(coarse.omega, fine.omega), int(coarse.scanned.sum() + fine.scanned.sum())
 
-    sec, first, omega = best_time(lambda: curve(alphas, chosen), cfg["solve_repeats"], 0.0)
+    sec, first, omega = best_time(lambda: curve(alphas, chosen), cfg["solve_repeats"], cfg["min_time"])
     sec_c, first_c, (omega_c, scans) = best_time(lambda: continued(alphas, chosen),
-                                                 cfg["solve_repeats"], 0.0)
+                                                 cfg["solve_repeats"], cfg["min_time"])
     sub, sub_c = omega[::10], omega_c[::10]
 
     # one laminate of the sixth-order Magnus scheme instead of two midpoint laminates and Richardson
@@ -326,10 +327,10 @@ def work_curve_jaxdea(cfg: dict) -> dict:
     extra = dict(magnus_checks=magnus_checks, magnus_chosen=magnus)
     if magnus is not None:
         sec_m, first_m, omega_m = best_time(lambda: roots_at(alphas, magnus, "magnus6"),
-                                            cfg["solve_repeats"], 0.0)
+                                            cfg["solve_repeats"], cfg["min_time"])
         sec_mc, first_mc, curve_m = best_time(
             lambda: jaxdea.dispersion_curve(tube, alphas, n_roots=CURVE["n_roots"], n_layers=magnus,
-                                            scheme="magnus6"), cfg["solve_repeats"], 0.0)
+                                            scheme="magnus6"), cfg["solve_repeats"], cfg["min_time"])
         omega_mc = np.asarray(curve_m.omega)
         extra.update(magnus_seconds=sec_m, magnus_first_call_s=first_m,
                      magnus_rel_error=float(np.nanmax(np.abs(omega_m[::10] / reference - 1.0))),
