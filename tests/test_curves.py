@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea.curves import _track
+from jaxdea.curves import _extrapolate, _track
 from jaxdea.dispersion import characteristic_on_wall
 from jaxdea.scalar import iterate_lanes, lanes_from_slots
 from jaxdea.transfer import discretize
@@ -61,6 +61,33 @@ def test_fig3_line_along_n_and_a_coarse_grid():
     for alphas in (np.asarray(jd.axial_wavenumber(tube, np.arange(1, 21))), np.linspace(0.1, 8, 6)):
         curve = jd.dispersion_curve(tube, alphas, fluid)
         assert_same_roots(curve, per_alpha(tube, alphas, fluid, 3, 30), rtol=1e-11)
+
+
+def test_tangent_predictor_after_a_scan():
+    """The history after a scan is one point and the slope of each branch there: the predictor is
+    the tangent line (a constant before), the line through the Lagrange rows once two are known,
+    and the constant where a slope is missing."""
+    hist_alpha = jnp.arange(6.0)
+    hist_omega = jnp.arange(12.0).reshape(6, 2)
+    slope = jnp.array([2.0, jnp.nan])
+    line = _extrapolate(hist_alpha, hist_omega, 1, 5.5, slope)
+    np.testing.assert_allclose(line, [10.0 + 2.0 * 0.5, 11.0])  # tangent; constant without a slope
+    np.testing.assert_allclose(_extrapolate(hist_alpha, hist_omega, 2, 5.5, slope),
+                               _extrapolate(hist_alpha, hist_omega, 2, 5.5))  # secant: 11, 12
+
+
+def test_tangent_predictor_continues_the_first_axial_modes():
+    """Fig. 3 line (λ_i = 0.9, V̂ = 0): with the branch slopes dΩ/dα̂ = −f_α̂/f_Ω at the scanned
+    roots, the steps n = 1 → 2 → … are continued (the constant predictor sent n = 2..5 to the scan);
+    the roots still equal jd.frequencies."""
+    tube = jd.Tube(lambda_z=1.2, lambda_i=0.9)
+    alphas = np.asarray(jd.axial_wavenumber(tube, np.arange(1, 21)))
+    curve = jd.dispersion_curve(tube, alphas, n_roots=3, n_layers=2, scheme="magnus6")
+    scanned = np.asarray(curve.scanned)
+    assert scanned[0] and scanned.sum() <= 2, scanned
+    reference = np.array([np.asarray(jd.frequencies(tube, a, n_roots=3, n_layers=2, scheme="magnus6"))
+                          for a in alphas])
+    assert_same_roots(curve, reference)
 
 
 def _case(alpha=0.445, n_layers=30):
