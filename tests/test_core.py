@@ -331,6 +331,12 @@ def test_thickness_ratio_round_trip_and_gradient():
 def test_axial_wavenumber():
     tube = jd.Tube(lambda_z=1.2, eta=0.85, length_ratio=10.0)
     np.testing.assert_allclose(jd.axial_wavenumber(tube, 3), 6 * np.pi * 0.85 / 12.0, rtol=1e-15)
+    # concrete inputs (validated, then the formula alone) and traced ones (with the admissibility
+    # mask, inside a jit): the same bits, for arrays that broadcast too
+    many = tube.replace(eta=np.array([0.8, 0.85]), lambda_z=1.3)
+    for t, n in ((tube, np.arange(1, 21)), (many, np.array([1.0, 2.5]))):
+        traced = jax.jit(jd.axial_wavenumber)(t, n)
+        np.testing.assert_array_equal(jd.axial_wavenumber(t, n), traced)
 
 
 def test_mode_shape_satisfies_boundary_conditions():
