@@ -265,7 +265,7 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
 
     Example:
         >>> c = dispersion_curve(Tube(), np.linspace(0.05, 5, 100), n_roots=4, n_layers=10)
-        >>> c.omega.shape, int(c.scanned.sum())   # (100, 4), 2
+        >>> c.omega.shape, int(c.scanned.sum())   # (100, 4), 1
     """
     a = validate_range("alpha", alpha, f">= {ALPHA_MIN!r} and finite (the axial wavenumber α̂ = α R_i)",
                        lambda v: v >= ALPHA_MIN, scalar=False)
