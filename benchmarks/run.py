@@ -185,11 +185,6 @@ def work_fig3(impl: str, cfg: dict) -> dict:
                     roots={str(k): v for k, v in roots.items()})
     jax, jaxdea = _jax()
 
-    def run():
-        return jaxdea.sweep(jaxdea.Tube(lambda_z=FIG3["lambda_z"]), n_roots=FIG3["n_roots"],
-                            lambda_i=np.array(FIG3["lambda_i"]), voltage=np.array(FIG3["voltage"]),
-                            n=np.array(FIG3["n"]), progress=False).omega
-
     def run_curves(n_layers=30, scheme="midpoint"):
         """The same roots by continuation along n: one dispersion_curve per (λ_i, V̂)."""
         out = []
@@ -201,7 +196,8 @@ def work_fig3(impl: str, cfg: dict) -> dict:
                                                    n_layers=n_layers, scheme=scheme).omega)
         return jax.numpy.stack(out)
 
-    def run_scheme(n_layers, scheme):
+    def run(n_layers=30, scheme="midpoint"):
+        """The sweep: the guaranteed scan at every point."""
         return jaxdea.sweep(jaxdea.Tube(lambda_z=FIG3["lambda_z"]), n_roots=FIG3["n_roots"],
                             lambda_i=np.array(FIG3["lambda_i"]), voltage=np.array(FIG3["voltage"]),
                             n=np.array(FIG3["n"]), progress=False, n_layers=n_layers,
@@ -217,7 +213,7 @@ def work_fig3(impl: str, cfg: dict) -> dict:
     # at the baseline's accuracy: the error of N = 30 (SciPy's laminate; its roots equal jaxdea's to
     # ~1e-13) against the sixth-order scheme at N = FIG3_REFERENCE, and the fewest magnus6 sublayers
     # that do as well
-    reference = flat(run_scheme(FIG3_REFERENCE, "magnus6"))
+    reference = flat(run(FIG3_REFERENCE, "magnus6"))
 
     def error(x):
         same = np.array_equal(np.isnan(x), np.isnan(reference))
@@ -226,7 +222,7 @@ def work_fig3(impl: str, cfg: dict) -> dict:
     laminate_error = error(omega)
     checks, chosen = [], None
     for n_layers in cfg["fig3_magnus_levels"]:
-        err = error(flat(run_scheme(n_layers, "magnus6")))
+        err = error(flat(run(n_layers, "magnus6")))
         checks.append(dict(n_layers=n_layers, rel_error=err))
         if err <= laminate_error:
             chosen = n_layers
@@ -234,7 +230,7 @@ def work_fig3(impl: str, cfg: dict) -> dict:
     extra = dict(laminate_rel_error=laminate_error, magnus_checks=checks, magnus_chosen=chosen)
     if chosen is not None:
         repeats, min_time = cfg["solve_repeats"], cfg["min_time"]
-        sec_m, _, omega_m = best_time(lambda: run_scheme(chosen, "magnus6"), repeats, min_time)
+        sec_m, _, omega_m = best_time(lambda: run(chosen, "magnus6"), repeats, min_time)
         sec_mc, _, omega_mc = best_time(lambda: run_curves(chosen, "magnus6"), repeats, min_time)
         extra.update(magnus_seconds=sec_m, magnus_seconds_curve=sec_mc,
                      magnus_rel_error=error(flat(omega_m)),

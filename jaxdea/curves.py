@@ -165,9 +165,9 @@ def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order) -> Curve:
         found = jnp.isfinite(omega)
         om = jnp.where(found, omega, 1.0)
         dw, da = TANGENT_STEP * om, TANGENT_STEP * a
-        points_om = jnp.concatenate([om + dw, om - dw, om, om])
-        points_al = jnp.concatenate([jnp.full_like(om, a)] * 2 + [jnp.full_like(om, a + da),
-                                                                 jnp.full_like(om, a - da)])
+        shift = jnp.array([[1.0, -1.0, 0.0, 0.0], [0.0, 0.0, 1.0, -1.0]])[:, :, None]  # Ω±, α̂±
+        points_om = jnp.ravel(om + shift[0] * dw)
+        points_al = jnp.ravel(a + shift[1] * jnp.full_like(om, da))
         f = jax.vmap(lambda x, al: characteristic_on_wall(wall, x, al, fluid, order, "adaptive"))(
             points_om, points_al).reshape(4, -1)
         f_omega, f_alpha = (f[0] - f[1]) / (2.0 * dw), (f[2] - f[3]) / (2.0 * da)
