@@ -48,13 +48,10 @@ class Coefficients(NamedTuple):
 
 def energy_derivatives(i1, gent_constant, material="gent"):
     """W_1 = ∂W/∂I_1 and W_11 = ∂²W/∂I_1² by autodiff; NaN where W_1 ≤ 0 (past Gent locking)."""
-    w1 = jax.grad(ENERGIES[material])
-    admissible = w1(i1, gent_constant) > 0
+    w1, w11 = jax.value_and_grad(jax.grad(ENERGIES[material]))(i1, gent_constant)
+    admissible = w1 > 0
     nan = jnp.nan * jnp.ones_like(i1)
-    return (
-        jnp.where(admissible, w1(i1, gent_constant), nan),
-        jnp.where(admissible, jax.grad(w1)(i1, gent_constant), nan),
-    )
+    return jnp.where(admissible, w1, nan), jnp.where(admissible, w11, nan)
 
 
 def electroelastic_energy(F, DL, gent_constant, material="gent"):

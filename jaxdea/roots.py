@@ -48,7 +48,7 @@ from .params import (
     validate_range,
 )
 from .scalar import Status, lanes_from_slots, run_lanes, start_lanes, value_and_slope
-from .transfer import Wall, discretize, laminate
+from .transfer import Wall, discretize, laminate, voltage_expansion, wall_at_voltage
 
 CHUNK = 32  # points per scan chunk: 64 cost twice the work where one chunk holds the roots
 GEOMETRIC_RATIO = 64.0
@@ -437,14 +437,17 @@ def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=128, 
     """(V̂_cr, status) for one case (traceable); see :func:`critical_voltage`.
 
     ``v_end`` (optional) searches (0, v_end] instead of (0, V̂_lim] with the pull-in limit V̂_lim of
-    :func:`voltage_limit`, whose static-response solve dominates the compilation; a root above
+    :func:`voltage_limit`, whose static-response solve is about a third of the compilation; a root above
     ``v_end`` is reported as NO_ROOT.
     """
     ok, tube, alpha, fluid = guard(tube.replace(voltage=0.0), as_float(alpha), fluid)
     v_end = voltage_limit(tube) if v_end is None else as_float(v_end)
 
-    def g(v):
-        return _residual(v, tube, alpha, fluid, n_layers, order, "voltage", "adaptive")
+    expansion = voltage_expansion(tube, n_layers)
+
+    def g(v):  # f(Ω = 0; V̂ = v), the wall formed from its expansion in V̂ (the same function)
+        wall = wall_at_voltage(expansion, v)
+        return characteristic_on_wall(wall, jnp.zeros_like(v), alpha, fluid, order, "adaptive")
 
     def solve():
         grid = v_end * jnp.linspace(0.0, 1.0, n_grid + 1)

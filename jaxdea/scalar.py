@@ -326,14 +326,18 @@ def iterate_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200) -> Lanes:
     return lanes._replace(status=status)
 
 
-def bracketed_root(fun, lo, hi, f_lo, f_hi):
+def bracketed_root(fun, lo, hi, f_lo, f_hi, df_lo=None, df_hi=None):
     """Root of ``fun`` in [lo, hi] (f(lo)·f(hi) ≤ 0) by one BRACKET lane of :func:`run_lanes`.
+
+    ``df_lo``, ``df_hi``: f' at the ends where the caller has them (else evaluated here: two more
+    copies of f' in the compiled program).
 
     Returns:
         (x, status): NaN and NO_ROOT / NOT_FINITE unless converged.
     """
     one = lambda v: jnp.reshape(jnp.asarray(v, jnp.float64), (1,))  # noqa: E731
-    df_lo, df_hi = (value_and_slope(fun, x)[1] for x in (lo, hi))
+    if df_lo is None or df_hi is None:
+        df_lo, df_hi = (value_and_slope(fun, x)[1] for x in (lo, hi))
     bracketed = (jnp.sign(f_lo) * jnp.sign(f_hi) <= 0) & jnp.isfinite(f_lo) & jnp.isfinite(f_hi)
     lanes = start_lanes(one(lo), one(hi), one(f_lo), one(f_hi), one(df_lo), one(df_hi),
                         jnp.where(bracketed, 1, 0)[None], pairs=False)

@@ -369,3 +369,37 @@ def test_wall_coefficients_tensor_route_equals_closed_route():
     tensor = jax.jit(lambda t: layer_coefficients(t, r, "tensor"))(tube)
     for name, x, y in zip(closed._fields, closed, tensor, strict=True):
         np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-14, err_msg=name)
+
+
+@pytest.mark.parametrize("scheme", ["midpoint", "magnus6"])
+def test_wall_is_quadratic_in_the_voltage(scheme):
+    """voltage_expansion: W_0 + V̂ W_1 + V̂² W_2 equals the wall discretised at V̂ (every leaf), on a
+    Gent wall near locking and at voltages up to 0.6, so the critical-voltage search, which forms
+    the wall from the expansion, solves the same f(0; V̂)."""
+    tube = jd.Tube(voltage=0.0, lambda_i=1.6, lambda_z=1.5, eta=0.7, gent=6.0)
+    layers = transfer.laminate(7, scheme)
+    expansion = jax.jit(lambda t: transfer.voltage_expansion(t, layers))(tube)
+    for v in (0.05, 0.3, 0.6):
+        direct = jax.jit(lambda t: discretize(t, layers))(tube.replace(voltage=v))
+        expanded = transfer.wall_at_voltage(expansion, v)
+        for x, y in zip(jax.tree_util.tree_leaves(expanded), jax.tree_util.tree_leaves(direct),
+                        strict=True):
+            scale = float(jnp.max(jnp.abs(y)))
+            np.testing.assert_allclose(x, y, rtol=0, atol=1e-13 * scale)
+    # the electric terms are there: W_1 (D̂_r) and W_2 (D̂_r², p̂, ΔP̂) are not zero
+    assert float(jnp.max(jnp.abs(expansion[1].coef.d))) > 0.1
+    assert abs(float(expansion[2].pressure_inner)) > 1e-3
+
+
+def test_bracketed_root_with_given_end_slopes():
+    """bracketed_root with the caller's end slopes gives the root it finds by evaluating them."""
+    from jaxdea.scalar import bracketed_root
+
+    fun = lambda x: jnp.cos(x) - x  # noqa: E731
+    lo, hi = 0.2, 1.4
+    own = jax.jit(lambda: bracketed_root(fun, lo, hi, fun(lo), fun(hi)))()
+    given = jax.jit(lambda: bracketed_root(fun, lo, hi, fun(lo), fun(hi), -jnp.sin(lo) - 1.0,
+                                           -jnp.sin(hi) - 1.0))()
+    assert int(own[1]) == int(given[1]) == 0
+    np.testing.assert_allclose(given[0], 0.7390851332151607, rtol=1e-15)
+    np.testing.assert_allclose(own[0], given[0], rtol=1e-15)
