@@ -436,6 +436,8 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
 def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=128, v_end=None):
     """(V̂_cr, status) for one case (traceable); see :func:`critical_voltage`.
 
+    The scan of :func:`_scan_for_roots` (Hermite classification, then lanes) over (0, V̂_lim] with
+    step V̂_lim/``n_grid``, for the first root: after a hidden pair that holds no roots it scans on.
     ``v_end`` (optional) searches (0, v_end] instead of (0, V̂_lim] with the pull-in limit V̂_lim of
     :func:`voltage_limit`, whose static-response solve is about a third of the compilation; a root above
     ``v_end`` is reported as NO_ROOT.
@@ -449,26 +451,9 @@ def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=128, 
         wall = wall_at_voltage(expansion, v)
         return characteristic_on_wall(wall, jnp.zeros_like(v), alpha, fluid, order, "adaptive")
 
-    def solve():
-        grid = v_end * jnp.linspace(0.0, 1.0, n_grid + 1)
-        vals, slopes = jax.vmap(lambda v: value_and_slope(g, v))(grid)
-        va, vb, ga, gb, sa, sb = grid[:-1], grid[1:], vals[:-1], vals[1:], slopes[:-1], slopes[1:]
-        finite = jnp.isfinite(ga) & jnp.isfinite(gb) & jnp.isfinite(sa) & jnp.isfinite(sb)
-        ok = jnp.cumsum(~finite) == 0
-        change = ok & (jnp.sign(ga) * jnp.sign(gb) <= 0) & (ga != 0)
-        hidden = ok & ~change & (ga * sa < 0) & (gb * sb > 0)
-        j = jnp.argmax(change | hidden)
-        kind = jnp.where(change[j], 1, jnp.where(hidden[j], 2, 0))
-        one = lambda v: jnp.reshape(v, (1,))  # noqa: E731
-        lanes = start_lanes(*(one(v[j]) for v in (va, vb, ga, gb, sa, sb)), one(kind))
-        roots, keys, status = run_lanes(g, lanes)
-        first = jnp.argmin(keys)
-        found = jnp.isfinite(keys[first])
-        stat = jnp.where(found, status[first],
-                         jnp.where(jnp.all(finite), Status.NO_ROOT, Status.NOT_FINITE))
-        return jnp.where(found, roots[first], jnp.nan), stat
-
-    return invalid_where(ok, Roots(*solve()))
+    roots = _scan_for_roots(g, v_end / n_grid, v_end, 1)
+    empty = (v_end == 0) & (roots.status[0] == Status.NOT_FINITE)  # no range, so no root
+    return invalid_where(ok, Roots(roots.omega[0], jnp.where(empty, Status.NO_ROOT, roots.status[0])))
 
 
 _solve_critical_voltage = cached_jit(critical_voltage_unchecked,
