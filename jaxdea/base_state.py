@@ -301,51 +301,73 @@ def pull_in(tube: Tube, delta_p=0.0):
     return _pull_in(*canonical(tube, delta_p))
 
 
-def _static_peak(tube: Tube, delta_p):
-    """(λ_i, status, V̂²_max): the first maximum of V̂²(λ_i) at fixed ΔP̂ (:func:`pull_in`) and the
-    largest V̂² on the λ_i grid (0.05 … 20, geometric).
-
-    Forward-mode derivatives only: the grid's values, slopes and curvatures in one pass (jvp of a
-    jvp), then safeguarded Newton on the slope from the bracketing grid interval. The first call of
-    :func:`jaxdea.critical_voltage` compiles this solve; with reverse-mode slopes (a jvp of a grad,
-    evaluated in four places) it alone took 3.7 s to compile, 2.4 s so (measured).
-    """
-    delta_p = as_float(delta_p)
-    v2 = lambda li: _squared_voltage(tube, li, delta_p)  # noqa: E731
-    grid = _stretch_grid()
-    (vals, slopes), (_, curvatures) = jax.vmap(
-        lambda x: jax.jvp(lambda y: value_and_slope(v2, y), (x,), (jnp.ones_like(x),)))(grid)
-    ok = jnp.isfinite(slopes[:-1]) & jnp.isfinite(slopes[1:]) & (vals[:-1] > 0)
-    peak = ok & (slopes[:-1] > 0) & (slopes[1:] <= 0)
-    j = jnp.argmax(peak)
-    root, status = bracketed_root(lambda li: value_and_slope(v2, li)[1], grid[j], grid[j + 1],
-                                  slopes[j], slopes[j + 1], curvatures[j], curvatures[j + 1])
-    found = jnp.any(peak)
-    top = jnp.max(jnp.where(jnp.isfinite(vals), vals, 0.0))
-    return jnp.where(found, root, jnp.nan), jnp.where(found, status, Status.NO_ROOT), top
-
-
 def pull_in_unchecked(tube: Tube, delta_p):
-    """:func:`pull_in` without input validation (for use inside other solvers)."""
+    """:func:`pull_in` without input validation (for use inside other solvers).
+
+    Forward-mode derivatives only: the grid's values, slopes and curvatures of V̂² in one pass (a
+    jvp of a jvp), then safeguarded Newton on the slope from the grid cell where it turns negative
+    (reverse-mode slopes, a jvp of a grad evaluated in four places, took 3.7 s to compile against
+    2.4 s, measured)."""
     delta_p = as_float(delta_p)
     v2 = lambda li: _squared_voltage(tube, li, delta_p)  # noqa: E731
-    li, status = implicit_root(lambda x: value_and_slope(v2, x)[1],
-                               lambda: _static_peak(tube, delta_p)[:2], jnp.asarray(1.0))
+    slope = lambda li: value_and_slope(v2, li)[1]  # noqa: E731
+
+    def solve():
+        grid = _stretch_grid()
+        (vals, slopes), (_, curvatures) = jax.vmap(
+            lambda x: jax.jvp(lambda y: value_and_slope(v2, y), (x,), (jnp.ones_like(x),)))(grid)
+        ok = jnp.isfinite(slopes[:-1]) & jnp.isfinite(slopes[1:]) & (vals[:-1] > 0)
+        peak = ok & (slopes[:-1] > 0) & (slopes[1:] <= 0)
+        j = jnp.argmax(peak)
+        root, status = bracketed_root(slope, grid[j], grid[j + 1], slopes[j], slopes[j + 1],
+                                      curvatures[j], curvatures[j + 1])
+        found = jnp.any(peak)
+        return jnp.where(found, root, jnp.nan), jnp.where(found, status, Status.NO_ROOT)
+
+    li, status = implicit_root(slope, solve, jnp.asarray(1.0))
     return li, jnp.sqrt(v2(li)), status
+
+
+INVERSE_GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
+GOLDEN_STEPS = 64  # golden-section steps of voltage_limit: the peak's bracket shrinks by 0.618^64 ≈ 4e-14
 
 
 def voltage_limit(tube: Tube):
     """Largest voltage of the static response of the tube held at its zero-voltage ΔP̂.
 
-    The pull-in voltage of :func:`pull_in` at ΔP̂ = ΔP̂(λ_i, λ_z, V̂ = 0); where strain stiffening
-    removes the pull-in maximum (Gent), the largest voltage reached before Gent locking (on the λ_i
-    grid). Used as the end of the critical-voltage search (no derivatives: a search range).
+    The pull-in voltage of :func:`pull_in` at ΔP̂ = ΔP̂(λ_i, λ_z, V̂ = 0): the first local maximum of
+    V̂²(λ_i) on the λ_i grid of :func:`pull_in`, refined by golden-section search on its two grid
+    cells (values only: V̂ at a maximum to rounding); where strain stiffening removes the pull-in
+    maximum (Gent), the largest voltage on the grid before Gent locking. Used as the end of the
+    critical-voltage search (no derivatives: a search range). Values only, so that the first call
+    of :func:`jaxdea.critical_voltage` compiles no derivative of the static quadrature (with the
+    Newton solve of :func:`pull_in` there, that call took 7.4 s instead of 5.7 s, measured).
     """
     tube = jax.lax.stop_gradient(tube)
     delta_p = pressure_difference_unchecked(tube.replace(voltage=0.0))
-    li, status, top = _static_peak(tube, delta_p)
-    v_pull = jnp.sqrt(_squared_voltage(tube, li, delta_p))
-    return jnp.where(status == Status.CONVERGED, v_pull, jnp.sqrt(top))
+    v2 = lambda li: _squared_voltage(tube, li, delta_p)  # noqa: E731
+    grid = _stretch_grid()
+    vals = jax.vmap(v2)(grid)
+    finite = jnp.isfinite(vals)
+    inner = finite[:-2] & finite[1:-1] & finite[2:] & (vals[:-2] > 0)
+    peak = inner & (vals[1:-1] > vals[:-2]) & (vals[1:-1] >= vals[2:])
+    j = jnp.argmax(peak) + 1  # the grid point of the first local maximum
+    a, b = grid[j - 1], grid[j + 1]
+    c, d = b - INVERSE_GOLDEN * (b - a), a + INVERSE_GOLDEN * (b - a)
+
+    def golden(_, s):
+        a, b, c, d, fc, fd = s
+        left = fc >= fd  # the maximum lies in [a, d]: c is the new d
+        a, b = jnp.where(left, a, c), jnp.where(left, d, b)
+        new = jnp.where(left, b - INVERSE_GOLDEN * (b - a), a + INVERSE_GOLDEN * (b - a))
+        f_new = v2(new)
+        return (a, b, jnp.where(left, new, d), jnp.where(left, c, new),
+                jnp.where(left, f_new, fd), jnp.where(left, fc, f_new))
+
+    *_, fc, fd = jax.lax.fori_loop(0, GOLDEN_STEPS, golden, (a, b, c, d, v2(c), v2(d)))
+    v_peak = jnp.maximum(vals[j], jnp.maximum(fc, fd))
+    top = jnp.max(jnp.where(finite, vals, 0.0))
+    return jnp.sqrt(jnp.where(jnp.any(peak), v_peak, top))
 
 
 @jit

@@ -439,8 +439,8 @@ def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=128, 
     The scan of :func:`_scan_for_roots` (Hermite classification, then lanes) over (0, V̂_lim] with
     step V̂_lim/``n_grid``, for the first root: after a hidden pair that holds no roots it scans on.
     ``v_end`` (optional) searches (0, v_end] instead of (0, V̂_lim] with the pull-in limit V̂_lim of
-    :func:`voltage_limit`, whose static-response solve is about a third of the compilation; a root above
-    ``v_end`` is reported as NO_ROOT.
+    :func:`voltage_limit` (values only: about 0.25 s of the first call's compilation, measured); a
+    root above ``v_end`` is reported as NO_ROOT.
     """
     ok, tube, alpha, fluid = guard(tube.replace(voltage=0.0), as_float(alpha), fluid)
     v_end = voltage_limit(tube) if v_end is None else as_float(v_end)

@@ -403,3 +403,24 @@ def test_bracketed_root_with_given_end_slopes():
     assert int(own[1]) == int(given[1]) == 0
     np.testing.assert_allclose(given[0], 0.7390851332151607, rtol=1e-15)
     np.testing.assert_allclose(own[0], given[0], rtol=1e-15)
+
+
+def test_pull_in_of_a_softening_wall(monkeypatch):
+    """A strain-softening energy W = sqrt(I_1 − 2) − 1 (W_1 falls as the wall stretches) has a
+    pull-in maximum at fixed λ_z, unlike Gent and neo-Hookean walls: pull_in (Newton on the slope)
+    finds dV̂²/dλ_i = 0 there, with implicit derivatives equal to central differences, and
+    voltage_limit (golden-section search on values only) reaches the same voltage."""
+    from jaxdea import materials
+
+    monkeypatch.setitem(materials.ENERGIES, "soft", lambda i1, g: jnp.sqrt(i1 - 2.0) - 1.0)
+    tube = jd.Tube(lambda_z=1.2, eta=0.6, material="soft", lambda_i=1.0)
+    dp0 = float(jax.jit(bs.pressure_difference_unchecked)(tube.replace(voltage=0.0)))
+    pull = jax.jit(bs.pull_in_unchecked)
+    li, v, status = pull(tube, dp0)
+    assert int(status) == 0 and 1.2 < float(li) < 2.5 and float(v) > 0.1
+    slope = jax.jit(jax.grad(lambda x: bs._squared_voltage(tube, x, dp0)))(li)
+    curvature = jax.jit(jax.grad(jax.grad(lambda x: bs._squared_voltage(tube, x, dp0))))(li)
+    assert abs(float(slope)) < 1e-12 * abs(float(curvature)) and float(curvature) < 0
+    np.testing.assert_allclose(jax.jit(bs.voltage_limit)(tube), v, rtol=1e-14)
+    grad = jax.jit(jax.grad(lambda p: pull(tube, p)[0]))(dp0)
+    np.testing.assert_allclose(grad, fd_derivative(lambda p: pull(tube, p)[0], dp0), rtol=1e-6)
