@@ -115,6 +115,22 @@ def hermite_root(a, b, fa, fb, dfa, dfb, iterations: int = 8):
     return jnp.where(ok, x, jnp.nan)
 
 
+def hermite_extremum(a, b, fa, fb, dfa, dfb):
+    """The stationary point in (a, b) of the cubic Hermite interpolant p of :func:`hermite_root`
+    (f'(a)·f'(b) < 0): the root in (0, 1) of p'(t)/h = f'_a + 2c₂t/h + 3c₃t²/h by the stable
+    quadratic formula; the midpoint where that is not finite or not inside."""
+    h = b - a
+    c2 = 3.0 * (fb - fa) - h * (2.0 * dfa + dfb)
+    c3 = 2.0 * (fa - fb) + h * (dfa + dfb)
+    qa, qb, qc = 3.0 * c3, 2.0 * c2, h * dfa
+    root = jnp.sqrt(jnp.maximum(qb * qb - 4.0 * qa * qc, 0.0))
+    q = -0.5 * (qb + jnp.where(qb >= 0, root, -root))
+    t1, t2 = q / qa, qc / q
+    t = jnp.where((t1 > 0) & (t1 < 1), t1, t2)
+    t = jnp.where(jnp.isfinite(t) & (t > 0) & (t < 1), t, 0.5)
+    return a + h * t
+
+
 def _enter_bracket(lanes, mask, a, b, fa, fb, dfa, dfb):
     """Switch the masked lanes to BRACKET on [a, b] (f(a)·f(b) ≤ 0), at the end with the smaller
     |f| (its slope is known, so no extra evaluation is needed); the first point evaluated is the

@@ -267,6 +267,71 @@ def test_scan_goes_on_after_a_hidden_candidate_without_roots():
     assert int(got.status[0]) == Status.CONVERGED
 
 
+def _close_pairs(x):
+    """Roots 1e-7 and 5, and pairs at relative gaps 1e-3, 1e-6, 1e-9 inside single 0.25 steps."""
+    val = (x - 1e-7) * (x - 5.0)
+    for c, g in [(0.9, 1e-3), (2.3, 1e-6), (3.7, 1e-9)]:
+        val = val * (x - c) * (x - c * (1 + g))
+    return val / (1.0 + x**8)
+
+
+FIRST_ROOT_CASES = {  # f, step, end, the lowest root in (0, end] (NaN: none), its status
+    "near zero": (_close_pairs, 0.25, 6.0, 1e-7, Status.CONVERGED),
+    "pair at 1e-3": (lambda x: _close_pairs(x) / (x - 1e-7), 0.25, 6.0, 0.9, Status.CONVERGED),
+    "pair at 1e-9": (lambda x: (x - 3.7) * (x - 3.7 * (1 + 1e-9)) * (x - 5.0), 0.25, 6.0, 3.7,
+                     Status.CONVERGED),
+    "empty dip first": (lambda x: ((x - 1.1) ** 2 + 1e-4) * (x - 3.0) / (1.0 + x**4), 0.25, 6.0, 3.0,
+                        Status.CONVERGED),
+    "on a grid point": (lambda x: (x - 1.0) * (x - 2.5), 0.5, 4.0, 1.0, Status.CONVERGED),
+    "oscillating": (lambda x: jnp.sin(7.0 * x) + 0.9, 0.01, 3.0, (np.pi + np.arcsin(0.9)) / 7.0,
+                    Status.CONVERGED),
+    "none in range": (lambda x: (x - 7.0) * (x - 9.0), 0.25, 6.0, np.nan, Status.NO_ROOT),
+    "NaN below the root": (lambda x: jnp.where(x > 2.0, jnp.nan, 1.0) * (x - 3.0), 0.25, 6.0, np.nan,
+                           Status.NOT_FINITE),
+    "NaN above the root": (lambda x: jnp.where(x > 2.0, jnp.nan, 1.0) * (x - 1.5), 0.25, 6.0, 1.5,
+                           Status.CONVERGED),
+    "no range": (lambda x: x - 1.0, 0.0, 0.0, np.nan, Status.NOT_FINITE),
+}
+
+
+@pytest.mark.parametrize("case", FIRST_ROOT_CASES)
+def test_first_root_by_zooming(case):
+    """The single-site search of the critical voltage (_first_root) finds the lowest root of
+    synthetic functions with close pairs, an empty dip below the root, a root on a grid point, many
+    oscillations and non-finite regions, to 1e-13 relative (its tolerance), and agrees with the
+    scan with lanes (_scan_for_roots) on every case that has a root."""
+    f, step, end, root, status = FIRST_ROOT_CASES[case]
+    got = jax.jit(lambda: roots_module._first_root(f, jnp.asarray(step), end))()
+    assert int(got.status) == status
+    if np.isnan(root):
+        assert np.isnan(float(got.omega))
+        return
+    np.testing.assert_allclose(float(got.omega), root, rtol=1e-13)
+    lanes = jax.jit(lambda: roots_module._scan_for_roots(f, jnp.asarray(step), end, 1))()
+    np.testing.assert_allclose(float(got.omega), float(lanes.omega[0]), rtol=1e-13)
+
+
+def test_first_root_zooms_in_a_few_chunks():
+    """A simple root found in the first chunk (Δ = 2π/32) costs that chunk and two zooms, no more:
+    the first around the Hermite cubic's root (off by ≤ Δ⁴/(384 cos π/6) ≈ 4.5e-6) leaves a bracket
+    ≤ 64 times that, the second a bracket ≤ 1e-6 Δ with equal slopes (its cubic is f to rounding)."""
+    f, calls = _counted(lambda x: jnp.sin(x) - 0.5)
+    got = jax.jit(lambda: roots_module._first_root(f, jnp.asarray(2 * np.pi / 32), 6.0))()
+    assert abs(float(got.omega) - np.pi / 6) <= 2 * np.spacing(np.pi / 6)
+    assert len(calls) == 3
+
+
+def test_hermite_extremum_of_a_cubic():
+    """For a cubic f the Hermite interpolant is f itself, so its stationary point is f's: the roots
+    of f' = 3x² − 2 are ±√(2/3); an interval with no sign change of f' gives the midpoint."""
+    from jaxdea.scalar import hermite_extremum
+
+    f, df = (lambda x: x**3 - 2.0 * x + 0.3), (lambda x: 3.0 * x**2 - 2.0)
+    for a, b, want in [(0.1, 1.4, np.sqrt(2 / 3)), (-2.0, 0.3, -np.sqrt(2 / 3)), (1.0, 2.0, 1.5)]:
+        got = float(hermite_extremum(a, b, f(a), f(b), df(a), df(b)))
+        assert abs(got - want) <= 4 * abs(np.spacing(want))
+
+
 def _counted(f):
     """f with a host-side count of its evaluations (one per vectorised call)."""
     calls = []
