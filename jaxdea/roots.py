@@ -242,9 +242,12 @@ def _first_root(fun, step, end, rtol=1e-13, max_rounds=1000) -> Roots:
     x* ± (b − a)·64^{-j}, j = 0 … CHUNK/2 − 1, clipped to [a, b], with x* the root of the interval's
     Hermite cubic (a sign change) or its stationary point (a hidden pair), and the first candidate
     among its intervals is the new [a, b]. Each round leaves a bracket of at most 64 times the
-    error of x* (O((b − a)⁴)): two to four rounds reach rounding. A sign change narrower than
-    ``rtol``·|x| gives its end with the smaller |f|; a hidden pair that narrows so, or whose chunk
-    holds no candidate, has no root, and the scan goes on from its right end. One compiled copy of
+    error of x* (O((b − a)⁴)): one to three zooms reach rounding. A sign change narrower than
+    ``rtol``·|x|, or narrower than ``HERMITE_FINAL``·Δ with end slopes equal to
+    ``HERMITE_FINAL_SLOPES`` (its cubic is then f to rounding; never so for a hidden pair, whose end
+    slopes have opposite signs), gives the root of its Hermite cubic; a hidden pair narrower than
+    ``rtol``·|x|, or whose chunk holds no candidate, has no root, and the scan goes on from its
+    right end. One compiled copy of
     f and f' (the lanes of :func:`_scan_for_roots` are a second one): the critical-voltage search.
 
     Returns a scalar :class:`Roots`: CONVERGED, NO_ROOT, NOT_FINITE (a non-finite value below the
