@@ -131,6 +131,13 @@ def _head(step):
         -(GEOMETRIC_POINTS - 1), 1, dtype=jnp.float64)])
 
 
+def _chunk(grid, head, chunk, end):
+    """The points of a scan chunk: ``grid`` (the next CHUNK grid points), led by ``head`` in the
+    first chunk, none beyond ``end``."""
+    return jnp.minimum(jnp.where(chunk == 0, jnp.concatenate([head, grid[: CHUNK - head.size]]), grid),
+                       end)
+
+
 def _intervals(x0, f0, df0, x, f, df):
     """The intervals [x_{k−1}, x_k] of an ascending chunk x after a known point x0 = x_{−1}: their
     left ends' data and their kind (1: a sign change of f; 2: a hidden pair, no sign change but f
@@ -179,8 +186,7 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None) -> Root
         else:
             _, uniform = jax.lax.scan(advance, (start, start, jnp.zeros_like(start)), None,
                                       length=CHUNK)
-        first = jnp.concatenate([head, uniform[: CHUNK - head.size]])
-        return jnp.minimum(jnp.where(chunk == 0, first, uniform), omega_end)
+        return _chunk(uniform, head, chunk, omega_end)
 
     def scanning(left, blocked, chunk):
         return (left < omega_end) & ~blocked & (chunk < max_chunks)
@@ -259,9 +265,7 @@ def _first_root(fun, step, end, rtol=1e-13, max_rounds=1000) -> Roots:
     offsets = GEOMETRIC_RATIO ** -jnp.arange(CHUNK // 2, dtype=jnp.float64)
 
     def points(a, b, fa, fb, dfa, dfb, kind, chunk):
-        grid = jnp.where(chunk == 0, step, a) + step * lattice
-        grid = jnp.minimum(jnp.where(chunk == 0, jnp.concatenate([head, grid[: CHUNK - head.size]]),
-                                     grid), end)
+        grid = _chunk(jnp.where(chunk == 0, step, a) + step * lattice, head, chunk, end)
         guess = jnp.where(kind == 1, hermite_root(a, b, fa, fb, dfa, dfb),
                           hermite_extremum(a, b, fa, fb, dfa, dfb))
         guess = jnp.where(jnp.isfinite(guess), guess, 0.5 * (a + b))
@@ -287,8 +291,8 @@ def _first_root(fun, step, end, rtol=1e-13, max_rounds=1000) -> Roots:
         converged = found & (kinds[k] == 1) & (narrow | linear)
         zoom = found & ~(narrow | linear)
         # else scan on from x_k: the right end of a hidden pair without roots, or the last point
-        window = (jnp.where(zoom, lo, hi), hi, jnp.where(zoom, f_a[k], f[k]), f[k],
-                  jnp.where(zoom, df_a[k], df[k]), df[k], jnp.where(zoom, kinds[k], 0),
+        window = (jnp.where(zoom, lo, hi), hi, jnp.where(zoom, f_lo, f[k]), f[k],
+                  jnp.where(zoom, df_lo, df[k]), df[k], jnp.where(zoom, kinds[k], 0),
                   chunk + (kind == 0))
         root = hermite_root(lo, hi, f_lo, f[k], df_lo, df[k])
         root = jnp.where(jnp.isfinite(root), root, jnp.where(jnp.abs(f_lo) <= jnp.abs(f[k]), lo, hi))
@@ -533,8 +537,8 @@ def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=128, 
     :func:`_first_root` over (0, V̂_lim] with step V̂_lim/``n_grid``: the chunked scan with Hermite
     classification, the first candidate refined by zooming with the same chunk of f and f' (after a
     hidden pair that holds no roots it scans on). One compiled copy of f and f' instead of the
-    scan's and the lanes' (:func:`_scan_for_roots`): the first call 5.0 → 2.7 s, a warm call
-    7.4 → 10.9 ms (four chunks of 32 instead of a few 2-lane Newton steps; measured, caches off).
+    scan's and the lanes' (:func:`_scan_for_roots`): tracing and compilation 4.9 → 2.7–3.3 s, a
+    warm call 7.4 → 10.9 ms (four chunks of 32 instead of a few 2-lane Newton steps; measured).
     ``v_end`` (optional) searches (0, v_end] instead of (0, V̂_lim] with the pull-in limit V̂_lim of
     :func:`voltage_limit` (values only: about 0.25 s of the first call's compilation, measured); a
     root above ``v_end`` is reported as NO_ROOT.

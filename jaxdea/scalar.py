@@ -87,6 +87,12 @@ class Lanes(NamedTuple):
     curvature: jax.Array  # K = |f''/(2f')| from the last two iterates; a FREE lane may start with a prior
 
 
+def _hermite_cubic(a, b, fa, fb, dfa, dfb):
+    """h = b − a and the coefficients c₁, c₂, c₃ of p(t) = f_a + c₁t + c₂t² + c₃t³ (:func:`hermite_root`)."""
+    h = b - a
+    return h, h * dfa, 3.0 * (fb - fa) - h * (2.0 * dfa + dfb), 2.0 * (fa - fb) + h * (dfa + dfb)
+
+
 def hermite_root(a, b, fa, fb, dfa, dfb, iterations: int = 8):
     """The root in [a, b] of the cubic Hermite interpolant of (f, f') at a and b (f(a)·f(b) ≤ 0).
 
@@ -96,10 +102,7 @@ def hermite_root(a, b, fa, fb, dfa, dfb, iterations: int = 8):
     quadratically from the first step. NaN where the data are not finite or have no sign change,
     or where the cubic's root is an end point (f there is already known).
     """
-    h = b - a
-    c1 = h * dfa
-    c2 = 3.0 * (fb - fa) - h * (2.0 * dfa + dfb)
-    c3 = 2.0 * (fa - fb) + h * (dfa + dfb)
+    h, c1, c2, c3 = _hermite_cubic(a, b, fa, fb, dfa, dfb)
     neg_at_0 = fa < 0
     t_neg, t_pos = jnp.where(neg_at_0, 0.0, 1.0), jnp.where(neg_at_0, 1.0, 0.0)
     t = jnp.where(fa != fb, fa / (fa - fb), 0.5)
@@ -117,12 +120,10 @@ def hermite_root(a, b, fa, fb, dfa, dfb, iterations: int = 8):
 
 def hermite_extremum(a, b, fa, fb, dfa, dfb):
     """The stationary point in (a, b) of the cubic Hermite interpolant p of :func:`hermite_root`
-    (f'(a)·f'(b) < 0): the root in (0, 1) of p'(t)/h = f'_a + 2c₂t/h + 3c₃t²/h by the stable
+    (f'(a)·f'(b) < 0): the root in (0, 1) of p'(t) = c₁ + 2c₂t + 3c₃t² by the stable
     quadratic formula; the midpoint where that is not finite or not inside."""
-    h = b - a
-    c2 = 3.0 * (fb - fa) - h * (2.0 * dfa + dfb)
-    c3 = 2.0 * (fa - fb) + h * (dfa + dfb)
-    qa, qb, qc = 3.0 * c3, 2.0 * c2, h * dfa
+    h, c1, c2, c3 = _hermite_cubic(a, b, fa, fb, dfa, dfb)
+    qa, qb, qc = 3.0 * c3, 2.0 * c2, c1
     root = jnp.sqrt(jnp.maximum(qb * qb - 4.0 * qa * qc, 0.0))
     q = -0.5 * (qb + jnp.where(qb >= 0, root, -root))
     t1, t2 = q / qa, qc / q
