@@ -88,13 +88,16 @@ del jnp
 
 def _enable_compilation_cache():
     """Keep compiled solvers on disk between processes (compilation dominates a first call): XLA
-    programs in <root>/xla unless the user configured a JAX cache, executables in
-    <root>/executables (:mod:`jaxdea.compiled`); root ``JAXDEA_CACHE_DIR``, default ~/.cache/jaxdea,
-    ``off`` for neither."""
-    root = compiled.cache_root()
-    if root is None or jax.config.jax_compilation_cache_dir is not None:
+    programs in <root>/xla unless the user configured a JAX cache, exported programs in
+    <root>/programs (:mod:`jaxdea.compiled`); root ``JAXDEA_CACHE_DIR``, default ~/.cache/jaxdea,
+    ``off`` for neither. A root or folder that another user owns or may write is not used
+    (:class:`jaxdea.compiled.CacheWarning`)."""
+    if compiled.cache_off() or jax.config.jax_compilation_cache_dir is not None:
         return
-    jax.config.update("jax_compilation_cache_dir", str(root / "xla"))
+    folder = compiled.private_folder("xla")
+    if folder is None:
+        return
+    jax.config.update("jax_compilation_cache_dir", str(folder))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 

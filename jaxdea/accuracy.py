@@ -29,7 +29,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from .compiled import cached_jit
+from .compiled import cached_jit, serializable
 from .dispersion import check_inputs
 from .params import Fluid, Tube, canonical, validate_layers
 from .roots import _problem, guard, scan_step, solve_frequencies
@@ -37,6 +37,7 @@ from .scalar import Status, run_lanes, start_lanes
 from .transfer import laminate, scheme_order
 
 
+@serializable
 class Estimate(NamedTuple):
     """Roots with error estimates.
 

@@ -206,6 +206,30 @@ number, ĉ_f, ρ̂_f and h/R_i, empty and fluid-filled, consistent acoustic mode
 coupling) and the static response, each as a PNG plus the CSV behind it."""
 
 
+CACHE_HELP = """Compiled programs are kept under JAXDEA_CACHE_DIR (default ~/.cache/jaxdea; 'off'
+for none): JAX's compilations in xla/, jaxdea's exported programs in programs/. Only the first
+call of a solver in a process pays for tracing and compiling once they are there. Deleting the
+cache is always safe: the next run compiles anew."""
+
+
+def _cache(args):
+    from . import compiled
+
+    root = compiled.cache_root()
+    if root is None:
+        print("the cache is off (JAXDEA_CACHE_DIR=off)")
+        return 0
+    if args.action == "clear":
+        existed = root.exists()
+        compiled.clear_cache()
+        print(f"removed {root}" if existed else f"nothing to remove at {root}")
+        return 0
+    files = [p for p in root.rglob("*") if p.is_file()] if root.exists() else []
+    size = sum(p.stat().st_size for p in files)
+    print(f"{root}: {len(files)} files, {size / 1e6:.1f} MB")
+    return 0
+
+
 def build_parser():
     formatter = argparse.RawDescriptionHelpFormatter
     parser = argparse.ArgumentParser(prog="jaxdea", description=DESCRIPTION, epilog=EXAMPLES,
@@ -249,6 +273,13 @@ def build_parser():
     table.add_argument("--n-layers", type=int, default=30,
                        help="number of sublayers N of the laminate (default 30; error ~ N^-2)")
     table.set_defaults(run=_table)
+
+    cache = sub.add_parser("cache", formatter_class=formatter, description=CACHE_HELP,
+                           help="show or clear the on-disk cache of compiled programs",
+                           epilog="examples:\n  jaxdea cache info\n  jaxdea cache clear")
+    cache.add_argument("action", choices=("info", "clear"),
+                       help="info: where the cache is and its size; clear: delete it")
+    cache.set_defaults(run=_cache)
     return parser
 
 

@@ -2,32 +2,47 @@
 
 JAX's persistent cache (``<root>/xla``, switched on in :mod:`jaxdea`) keeps the XLA compilation, but
 a fresh process must still trace and lower a solver to compute its key before it can load it: with a
-warm cache the first ``characteristic`` call took 1.5 s and the first ``frequencies`` call 3.3–6 s
-(benchmarks/, (d)), almost all of it tracing. :func:`cached_jit` keys the serialised executable by
-what determines the program without tracing it, and loads it instead (≈ 0.6 s for ``frequencies``):
+warm JAX cache alone the first ``frequencies`` call takes 3–6 s, almost all of it tracing.
+:func:`cached_jit` keeps each program's lowered form instead, as a serialised ``jax.export``
+artifact (StableHLO in JAX's flatbuffer format), keyed by what determines the program without
+tracing it:
 
 * the function (module and name) and its static arguments;
 * the pytree structure (static fields included) and the type of every other argument (shape,
   dtype, weak type);
 * the source of every jaxdea module, the versions of jax and jaxlib, the JAX options that change a
-  program (:data:`KEYED_OPTIONS`), ``XLA_FLAGS``, the devices and the host CPU (its model and
-  instruction-set flags: an executable is machine code for this CPU).
+  program (:data:`KEYED_OPTIONS`) and the devices.
 
-Everything else goes through ``jax.jit`` as usual: calls under a transformation (tracers in the
-arguments), arrays committed to a device where there are several (e.g. the blocks of a sharded
-sweep; a loaded program runs on the default device), JAX's debugging options
+A fresh process deserialises the artifact and runs it through ``jax.jit(exported.call)``, whose
+compilation JAX's persistent cache then serves (≈ 0.6 s for a first ``frequencies`` call). The
+process that writes an entry runs the same exported program, so every process computes with the
+same program and gets the same bits.
+
+Why StableHLO and not the compiled executable (what this module stored before): a deserialised
+XLA:CPU executable skips lowering, and jaxlib fills the function pointers of its LAPACK kernels
+(``lapack_dgesdd_ffi``, ``lapack_dtrsm_ffi``… of the mode shapes' SVD and solves) only while it
+lowers a linear-algebra operation (``jaxlib.lapack.prepare_lapack_call``): a second process that
+loaded such a program called a null pointer and died with a segmentation fault. Deserialising a
+``jax.export`` artifact initialises those kernels (``jax._src.export._export``), and an artifact
+holds no machine code: XLA compiles it on this machine (or JAX's cache supplies the compilation).
+Nothing is pickled: entries are the artifact's bytes behind a magic line and a SHA-256 checksum.
+
+The cache never runs someone else's program: the root and its folders are created 0700 and entries
+0600; a folder or entry that is not owned by the current user or is writable by group or others is
+refused with a :class:`CacheWarning` (the folder is then not used at all: no entry is read or
+written there), and :mod:`jaxdea` switches JAX's own cache on only under the same conditions. An
+entry that is damaged (checksum), of another format, or fails to deserialise is deleted and the
+program exported anew; an entry that cannot be written is skipped: the cache never changes a
+result. Everything else goes through ``jax.jit`` as usual: calls under a transformation (tracers in
+the arguments), arrays committed to a device where there are several (the blocks of a sharded
+sweep; an exported program runs on the default device), JAX's debugging options
 (:data:`BYPASS_OPTIONS`) switched on, and every call when the cache is off
-(``JAXDEA_CACHE_DIR=off``). An entry that cannot be loaded or run is deleted and the program compiled
-anew; an entry that cannot be written is skipped: the cache never changes a result, it only saves
-the first call its compilation (the loaded executable is the compiled one, bit for bit). Only
-programs that XLA compiled in the process are written: one that JAX took from its own persistent
-cache serialises into an entry that fails to run (XLA:CPU, measured), so after an upgrade whose
-programs JAX's cache still holds, first calls trace as before until that cache is cleared.
+(``JAXDEA_CACHE_DIR=off``).
 
 The key holds the source of jaxdea, not the values of its module constants at run time: a process
-that changes them (monkeypatching) must run with the cache off. Entries are pickled files in
-``<root>/executables`` (root: ``JAXDEA_CACHE_DIR``, by default ``~/.cache/jaxdea``), a few MB
-each; like JAX's own cache they are trusted as the user's files. Delete the directory to empty it.
+that changes them (monkeypatching) must run with the cache off. Entries live in
+``<root>/programs`` (root: ``JAXDEA_CACHE_DIR``, by default ``~/.cache/jaxdea``), 0.1–2 MB each;
+``jaxdea cache clear`` empties the root, ``jaxdea cache info`` lists it.
 """
 
 from __future__ import annotations
@@ -35,15 +50,17 @@ from __future__ import annotations
 import functools
 import hashlib
 import inspect
+import json
 import os
-import pickle
-import platform
+import shutil
+import stat
 import tempfile
+import warnings
 from pathlib import Path
 
 import jax
 import jaxlib
-from jax.experimental import serialize_executable
+from jax import export
 
 KEYED_OPTIONS = ("jax_enable_x64", "jax_default_matmul_precision", "jax_numpy_rank_promotion",
                  "jax_numpy_dtype_promotion", "jax_default_prng_impl", "jax_threefry_partitionable",
@@ -54,10 +71,18 @@ COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
 (the default) took 1.6–1.9× longer to compile the solvers for no faster code here: the first
 ``frequencies`` call 6.1 → 4.0 s, ``critical_voltage`` 12.8 → 8.1 s, ``characteristic`` 1.25 →
 0.78 s (caches off), while ``characteristic`` at batch 4096, the Fig. 3 sweep and the continuation
-curves ran as fast or 5–10 % faster (README, Performance). Other backends ignore the option."""
+curves ran as fast or 5–10 % faster (benchmarks/). Other backends ignore the option."""
 BYPASS_OPTIONS = ("jax_debug_nans", "jax_debug_infs", "jax_disable_jit", "jax_enable_checks",
                   "jax_check_tracer_leaks", "jax_default_device")
 """JAX options under which every call goes through ``jax.jit`` (they act at tracing or dispatch)."""
+MAGIC = b"jaxdea-exported-1\n"
+"""First line of an entry; the second is the SHA-256 of the artifact (hex), then the artifact."""
+PROGRAMS: list[CachedJit] = []
+"""Every :class:`CachedJit` defined (the cross-process tests check that each one is stored)."""
+
+
+class CacheWarning(UserWarning):
+    """A cache folder or entry refused: not the current user's, or writable by group or others."""
 
 
 def cache_off() -> bool:
@@ -72,29 +97,60 @@ def cache_root() -> Path | None:
     return Path(os.environ.get("JAXDEA_CACHE_DIR", os.path.join("~", ".cache", "jaxdea"))).expanduser()
 
 
-def _cpu() -> str:
-    """The host CPU: model and instruction-set flags (Linux), else what ``platform`` knows."""
+def unsafe_reason(info: os.stat_result) -> str | None:
+    """Why a cache file or folder with this ``stat`` must not be trusted, or None: it must belong to
+    the current user and be writable by nobody else (another user could otherwise plant a program
+    that every process loading it runs)."""
+    uid = os.getuid() if hasattr(os, "getuid") else info.st_uid
+    if info.st_uid != uid:
+        return f"owned by uid {info.st_uid}, not by the current user (uid {uid})"
+    if info.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+        return f"writable by group or others (mode {stat.filemode(info.st_mode)})"
+    return None
+
+
+def _refuse(path, reason):
+    warnings.warn(f"jaxdea cache: ignoring {path}: {reason}; compiling in this process instead "
+                  "(fix the permissions, run `jaxdea cache clear`, or set JAXDEA_CACHE_DIR=off)",
+                  CacheWarning, stacklevel=3)
+
+
+def private_folder(name: str) -> Path | None:
+    """``<root>/<name>``, created with the root mode 0700 where missing, or None: the cache is off,
+    cannot be made (a read-only home), or the root or the folder is not safe (:func:`unsafe_reason`;
+    refused with a :class:`CacheWarning`)."""
+    root = cache_root()
+    if root is None:
+        return None
     try:
-        with open("/proc/cpuinfo") as info:
-            lines = [line for line in info.read().splitlines()
-                     if line.startswith(("model name", "flags", "Features", "CPU part"))]
-        return "\n".join(sorted(set(lines)))
+        root.parent.mkdir(parents=True, exist_ok=True)
+        for folder in (root, root / name):
+            try:
+                folder.mkdir(mode=0o700)
+            except FileExistsError:
+                pass
+            info = os.stat(folder)  # a link is judged by its target
+            reason = unsafe_reason(info) or (None if stat.S_ISDIR(info.st_mode) else "not a folder")
+            if reason:
+                _refuse(folder, reason)
+                return None
     except OSError:
-        return f"{platform.machine()} {platform.processor()}"
+        return None
+    return root / name
 
 
-@functools.cache
-def _environment() -> str:
-    """Digest of everything a program depends on besides its function and arguments, computed once
-    per process (devices and sources do not change while it runs)."""
+def _environment_digest() -> str:
+    """Digest of everything a program depends on besides its function and arguments."""
     digest = hashlib.sha256()
     for path in sorted(Path(__file__).parent.glob("*.py")):
         digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
     devices = [(d.platform, d.device_kind, d.id) for d in jax.devices()]
-    for part in (jax.__version__, jaxlib.__version__, os.environ.get("XLA_FLAGS", ""),
-                 repr(devices), _cpu()):
+    for part in (jax.__version__, jaxlib.__version__, repr(devices)):
         digest.update(part.encode() + b"\0")
     return digest.hexdigest()
+
+
+_environment = functools.cache(_environment_digest)  # devices and sources are fixed in a process
 
 
 @functools.cache
@@ -106,50 +162,98 @@ def _options(names):
     return tuple(getattr(jax.config, name, None) for name in names)
 
 
-_XLA_CACHE_HITS = [0]
-jax.monitoring.register_event_listener(
-    lambda event, **_: _XLA_CACHE_HITS.__setitem__(0, _XLA_CACHE_HITS[0] + 1)
-    if event == "/jax/compilation_cache/cache_hits" else None)
+def serializable(cls):
+    """Class decorator: register a pytree type that a :func:`cached_jit` program returns for
+    ``jax.export`` serialisation under the name ``<module>.<name>``: a NamedTuple, or a dataclass
+    registered with ``jax.tree_util.register_dataclass`` whose static fields are JSON values
+    (strings, numbers, None), stored as JSON (no pickle)."""
+    name = f"{cls.__module__}.{cls.__qualname__}"
+    if hasattr(cls, "_fields"):
+        export.register_namedtuple_serialization(cls, serialized_name=name)
+    else:
+        export.register_pytree_node_serialization(
+            cls, serialized_name=name,
+            serialize_auxdata=lambda aux: json.dumps(list(aux)).encode(),
+            deserialize_auxdata=lambda data: tuple(json.loads(data)))
+    return cls
 
 
-def _compile(lowered):
-    """(compiled, storable): ``lowered.compile()``, storable unless JAX loaded it from its own
-    persistent cache. Such an executable serialises into an entry that fails to run in the next
-    process (XLA:CPU, measured: "Function broadcast_select_fusion.1 not found"), so only programs
-    that XLA compiled in this process are written."""
-    hits = _XLA_CACHE_HITS[0]
-    compiled = lowered.compile()
-    return compiled, _XLA_CACHE_HITS[0] == hits
+def read_entry(path: Path) -> bytes | None:
+    """The artifact stored at ``path``, or None: missing; refused (:func:`unsafe_reason`, with a
+    warning); damaged or of another format (deleted)."""
+    try:
+        with open(path, "rb") as stream:
+            info = os.fstat(stream.fileno())
+            reason = unsafe_reason(info) or (None if stat.S_ISREG(info.st_mode) else "not a file")
+            if reason:
+                _refuse(path, reason)
+                return None
+            data = stream.read()
+    except FileNotFoundError:
+        return None
+    except OSError:
+        return None
+    head, _, rest = data.partition(b"\n")
+    checksum, _, payload = rest.partition(b"\n")
+    if head + b"\n" != MAGIC or hashlib.sha256(payload).hexdigest().encode() != checksum:
+        path.unlink(missing_ok=True)
+        return None
+    return payload
+
+
+def write_entry(path: Path, payload: bytes) -> None:
+    """Store ``payload`` at ``path`` atomically (readers see the whole entry or none), mode 0600;
+    a read-only or full disk only costs the next process its compilation."""
+    try:
+        handle, name = tempfile.mkstemp(dir=path.parent, suffix=".tmp")  # mode 0600
+        with os.fdopen(handle, "wb") as stream:
+            stream.write(MAGIC + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload)
+        os.replace(name, path)
+    except OSError:
+        if "name" in locals():
+            Path(name).unlink(missing_ok=True)
+
+
+def clear_cache() -> Path | None:
+    """Delete the cache root (``jaxdea cache clear``); returns it, or None when the cache is off."""
+    root = cache_root()
+    if root is not None and root.exists():
+        shutil.rmtree(root)
+    return root
 
 
 class CachedJit:
-    """``jax.jit(fun, static_argnames=...)`` whose first call in a process may load the compiled
-    program from disk (module docstring). Other attributes (``lower``, ``trace``, ...) are those of
-    the underlying jitted function."""
+    """``jax.jit(fun, static_argnames=...)`` whose first call in a process may load the program's
+    exported form from disk instead of tracing it (module docstring). Other attributes (``lower``,
+    ``trace``, ...) are those of the underlying jitted function."""
 
     def __init__(self, fun, static_argnames=()):
+        self._fun = fun
         self._static = (static_argnames,) if isinstance(static_argnames, str) else tuple(
             static_argnames)
         self._jit = jit(fun, static_argnames=self._static)
         self._signature = inspect.signature(fun)
         self._name = f"{fun.__module__}.{fun.__qualname__}"
-        self._loaded = {}  # key -> compiled program, this process
-        self.counts = {"loaded": 0, "compiled": 0}  # programs read from disk / compiled here
+        self._calls = {}  # key -> jax.jit of the exported program, this process
+        self.counts = {"loaded": 0, "exported": 0, "stored": 0}  # entries read / traced here / written
         functools.update_wrapper(self, fun)
+        PROGRAMS.append(self)
 
     def __getattr__(self, name):
         return getattr(self._jit, name)
 
     def _cache_size(self) -> int:
-        """Programs this process holds: loaded or compiled here, and those of ``jax.jit``."""
-        return len(self._loaded) + self._jit._cache_size()
+        """Programs this process holds: exported or loaded here, and those of ``jax.jit``."""
+        return len(self._calls) + self._jit._cache_size()
 
     def _key(self, args, kwargs):
-        """(key, dynamic arguments by name), or None where the call must go through ``jax.jit``."""
+        """(key, static arguments, dynamic leaves, their tree), or None where the call must go
+        through ``jax.jit``."""
         if any(_options(BYPASS_OPTIONS)):
             return None
         bound = self._signature.bind(*args, **kwargs)
         bound.apply_defaults()
+        statics = {k: bound.arguments[k] for k in self._static}
         dynamic = {k: v for k, v in bound.arguments.items() if k not in self._static}
         leaves, tree = jax.tree_util.tree_flatten(dynamic)
         placed = _several_devices()  # committed arrays then choose their device: jax.jit
@@ -160,62 +264,54 @@ class CachedJit:
                 return None
             aval = jax.typeof(leaf)
             types.append((aval.shape, aval.dtype, aval.weak_type))
-        statics = tuple((k, repr(bound.arguments[k])) for k in self._static)
-        return (statics, str(tree), tuple(types), _options(KEYED_OPTIONS)), bound.arguments
+        key = (tuple((k, repr(v)) for k, v in statics.items()), str(tree), tuple(types),
+               _options(KEYED_OPTIONS))
+        return key, statics, leaves, tree
 
-    def _entry(self, key) -> Path:
-        digest = hashlib.sha256(f"{_environment()}\0{self._name}\0{key!r}".encode()).hexdigest()
-        return cache_root() / "executables" / f"{digest}.pkl"
+    def _entry(self, key) -> str:
+        """The entry's file name: a digest of the environment, the function and the key."""
+        return hashlib.sha256(f"{_environment()}\0{self._name}\0{key!r}".encode()).hexdigest()
 
-    def _load(self, path):
-        try:
-            with open(path, "rb") as stream:
-                payload, in_tree, out_tree = pickle.load(stream)
-            return serialize_executable.deserialize_and_load(payload, in_tree, out_tree)
-        except FileNotFoundError:
-            return None
-        except Exception:  # noqa: BLE001 - a damaged or foreign entry: compile anew
-            path.unlink(missing_ok=True)
-            return None
+    def _export(self, statics, leaves, tree):
+        """Trace and lower the program for these arguments as a flat function of the leaves."""
+        def flat(*values):
+            return self._fun(**jax.tree_util.tree_unflatten(tree, values), **statics)
 
-    @staticmethod
-    def _store(path, compiled):
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            data = pickle.dumps(serialize_executable.serialize(compiled))
-            with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False) as stream:
-                stream.write(data)
-            os.replace(stream.name, path)  # atomic: readers see the whole entry or none
-        except Exception:  # noqa: BLE001 - a read-only or full disk only costs the next process
-            if "stream" in locals():
-                Path(stream.name).unlink(missing_ok=True)
+        return export.export(jax.jit(flat))(*leaves)
+
+    def _program(self, key, statics, leaves, tree):
+        """The exported program: read from the cache, else traced here and written."""
+        folder = private_folder("programs")
+        path = None if folder is None else folder / f"{self._entry(key)}.jaxexport"
+        payload = None if path is None else read_entry(path)
+        exported = None
+        if payload is not None:
+            try:
+                exported = export.deserialize(bytearray(payload))
+                self.counts["loaded"] += 1
+            except Exception:  # noqa: BLE001 - another format despite the key: export anew
+                path.unlink(missing_ok=True)
+        if exported is None:
+            exported = self._export(statics, leaves, tree)
+            self.counts["exported"] += 1
+            if path is not None:
+                try:
+                    payload = exported.serialize()
+                except Exception:  # noqa: BLE001 - an output type not registered (serializable)
+                    return jax.jit(exported.call, compiler_options=COMPILER_OPTIONS)
+                write_entry(path, payload)
+                self.counts["stored"] += 1
+        return jax.jit(exported.call, compiler_options=COMPILER_OPTIONS)
 
     def __call__(self, *args, **kwargs):
         found = None if cache_off() else self._key(args, kwargs)
         if found is None:
             return self._jit(*args, **kwargs)
-        key, arguments = found
-        dynamic = {k: v for k, v in arguments.items() if k not in self._static}
-        compiled = self._loaded.get(key)
-        if compiled is None:
-            path = self._entry(key)
-            compiled = self._load(path)
-            if compiled is not None:
-                try:  # a loaded program's first run, checked (an entry that fails to run: jax.jit)
-                    out = jax.block_until_ready(compiled(**dynamic))
-                except Exception:  # noqa: BLE001
-                    path.unlink(missing_ok=True)
-                    compiled = None
-                else:
-                    self.counts["loaded"] += 1
-                    self._loaded[key] = compiled
-                    return out
-            compiled, storable = _compile(self._jit.lower(**arguments))
-            if storable:
-                self._store(path, compiled)
-            self.counts["compiled"] += 1
-            self._loaded[key] = compiled
-        return compiled(**dynamic)
+        key, statics, leaves, tree = found
+        call = self._calls.get(key)
+        if call is None:
+            call = self._calls[key] = self._program(key, statics, leaves, tree)
+        return call(*leaves)
 
 
 class Jitted:

@@ -70,7 +70,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .compiled import cached_jit
+from .compiled import cached_jit, serializable
 from .dispersion import characteristic_on_wall, check_inputs
 from .params import Fluid, Tube, as_float, canonical, validate_positive
 from .roots import guard, scan_step
@@ -94,6 +94,7 @@ class CountStatus(enum.IntEnum):
     INVALID = 4  # inputs outside their allowed range (met under jit/vmap)
 
 
+@serializable
 class RootCount(NamedTuple):
     """(count, status): zeros in (ω_lo, ω_hi), −1 unless status is CERTIFIED."""
 

@@ -63,7 +63,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .compiled import cached_jit
+from .compiled import cached_jit, serializable
 from .dispersion import characteristic_on_wall, check_inputs
 from .params import ALPHA_MIN, Fluid, Tube, as_float, canonical, guard, validate_count, validate_range
 from .roots import Roots, _with_derivatives, scan_roots
@@ -77,6 +77,7 @@ PRIOR_AGE = 16  # a lane's curvature serves as a prior for this many steps after
 TANGENT_STEP = 1e-6  # relative steps of the central differences of the branch slopes after a scan
 
 
+@serializable
 class Curve(NamedTuple):
     """The K lowest roots along a grid of α̂.
 

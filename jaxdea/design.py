@@ -47,7 +47,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from .compiled import cached_jit, jit
+from .compiled import cached_jit, jit, serializable
 from .dispersion import characteristic
 from .params import Fluid, Tube, as_float, canonical, mode_wavenumber, require_x64, validate_layers
 from .roots import frequencies, solve_critical_voltage, solve_frequency
@@ -70,6 +70,7 @@ class DesignStatus(enum.IntEnum):
     WRONG_BRANCH = 3  # converged, but the tracked root is not the lowest one (verification failed)
 
 
+@serializable
 class DesignResult(NamedTuple):
     """Result of a design run (Python floats; the history a NumPy array).
 

@@ -12,10 +12,20 @@ Fluid couplings clear their denominator by acting on the initial basis S (theory
 The characteristic function is det(B Q_N), with Q_N the orthonormalised propagated basis
 (:func:`jaxdea.transfer.propagate_basis`): real, finite, entire in Ω, the same zeros and sign as
 det C, and |f| ≤ 1 (well scaled for Newton at any α̂ĥ).
+
+Circumferential order m (theory_m.md §4–§5). A static *family* (:mod:`jaxdea.state_matrix`) picks
+the problem: ``"longitudinal"`` (m = 0, the 6×6 system above, its code unchanged), ``"order_m"``
+(the 8×8 system with a traced order m: Y(r̂_i) = S x, x = [U_i, V_i, W_i, D_i], outer rows
+Φ, T, Q, S; the acoustic fluid of order m through the U column only) and ``"torsional"``
+(m = 0, (V, Q) alone, no fluid coupling). Each is a function of w = Ω² of either sign
+(:func:`characteristic_of_w`; w < 0: unstable modes, theory_m.md §6), with real arithmetic.
+The root solvers use :func:`problem_function`.
 """
 
 
+import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .bessel import coupling_pair
 from .compiled import cached_jit
@@ -33,7 +43,17 @@ from .params import (
     validate_real,
     validate_tube,
 )
-from .transfer import Wall, discretize, laminate, propagate_basis, transfer_matrix, validate_scheme
+from .state_matrix import LONGITUDINAL, ORDER_M, TORSIONAL
+from .transfer import (
+    Wall,
+    discretize,
+    laminate,
+    propagate_basis,
+    propagate_basis_of_w,
+    transfer_matrix,
+    transfer_matrix_of_w,
+    validate_scheme,
+)
 
 U, W, PHI, T, S, D = range(6)
 OUTER_ROWS = jnp.array([PHI, T, S])
@@ -72,12 +92,17 @@ def characteristic_and_scale(wall: Wall, omega, alpha, fluid=None, order=0, meth
     return jnp.linalg.det(q[OUTER_ROWS, :]), log_scale
 
 
-def characteristic_on_wall(wall: Wall, omega, alpha, fluid=None, order=0, method="taylor"):
+def characteristic_on_wall(wall: Wall, omega, alpha, fluid=None, order=0, method="taylor", m=0,
+                           family=LONGITUDINAL):
     """The scaled characteristic function f(Ω) on a discretised wall (see module docstring).
 
     ``method="adaptive"`` gives the same values faster, differentiable in forward mode only (the
-    root solvers' value-and-slope evaluations)."""
-    return characteristic_and_scale(wall, omega, alpha, fluid, order, method)[0]
+    root solvers' value-and-slope evaluations). ``family`` (static) and ``m`` (traced,
+    ``"order_m"`` only): the mode family; ``"longitudinal"`` is the axisymmetric code path, the
+    others :func:`characteristic_of_w` at w = Ω²."""
+    if family == LONGITUDINAL:
+        return characteristic_and_scale(wall, omega, alpha, fluid, order, method)[0]
+    return characteristic_of_w(wall, omega * omega, alpha, fluid, order, method, m, family)
 
 
 def reference_determinant(wall: Wall, omega, alpha, fluid=None, order=0):
@@ -108,7 +133,7 @@ def check_inputs(tube, alpha, fluid, n_layers, scheme="midpoint"):
 
 
 def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layers: int = 30,
-                   scheme: str = "midpoint"):
+                   scheme: str = "midpoint", m=0, torsional: bool = False):
     """The real characteristic function whose zeros in Ω are the frequencies.
 
     f(Ω) = det(B Q_N) (module docstring): finite, pole-free, even in Ω, |f| ≤ 1, with the zeros and
@@ -122,19 +147,69 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
         n_layers: number of sublayers N (static).
         scheme: how a sublayer is crossed (static): ``"midpoint"`` (the paper's laminate, error
             O(N⁻²)), ``"magnus4"`` or ``"magnus6"`` (O(N⁻⁴), O(N⁻⁶); :mod:`jaxdea.transfer`).
+        m: circumferential order, an integer ≥ 0 (theory_m.md): 0 is the axisymmetric longitudinal
+            family (6×6, unchanged), m ≥ 1 the 8×8 system of order m. A traced m (e.g. under
+            ``vmap`` over orders) uses the 8×8 system throughout (compiled once); at m = 0 it gives
+            the longitudinal family's zeros.
+        torsional: with m = 0, the torsional family (u_θ alone) instead (static).
 
     Raises:
         ValueError: for invalid concrete inputs, naming the parameter and its allowed range (past
-            Gent locking: stating the largest I_1 − 3 in the wall against G). Traced invalid inputs
-            (under ``jit``/``vmap``) give NaN instead.
+            Gent locking: stating the largest I_1 − 3 in the wall against G); m not an integer ≥ 0,
+            the ``"paper"`` coupling with m ≥ 1 (naming m), ``torsional=True`` with m ≥ 1 (naming
+            torsional). Traced invalid inputs (under ``jit``/``vmap``) give NaN instead.
 
     Example:
         >>> f = characteristic(Tube(), 1.0, 0.445)
+        >>> g = characteristic(Tube(), 1.0, 0.445, m=2)
     """
     order = check_inputs(tube, alpha, fluid, n_layers, scheme)
+    family = mode_family(m, torsional, fluid)
     validate_real("omega", omega)
     tube, omega, alpha, fluid = canonical(tube, omega, alpha, fluid)
-    return _characteristic(tube, omega, alpha, fluid, laminate(n_layers, scheme), order)
+    if family == LONGITUDINAL:
+        return _characteristic(tube, omega, alpha, fluid, laminate(n_layers, scheme), order)
+    return _characteristic_m(tube, omega * omega, alpha, fluid, as_float(m),
+                             laminate(n_layers, scheme), order, family)
+
+
+def characteristic_at_omega_squared(tube: Tube, omega_squared, alpha, fluid: Fluid | None = None,
+                                    n_layers: int = 30, scheme: str = "midpoint", m=0,
+                                    torsional: bool = False):
+    """The characteristic function of :func:`characteristic` as a function of w = Ω², any sign.
+
+    Zeros with w > 0 are the frequencies Ω = sqrt(w); zeros with w < 0 the unstable modes, with
+    growth rate s = sqrt(−w) (theory_m.md §6): f is entire in w and computed in real arithmetic
+    (the generator is a polynomial in w, the fluid coupling a function of χ̂² = w/ĉ_f² − α̂²).
+    Arguments and errors as :func:`characteristic`; at m = 0 (``torsional=False``) the
+    longitudinal family, here formed by the order-m code at m = 0 (same zeros, other scale).
+
+    Example:
+        >>> characteristic_at_omega_squared(Tube(voltage=0.1, lambda_i=0.95, lambda_z=1.2),
+        ...                                 -0.5574, 0.445, m=2)  # ≈ 0: an unstable mode
+    """
+    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
+    family = mode_family(m, torsional, fluid)
+    validate_real("omega_squared", omega_squared)
+    tube, omega_squared, alpha, fluid = canonical(tube, omega_squared, alpha, fluid)
+    family = ORDER_M if family == LONGITUDINAL else family
+    return _characteristic_m(tube, omega_squared, alpha, fluid, as_float(m),
+                             laminate(n_layers, scheme), order, family)
+
+
+@cached_jit(static_argnames=("n_layers", "order", "family"))
+def _characteristic_m(tube, omega_squared, alpha, fluid, m, n_layers, order, family):
+    """f(w) of the families ``"order_m"`` (traced m) and ``"torsional"``; NaN where traced inputs
+    are inadmissible (:func:`~jaxdea.params.guard`, :func:`order_m_admissible`) or w not finite."""
+    ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
+    omega_squared = as_float(omega_squared)
+    ok &= jnp.isfinite(omega_squared)
+    ok &= order_m_admissible(m, fluid, family)
+    m = jnp.where(ok, m, 0.0) if family == ORDER_M else 0
+    wall = discretize(tube, n_layers)
+    f = characteristic_of_w(wall, jnp.where(ok, omega_squared, 1.0), alpha, fluid, order, "taylor",
+                            m, family)
+    return jnp.where(ok, f, jnp.nan)
 
 
 @cached_jit(static_argnames=("n_layers", "order"))
@@ -147,3 +222,195 @@ def _characteristic(tube, omega, alpha, fluid, n_layers, order):
     wall = discretize(tube, n_layers)
     f = characteristic_on_wall(wall, jnp.where(ok, omega, 1.0), alpha, fluid, order)
     return jnp.where(ok, f, jnp.nan)
+
+
+# ------------------------------------------------------------------ circumferential order m
+
+U8, V8, W8, PHI8, T8, Q8, S8, D8 = range(8)
+LONGITUDINAL_ROWS = np.array([U8, W8, PHI8, T8, S8, D8])
+"""The 6×6 longitudinal state [ū, w̄, Φ, T̄, S̄, D̄] inside the 8-component state of order m."""
+LONGITUDINAL_COLUMNS = np.array([0, 2, 3])
+"""The unknowns [ū_i, w̄_i, D̄_i] among [U_i, V_i, W_i, D_i]."""
+
+
+def _unit8(i):
+    return jnp.zeros(8).at[i].set(1.0)
+
+
+def _basis_order_m(wall: Wall, omega_squared, alpha, fluid, order, m):
+    """The 8×4 S(Ω²) of theory_m.md §4–§5 with Y(r̂_i) = S [U_i, V_i, W_i, D_i], denominators cleared.
+
+    Follower pressure P̂_i at r̂_i: T = −P̂_i(U + mV)/r̂_i − α̂P̂_iW − Ṗ, Q = −P̂_i(mU + V)/r̂_i,
+    S = −α̂P̂_iU, Φ = 0. Acoustic fluid (§5): Ṗ = κU, κ = Ω²ρ̂_f B̂_m, B̂_m = r̂_i N_m/D_m
+    (:func:`jaxdea.bessel.coupling_pair` at s = χ̂²r̂_i², χ̂² = Ω²/ĉ_f² − α̂², order m), cleared:
+    column U → D_m S_{·U} − Ω²ρ̂_f r̂_i N_m e_T. The paper's coupling (theory.md §4(b), order ν)
+    exists at m = 0 only (NaN elsewhere).
+    """
+    p, ri = wall.pressure_inner, wall.r_inner
+    col_u = _unit8(U8) - (p / ri) * _unit8(T8) - (m * p / ri) * _unit8(Q8) - alpha * p * _unit8(S8)
+    col_v = _unit8(V8) - (m * p / ri) * _unit8(T8) - (p / ri) * _unit8(Q8)
+    col_w = _unit8(W8) - alpha * p * _unit8(T8)
+    col_d = _unit8(D8)
+    if fluid is not None:
+        rho, c_f = as_float(fluid.density_ratio), as_float(fluid.speed_ratio)
+        s = (omega_squared / c_f**2 - alpha**2) * ri**2  # χ̂² r̂_i²
+        if fluid.coupling == "acoustic":
+            n, d = coupling_pair(s, m)
+            col_u = d * col_u - omega_squared * rho * ri * n * _unit8(T8)
+        else:
+            n, d = coupling_pair(s, order)
+            load = omega_squared * rho * ri * n
+            col_u = d * col_u + load * (-_unit8(T8) / ri - alpha * _unit8(S8))
+            col_w = d * col_w + load * (-alpha * _unit8(T8))
+            axisymmetric = jnp.asarray(m) == 0
+            col_u, col_w = (jnp.where(axisymmetric, c, jnp.nan) for c in (col_u, col_w))
+    return jnp.stack([col_u, col_v, col_w, col_d], axis=-1)
+
+
+def initial_basis_of_w(wall: Wall, omega_squared, alpha, fluid: Fluid | None = None, order: int = 0,
+                       m=0, family: str = ORDER_M):
+    """S(Ω²) with Y(r̂_i) = S x for a mode family (theory_m.md §4), at w = ``omega_squared``.
+
+    ``"order_m"``: 8×4 (:func:`_basis_order_m`); ``"longitudinal"``: the 6×3 of theory.md §4
+    (the order-m basis at m = 0 restricted to [ū, w̄, Φ, T̄, S̄, D̄] and [ū_i, w̄_i, D̄_i]; equal to
+    :func:`initial_basis` at w = Ω² to rounding); ``"torsional"``: 2×1, [V, Q] = [1, −P̂_i/r̂_i]
+    (an inviscid fluid exerts no shear: no fluid term).
+    """
+    if family == TORSIONAL:
+        return jnp.stack([jnp.ones_like(wall.r_inner), -wall.pressure_inner / wall.r_inner])[:, None]
+    if family == LONGITUDINAL:
+        full = _basis_order_m(wall, omega_squared, alpha, fluid, order, 0)
+        return full[LONGITUDINAL_ROWS][:, LONGITUDINAL_COLUMNS]
+    return _basis_order_m(wall, omega_squared, alpha, fluid, order, m)
+
+
+def outer_conditions(wall: Wall, alpha, m=0, family: str = ORDER_M, pressure_outer=0.0):
+    """The rows Out with Out·Y(r̂_o) = 0 (theory_m.md §4), for an outer pressure P̂_o.
+
+    ``"order_m"`` (4×8): e_Φ; e_T + P̂_o(e_U/r̂_o + m e_V/r̂_o + α̂ e_W); e_Q + P̂_o(m e_U + e_V)/r̂_o;
+    e_S + α̂P̂_o e_U. At m = 0 the row Q is e_V instead: V is constant there (its rows are switched
+    off, :func:`jaxdea.state_matrix.torsion_switch`), so the determinant is the longitudinal one
+    times a constant factor. ``"longitudinal"`` (3×6): the rows Φ, T̄, S̄ of theory.md §4;
+    ``"torsional"`` (1×2): e_Q + P̂_o e_V/r̂_o. The library's gauge is P̂_o = 0 (then the plain rows
+    Φ, T, Q, S); a non-zero P̂_o with P̂_i, p̂ shifted alike checks gauge invariance (§7e).
+    """
+    po, ro = as_float(pressure_outer), wall.r_outer
+    if family == TORSIONAL:
+        return jnp.stack([po / ro, jnp.ones_like(po)])[None, :]
+    m_rows = 0.0 if family == LONGITUDINAL else as_float(m)
+    rows = jnp.stack([
+        _unit8(PHI8),
+        _unit8(T8) + po * (_unit8(U8) / ro + m_rows * _unit8(V8) / ro + alpha * _unit8(W8)),
+        _unit8(Q8) + po * (m_rows * _unit8(U8) + _unit8(V8)) / ro,
+        _unit8(S8) + alpha * po * _unit8(U8),
+    ])
+    if family == LONGITUDINAL:
+        return rows[np.array([0, 1, 3])][:, LONGITUDINAL_ROWS]
+    return rows.at[2].set(jnp.where(jnp.asarray(m) == 0, _unit8(V8), rows[2]))
+
+
+def characteristic_and_scale_of_w(wall: Wall, omega_squared, alpha, fluid=None, order=0,
+                                  method="taylor", m=0, family: str = ORDER_M, pressure_outer=0.0):
+    """(f, log_scale) with det(Out A S) = f · exp(log_scale) at w = Ω² (theory_m.md §4–§6).
+
+    S from :func:`initial_basis_of_w`, propagated with re-orthonormalisation
+    (:func:`jaxdea.transfer.propagate_basis_of_w`, 8×4 basis for order m), f = det(Out Q_N) ∈ [−1, 1]
+    (:func:`outer_conditions`): real for real w of either sign, entire in w, pole-free.
+    """
+    basis = initial_basis_of_w(wall, omega_squared, alpha, fluid, order, m, family)
+    q, log_scale = propagate_basis_of_w(wall, omega_squared, alpha, basis, method, m, family)
+    out = outer_conditions(wall, alpha, m, family, pressure_outer)
+    return jnp.linalg.det(out @ q), log_scale
+
+
+def characteristic_of_w(wall: Wall, omega_squared, alpha, fluid=None, order=0, method="taylor",
+                        m=0, family: str = ORDER_M, pressure_outer=0.0):
+    """The scaled characteristic function at w = Ω² (either sign) on a discretised wall.
+
+    f(w) = det(Out Q_N) (:func:`characteristic_and_scale_of_w`); its zeros in w < 0 are the
+    unstable modes (growth rate sqrt(−w)), those in w > 0 the frequencies Ω = sqrt(w).
+    ``family`` is static; ``m`` may be traced (``"order_m"``)."""
+    return characteristic_and_scale_of_w(wall, omega_squared, alpha, fluid, order, method, m,
+                                         family, pressure_outer)[0]
+
+
+def reference_determinant_of_w(wall: Wall, omega_squared, alpha, fluid=None, order=0, m=0,
+                               family: str = ORDER_M, pressure_outer=0.0):
+    """det(Out A S) from the full transfer matrix (``expm`` per sublayer): the unscaled reference."""
+    a = transfer_matrix_of_w(wall, omega_squared, alpha, "expm", m, family)
+    basis = initial_basis_of_w(wall, omega_squared, alpha, fluid, order, m, family)
+    return jnp.linalg.det(outer_conditions(wall, alpha, m, family, pressure_outer) @ a @ basis)
+
+
+def order_m_admissible(m, fluid: Fluid | None, family: str):
+    """True where a (traced) order m is admissible for the family: a finite integer ≥ 0; 0 for
+    ``"torsional"``; 0 for the paper's coupling (an axisymmetric model). Always True for
+    ``"longitudinal"`` (m is not used there)."""
+    if family == LONGITUDINAL:
+        return jnp.asarray(True)
+    m = as_float(m)
+    ok = jnp.isfinite(m) & (m >= 0) & (m == jnp.round(m))
+    if family == TORSIONAL or (fluid is not None and fluid.coupling == "paper"):
+        ok &= m == 0
+    return ok
+
+
+def mode_family(m=0, torsional=False, fluid: Fluid | None = None) -> str:
+    """The static family of (m, torsional), validating concrete inputs (API.md, order m).
+
+    Concrete m = 0: ``"longitudinal"`` (``"torsional"`` with ``torsional=True``); concrete m ≥ 1 or
+    a traced m: ``"order_m"`` (``"torsional"`` with ``torsional=True``, NaN where m ≠ 0).
+
+    Raises:
+        ValueError: m not an integer ≥ 0 (naming m); ``torsional`` not a bool or True with m ≥ 1
+            (naming torsional); the paper's coupling with m ≥ 1 (naming m).
+    """
+    if not isinstance(torsional, (bool, np.bool_)):
+        raise ValueError(f"torsional must be True or False, got {torsional!r}")
+    bad = f"m must be an integer >= 0 (the circumferential order), got {m!r}"
+    if isinstance(m, (bool, np.bool_, str)):
+        raise ValueError(bad)
+    if isinstance(m, jax.core.Tracer):
+        return TORSIONAL if torsional else ORDER_M
+    try:
+        value = np.asarray(m)
+    except Exception as err:
+        raise ValueError(bad) from err
+    if (value.ndim or value.dtype == bool or not np.issubdtype(value.dtype, np.number)
+            or np.iscomplexobj(value) or not np.isfinite(value) or value < 0
+            or value != np.round(value)):
+        raise ValueError(bad)
+    if torsional and value != 0:
+        raise ValueError(f"torsional=True exists only at m = 0 (the torsional family), got m = {m!r}")
+    if fluid is not None and fluid.coupling == "paper" and value != 0:
+        raise ValueError(f"the 'paper' coupling is axisymmetric: it needs m = 0, got m = {m!r}")
+    if torsional:
+        return TORSIONAL
+    return LONGITUDINAL if value == 0 else ORDER_M
+
+
+def problem_function(tube: Tube, alpha, fluid: Fluid | None, n_layers, order: int, m=0,
+                     family: str = LONGITUDINAL, variable: str = "omega"):
+    """(wall, f) with f the characteristic function of one case, for the root solvers (traceable).
+
+    Like ``jaxdea.roots._problem``: the wall is discretised once and f evaluates with the adaptive
+    exponential (values and forward-mode slopes). ``variable="omega"``: f(Ω) (even in Ω);
+    ``"omega_squared"``: f(w), w = Ω² of either sign (unstable modes). ``family`` and ``order``
+    static, ``m`` traced (``"order_m"``); where m is inadmissible (:func:`order_m_admissible`) f is
+    NaN. ``"longitudinal"`` f(Ω) is exactly the axisymmetric ``_problem``'s function.
+    """
+    if variable not in ("omega", "omega_squared"):
+        raise ValueError(f"variable must be 'omega' or 'omega_squared', got {variable!r}")
+    wall = discretize(tube, n_layers)
+    if family == LONGITUDINAL and variable == "omega":
+        return wall, lambda om: characteristic_on_wall(wall, om, alpha, fluid, order, "adaptive")
+    ok = order_m_admissible(m, fluid, family)
+    m_safe = jnp.where(ok, as_float(m), 0.0) if family == ORDER_M else 0
+
+    def of_w(w):
+        f = characteristic_of_w(wall, w, alpha, fluid, order, "adaptive", m_safe, family)
+        return jnp.where(ok, f, jnp.nan)
+
+    if variable == "omega_squared":
+        return wall, of_w
+    return wall, lambda om: of_w(om * om)

@@ -7,7 +7,8 @@ I_5 = D_L·(FᵀF D_L) (dimensionless, μ = ε = 1). Its second derivatives push
     K0_ij = F⁻¹_αi F⁻¹_βj ∂²Ω/∂D_Lα∂D_Lβ                         (paper Eqs. 20–22, 31),
 
 evaluated at F = diag(λ_r, λ, λ_z) (order r, θ, z) and D = (D_r, 0, 0). Their combinations a, b, c,
-d, g, q (theory.md §3, corrected Eqs. 32–33) feed the state matrix.
+d, g, q (theory.md §3, corrected Eqs. 32–33) feed the state matrix; e = A_θrθr = 2W_1λ²
+(theory_m.md §2) enters only the matrices of circumferential order m and of torsion.
 """
 
 from typing import NamedTuple
@@ -33,7 +34,8 @@ class Coefficients(NamedTuple):
 
     a = A_zrzr, b = (A_rrrr + A_zzzz − 2A_rrzz)/2, c = A_rzrz, d = Γ_rzz = D_r/ε,
     g = 2A_rrzz − 2A_θθzz + A_θθθθ − A_rrrr, q = A_rrrr − A_rrzz + A_θθzz − A_rrθθ, eps = 1/K_rr,
-    p = Lagrange multiplier of the base state.
+    p = Lagrange multiplier of the base state, e = A_θrθr = 2W_1λ² (theory_m.md §2: enters only
+    the order-m and torsional state matrices; the axisymmetric 6×6 matrix does not read it).
     """
 
     a: jax.Array
@@ -44,6 +46,7 @@ class Coefficients(NamedTuple):
     q: jax.Array
     eps: jax.Array
     p: jax.Array
+    e: jax.Array
 
 
 def energy_derivatives(i1, gent_constant, material="gent"):
@@ -75,7 +78,8 @@ def push_forward_moduli(lam_r, lam, lam_z, D_r, gent_constant, material="gent") 
 
 
 def coefficients(moduli: Moduli, p) -> Coefficients:
-    """a, b, c, d, g, q, ε of theory.md §3 (corrected paper Eq. 32) from the tensor moduli."""
+    """a, b, c, d, g, q, ε of theory.md §3 (corrected paper Eq. 32) and e = A_θrθr
+    (theory_m.md §2) from the tensor moduli."""
     A, Gamma, K = moduli
     return Coefficients(
         a=A[Z, R, Z, R],
@@ -86,12 +90,14 @@ def coefficients(moduli: Moduli, p) -> Coefficients:
         q=A[R, R, R, R] - A[R, R, Z, Z] + A[T, T, Z, Z] - A[R, R, T, T],
         eps=1.0 / K[R, R],
         p=p,
+        e=A[T, R, T, R],
     )
 
 
 def closed_form_coefficients(lam, lam_z, D_r, p, gent_constant, material="gent") -> Coefficients:
-    """The closed forms of theory.md §3 (corrected Eq. 33) for Ω = W(I_1) + I_5/2, with W_1, W_11
-    from the energy by autodiff; equal to :func:`coefficients` of the tensor moduli (tests)."""
+    """The closed forms of theory.md §3 (corrected Eq. 33) and e = 2W_1λ² (theory_m.md §2) for
+    Ω = W(I_1) + I_5/2, with W_1, W_11 from the energy by autodiff; equal to :func:`coefficients`
+    of the tensor moduli (tests)."""
     lam_r = 1.0 / (lam * lam_z)
     i1 = lam_r**2 + lam**2 + lam_z**2
     w1, w11 = jnp.vectorize(lambda i: energy_derivatives(i, gent_constant, material))(i1)
@@ -108,4 +114,5 @@ def closed_form_coefficients(lam, lam_z, D_r, p, gent_constant, material="gent")
         q=4 * w11 * lam_r**4 * (1 - lam**2 * lam_z**4) * s + 2 * w1 * lam_r**2 + dD,
         eps=jnp.ones_like(lam),
         p=p,
+        e=2 * w1 * lam**2,
     )

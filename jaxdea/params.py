@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .compiled import jit
+from .compiled import jit, serializable
 
 COUPLINGS = ("acoustic", "paper")
 MATERIALS = ("gent", "neo_hookean")
@@ -40,6 +40,7 @@ TINY = float(np.finfo(np.float64).tiny)
 validated as XLA will see them (a subnormal α̂ or λ is 0 inside the solvers)."""
 
 
+@serializable
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class Tube:
@@ -68,6 +69,7 @@ class Tube:
         return dataclasses.replace(self, **changes)
 
 
+@serializable
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class Fluid:

@@ -31,7 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base_state import voltage_limit
-from .compiled import cached_jit, jit
+from .compiled import cached_jit, jit, serializable
 from .dispersion import characteristic_on_wall, check_inputs
 from .params import (
     Fluid,
@@ -66,6 +66,7 @@ HERMITE_FINAL = 1e-6  # _first_root: a sign change ≤ 1e-6 Δ wide …
 HERMITE_FINAL_SLOPES = 1e-3  # … with end slopes equal to 1e-3 is solved by its Hermite cubic
 
 
+@serializable
 class Roots(NamedTuple):
     """Roots with one status code per root (see :class:`jaxdea.Status`); NaN where not converged."""
 

@@ -77,7 +77,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .compiled import cached_jit
+from .compiled import cached_jit, serializable
 from .dispersion import characteristic_on_wall, check_inputs
 from .leaves import FLUID_LEAVES, check_names, get_parameter, set_parameter
 from .params import (
@@ -124,6 +124,7 @@ class BranchEnd(enum.IntEnum):
     NO_START = 6  # Newton at fixed s_0 did not converge from ``omega`` (or ∇f = 0 there)
 
 
+@serializable
 class Branch(NamedTuple):
     """A traced branch; arrays have length ``max_points``, NaN after the last point.
 

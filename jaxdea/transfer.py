@@ -26,6 +26,13 @@ Two propagators:
   Y_k = Q_k R_k with R_k upper triangular with positive diagonal. Then A Y_0 = Q_N R_N ⋯ R_0, so
   det(B A Y_0) = det(B Q_N) ∏ det R_k with ∏ det R_k > 0: det(B Q_N) has the same zeros and sign as
   the raw determinant, and stays in [−1, 1] however much the product grows (like e^{α̂ĥ}).
+
+Mode families (static ``family``, :mod:`jaxdea.state_matrix`): ``"longitudinal"`` (the 6×6 matrix
+above, the default: its code path and values are those of the axisymmetric library), ``"order_m"``
+(the 8×8 M_m of theory_m.md §3 with a traced order ``m``, 8×4 basis) and ``"torsional"`` (2×2, 2×1
+basis). Everything here is written for any matrix size. Every propagator also exists as a function
+of w = Ω² (``…_of_w``), which may be negative (unstable states, theory_m.md §6): the generator is a
+polynomial in w with real coefficients, so no complex arithmetic is needed there.
 """
 
 import math
@@ -33,12 +40,11 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from .base_state import base_state, geometry, pressure_difference_unchecked
 from .moduli import Coefficients, closed_form_coefficients, coefficients, push_forward_moduli
 from .params import Tube, as_float
-from .state_matrix import state_matrix
+from .state_matrix import LONGITUDINAL, family_inertia, family_matrix, inertia_matrix, state_matrix
 
 SCHEMES = {"midpoint": (0.5,),
            "magnus4": (0.5 - math.sqrt(3.0) / 6.0, 0.5 + math.sqrt(3.0) / 6.0),
@@ -264,8 +270,7 @@ EXPONENTIALS = {"taylor": expm_taylor, "adaptive": expm_taylor_adaptive,
                 "expm": jax.scipy.linalg.expm}
 
 
-INERTIA = np.zeros((6, 6))
-INERTIA[3, 0] = INERTIA[4, 1] = 1.0
+INERTIA = inertia_matrix(LONGITUDINAL)
 """E with M(r̂; Ω) = M(r̂; 0) − Ω² E: Ω enters the state matrix only through the inertia terms of
 the traction rows (theory.md §3), the same at every radius."""
 
@@ -296,8 +301,8 @@ def _poly_commutator(p, q):
             for k in range(len(p) + len(q) - 1)]
 
 
-def generator_coefficients(step, coef: Coefficients, radius, alpha):
-    """G_j (shape (P, 6, 6)) with G(Ω) = Σ_j G_j Ω^{2j} the sublayer's generator (:func:`layer_generator`).
+def generator_coefficients(step, coef: Coefficients, radius, alpha, m=0, family=LONGITUDINAL):
+    """G_j (shape (P, n, n)) with G(Ω) = Σ_j G_j Ω^{2j} the sublayer's generator (:func:`layer_generator`).
 
     Every node has M = M_0 − Ω² E (:data:`INERTIA`), so G is a polynomial in w = Ω²: of degree 1
     for the midpoint and fourth-order schemes (h M, and h(M_1 + M_2)/2 + (√3/12) h² [M_2, M_1]
@@ -305,15 +310,23 @@ def generator_coefficients(step, coef: Coefficients, radius, alpha):
     (B_2, B_3 do not depend on w: the E terms cancel in the node differences). The coefficients
     depend on the wall and α̂ only, so a batch of Ω at one α̂ (a scan chunk, the lanes of a
     solver) forms them once, with no Ω-tangent; each Ω then costs a Horner sum.
+
+    ``family`` (static) and ``m`` (traced, ``"order_m"`` only) select the state matrix and its E
+    (:func:`jaxdea.state_matrix.family_matrix`, ``family_inertia``); n = 6, 8 or 2.
     """
+    if family == LONGITUDINAL:
+        matrix, inertia = (lambda c, r: state_matrix(c, r, 0.0, alpha)), INERTIA
+    else:
+        matrix = lambda c, r: family_matrix(family, c, r, 0.0, alpha, m)  # noqa: E731
+        inertia = family_inertia(family, m)
     if jnp.ndim(radius) == 0:
-        return jnp.stack([step * state_matrix(coef, radius, 0.0, alpha), -step * INERTIA])
-    m0 = jax.vmap(state_matrix, (0, 0, None, None))(coef, radius, 0.0, alpha)
-    e = -step * INERTIA
+        return jnp.stack([step * matrix(coef, radius), -step * inertia])
+    m0 = jax.vmap(matrix)(coef, radius)
+    e = -step * inertia
     if radius.shape[0] == 2:
         mean = [0.5 * step * (m0[0] + m0[1]), e]
         # [M_2, M_1] with M_j = M_j⁰ − wE; its w² coefficient [E, E] is exactly zero
-        inner = _poly_commutator([m0[1], -INERTIA], [m0[0], -INERTIA])[:2]
+        inner = _poly_commutator([m0[1], -inertia], [m0[0], -inertia])[:2]
         return jnp.stack(_poly_add(mean, _poly_scale((math.sqrt(3.0) / 12.0) * step**2, inner)))
     b1 = [step * m0[1], e]
     b2 = [(math.sqrt(15.0) / 3.0) * step * (m0[2] - m0[0])]
@@ -326,15 +339,19 @@ def generator_coefficients(step, coef: Coefficients, radius, alpha):
 
 
 def evaluate_generator(coefficients, omega):
-    """G(Ω) = Σ_j G_j Ω^{2j} by Horner's rule in w = Ω²."""
-    w = omega * omega
+    """G(Ω) = Σ_j G_j Ω^{2j} by Horner's rule in w = Ω² (:func:`generator_of_w`)."""
+    return generator_of_w(coefficients, omega * omega)
+
+
+def generator_of_w(coefficients, omega_squared):
+    """G = Σ_j G_j w^j by Horner's rule, w = Ω² of either sign (real for real w)."""
     g = coefficients[-1]
     for c in coefficients[-2::-1]:
-        g = c + w * g
+        g = c + omega_squared * g
     return jax.lax.optimization_barrier(g)
 
 
-def layer_generator(step, coef: Coefficients, radius, omega, alpha):
+def layer_generator(step, coef: Coefficients, radius, omega, alpha, m=0, family=LONGITUDINAL):
     """G with T = exp(G) for one sublayer of thickness h = ``step`` (module docstring).
 
     ``radius`` (and ``coef``) hold the sublayer's nodes: a scalar, the mid-radius (G = h M, paper
@@ -344,42 +361,57 @@ def layer_generator(step, coef: Coefficients, radius, omega, alpha):
     G = B_1 + B_3/12 + [−20B_1 − B_3 + [B_1, B_2], B_2 − [B_1, 2B_3 + [B_1, B_2]]/60]/240.
     Formed as the polynomial in Ω² of :func:`generator_coefficients`.
     """
-    return evaluate_generator(generator_coefficients(step, coef, radius, alpha), omega)
+    return evaluate_generator(generator_coefficients(step, coef, radius, alpha, m, family), omega)
 
 
-def wall_generators(wall: Wall, alpha):
-    """The coefficients of every sublayer's generator, shape (N, P, 6, 6)
-    (:func:`generator_coefficients`): formed once per (wall, α̂), shared by every Ω."""
-    return jax.vmap(generator_coefficients, (None, 0, 0, None))(wall.step, wall.coef, wall.radii,
-                                                                 alpha)
+def wall_generators(wall: Wall, alpha, m=0, family=LONGITUDINAL):
+    """The coefficients of every sublayer's generator, shape (N, P, n, n)
+    (:func:`generator_coefficients`): formed once per (wall, α̂, m), shared by every Ω."""
+    return jax.vmap(generator_coefficients, (None, 0, 0, None, None, None))(
+        wall.step, wall.coef, wall.radii, alpha, m, family)
 
 
-def layer_exponentials(wall: Wall, omega, alpha, method: str = "taylor"):
-    """T_k = exp(G_k), shape (N, 6, 6) (paper Eq. 43; G_k of :func:`layer_generator`).
+def layer_exponentials(wall: Wall, omega, alpha, method: str = "taylor", m=0,
+                       family=LONGITUDINAL):
+    """T_k = exp(G_k), shape (N, n, n) (paper Eq. 43; G_k of :func:`layer_generator`).
 
     ``method="expm"`` uses ``jax.scipy.linalg.expm`` (the reference); ``"taylor"`` (default)
     :func:`expm_taylor`, equal to rounding and far cheaper to compile and batch;
     ``"adaptive"`` :func:`expm_taylor_adaptive` (bit-identical to ``"taylor"``, forward mode only).
     """
-    gens = jax.vmap(evaluate_generator, (0, None))(wall_generators(wall, alpha), omega)
+    return layer_exponentials_of_w(wall, omega * omega, alpha, method, m, family)
+
+
+def layer_exponentials_of_w(wall: Wall, omega_squared, alpha, method: str = "taylor", m=0,
+                            family=LONGITUDINAL):
+    """:func:`layer_exponentials` at w = Ω² (either sign)."""
+    gens = jax.vmap(generator_of_w, (0, None))(wall_generators(wall, alpha, m, family),
+                                               omega_squared)
     return jax.vmap(EXPONENTIALS[method])(gens)
 
 
-def transfer_matrix(wall: Wall, omega, alpha, method: str = "expm"):
+def transfer_matrix(wall: Wall, omega, alpha, method: str = "expm", m=0, family=LONGITUDINAL):
     """A = T_N ⋯ T_2 T_1 with Y(r̂_o) = A Y(r̂_i) (paper Eq. 44), ordered product by ``lax.scan``.
 
     The reference path: ``jax.scipy.linalg.expm`` per sublayer by default.
     """
+    return transfer_matrix_of_w(wall, omega * omega, alpha, method, m, family)
+
+
+def transfer_matrix_of_w(wall: Wall, omega_squared, alpha, method: str = "expm", m=0,
+                         family=LONGITUDINAL):
+    """:func:`transfer_matrix` at w = Ω² (either sign)."""
     def multiply(acc, t):
         return t @ acc, None
 
-    exps = layer_exponentials(wall, omega, alpha, method)
-    acc, _ = jax.lax.scan(multiply, jnp.eye(6, dtype=exps.dtype), exps)  # complex for complex Ω
+    exps = layer_exponentials_of_w(wall, omega_squared, alpha, method, m, family)
+    size = exps.shape[-1]
+    acc, _ = jax.lax.scan(multiply, jnp.eye(size, dtype=exps.dtype), exps)  # complex for complex Ω
     return acc
 
 
 def orthonormalize(y):
-    """Y = Q R for a 6×3 Y: Q with orthonormal columns, R upper triangular with R_jj > 0.
+    """Y = Q R for an n×k Y (6×3, 8×4, 2×1): Q with orthonormal columns, R upper triangular with R_jj > 0.
 
     Classical Gram–Schmidt applied twice ("CGS2", stable to rounding). Returns (Q, log det R).
     A complex Y (complex Ω, :mod:`jaxdea.counting`) uses the Hermitian projection u (u^H v), so
@@ -402,8 +434,10 @@ def orthonormalize(y):
     return jnp.stack(cols, axis=-1), logdet
 
 
-def propagate_basis(wall: Wall, omega, alpha, basis, method: str = "taylor"):
-    """Carry the 6×3 ``basis`` Y(r̂_i) across the wall with re-orthonormalisation.
+def propagate_basis(wall: Wall, omega, alpha, basis, method: str = "taylor", m=0,
+                    family=LONGITUDINAL):
+    """Carry the n×k ``basis`` Y(r̂_i) (6×3; 8×4 or 2×1 for the other families) across the wall
+    with re-orthonormalisation.
 
     A complex ``omega`` (complex T_k) promotes the basis to complex; log_scale stays real.
 
@@ -411,8 +445,15 @@ def propagate_basis(wall: Wall, omega, alpha, basis, method: str = "taylor"):
         (Q, log_scale): Q spans A·basis, and A·basis = Q·R with log det R = log_scale (R's product is
         kept only as its log-determinant, the scale factor of the characteristic function).
     """
-    if jnp.iscomplexobj(omega) and not jnp.iscomplexobj(basis):
-        basis = basis.astype(jnp.result_type(basis.dtype, omega))
+    return propagate_basis_of_w(wall, omega * omega, alpha, basis, method, m, family)
+
+
+def propagate_basis_of_w(wall: Wall, omega_squared, alpha, basis, method: str = "taylor", m=0,
+                         family=LONGITUDINAL):
+    """:func:`propagate_basis` at w = Ω² (either sign; real arithmetic for real w)."""
+    w = omega_squared
+    if jnp.iscomplexobj(w) and not jnp.iscomplexobj(basis):
+        basis = basis.astype(jnp.result_type(basis.dtype, w))
     q0, log0 = orthonormalize(basis)
 
     def advance(carry, t):
@@ -423,24 +464,31 @@ def propagate_basis(wall: Wall, omega, alpha, basis, method: str = "taylor"):
     if method == "adaptive":
         # the solvers' value-and-slope evaluations (small batches: lanes, 32-point grid chunks): all
         # N exponentials at once, then the scan (fewer sequential steps; 1.2–1.5× faster there)
-        (q, log_scale), _ = jax.lax.scan(advance, (q0, log0),
-                                         layer_exponentials(wall, omega, alpha, method))
+        (q, log_scale), _ = jax.lax.scan(
+            advance, (q0, log0), layer_exponentials_of_w(wall, w, alpha, method, m, family))
         return q, log_scale
     exponential = EXPONENTIALS[method]
 
     def step(carry, coefficients):
-        return advance(carry, exponential(evaluate_generator(coefficients, omega)))
+        return advance(carry, exponential(generator_of_w(coefficients, w)))
 
     # values: T_k formed inside the scan, so that a batch of one sublayer at a time stays in cache
     # (1.2–1.5× faster at batch 4096 than all N exponentials first; the same T_k, fused differently
     # by XLA: f equal to rounding, ≤ 4 ulp of 1, tested)
-    (q, log_scale), _ = jax.lax.scan(step, (q0, log0), wall_generators(wall, alpha))
+    (q, log_scale), _ = jax.lax.scan(step, (q0, log0), wall_generators(wall, alpha, m, family))
     return q, log_scale
 
 
-def propagate_basis_history(wall: Wall, omega, alpha, basis, method: str = "taylor"):
-    """Like :func:`propagate_basis`, keeping every interface: Q_k (N+1, 6, 3) and R_k (N+1, 3, 3)
+def propagate_basis_history(wall: Wall, omega, alpha, basis, method: str = "taylor", m=0,
+                            family=LONGITUDINAL):
+    """Like :func:`propagate_basis`, keeping every interface: Q_k (N+1, n, k) and R_k (N+1, k, k)
     with T_k Q_{k−1} = Q_k R_k (k ≥ 1) and basis = Q_0 R_0 (used to recover mode shapes)."""
+    return propagate_basis_history_of_w(wall, omega * omega, alpha, basis, method, m, family)
+
+
+def propagate_basis_history_of_w(wall: Wall, omega_squared, alpha, basis, method: str = "taylor",
+                                 m=0, family=LONGITUDINAL):
+    """:func:`propagate_basis_history` at w = Ω² (either sign)."""
     def qr(y):
         q, _ = orthonormalize(y)
         return q, q.T @ y
@@ -451,5 +499,6 @@ def propagate_basis_history(wall: Wall, omega, alpha, basis, method: str = "tayl
         q_new, r_new = qr(matmul_small(t, q))
         return q_new, (q_new, r_new)
 
-    _, (qs, rs) = jax.lax.scan(step, q0, layer_exponentials(wall, omega, alpha, method))
+    _, (qs, rs) = jax.lax.scan(
+        step, q0, layer_exponentials_of_w(wall, omega_squared, alpha, method, m, family))
     return jnp.concatenate([q0[None], qs]), jnp.concatenate([r0[None], rs])

@@ -314,3 +314,16 @@ def test_python_dash_m_runs_the_cli(tmp_path):
                           text=True, timeout=120, cwd=tmp_path)
     assert proc.returncode == 2
     assert "'axes.n' must be integers >= 1" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
+    root = tmp_path / "cache"
+    monkeypatch.setenv("JAXDEA_CACHE_DIR", str(root))
+    (root / "programs").mkdir(parents=True)
+    (root / "programs" / "entry.jaxexport").write_bytes(b"x" * 2000)
+    assert cli.main(["cache", "info"]) == 0
+    assert f"{root}: 1 files" in capsys.readouterr().out
+    assert cli.main(["cache", "clear"]) == 0
+    assert f"removed {root}" in capsys.readouterr().out and not root.exists()
+    monkeypatch.setenv("JAXDEA_CACHE_DIR", "off")
+    assert cli.main(["cache", "clear"]) == 0 and "off" in capsys.readouterr().out

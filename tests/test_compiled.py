@@ -1,18 +1,23 @@
-"""The on-disk cache of compiled programs (jaxdea.compiled): a fresh process loads them without
-tracing and gets the same bits; what it cannot key (tracers, debugging) goes through jax.jit;
-a damaged entry is compiled anew."""
+"""The on-disk cache of exported programs (jaxdea.compiled): a fresh process loads them without
+tracing and gets the same bits; what it cannot key (tracers, debugging) goes through jax.jit; a
+damaged, foreign or unsafe entry is never run; every public entry point survives three processes
+sharing one cache."""
 
+import json
 import os
+import pickle
+import stat
 import subprocess
 import sys
-import textwrap
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxdea.compiled import cached_jit
+from jaxdea import compiled
+from jaxdea.compiled import MAGIC, CacheWarning, cached_jit
 
 
 def _scaled(x, n):
@@ -20,14 +25,14 @@ def _scaled(x, n):
 
 
 def _entries(root):
-    folder = root / "executables"
+    folder = root / "programs"
     return sorted(folder.iterdir()) if folder.exists() else []
 
 
 @pytest.fixture
 def cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("JAXDEA_CACHE_DIR", str(tmp_path))
-    return tmp_path
+    monkeypatch.setenv("JAXDEA_CACHE_DIR", str(tmp_path / "cache"))
+    return tmp_path / "cache"
 
 
 def test_key_separates_static_arguments_and_argument_types(cache):
@@ -42,37 +47,125 @@ def test_key_separates_static_arguments_and_argument_types(cache):
     fun(np.float64(1.5), 3)
     fun(1.5, 3)  # a weakly typed Python float: another program than the float64 scalar
     assert len(_entries(cache)) == 6 and fun._cache_size() == 6
+    assert fun.counts == {"loaded": 0, "exported": 6, "stored": 6}
 
 
-def test_damaged_entry_is_compiled_anew(cache):
+def test_private_modes_and_no_pickle(cache):
+    """The root and its folder 0700, entries 0600; an entry is the magic line, the SHA-256 of the
+    artifact and the artifact (a jax.export flatbuffer, not a pickle)."""
+    cached_jit(_scaled, static_argnames="n")(jnp.arange(3.0), 2)
+    (entry,) = _entries(cache)
+    assert stat.S_IMODE(cache.stat().st_mode) == 0o700
+    assert stat.S_IMODE((cache / "programs").stat().st_mode) == 0o700
+    assert stat.S_IMODE(entry.stat().st_mode) == 0o600
+    data = entry.read_bytes()
+    assert data.startswith(MAGIC) and not data[len(MAGIC):].startswith(b"\x80")  # pickle protocol
+    with pytest.raises(pickle.UnpicklingError):
+        pickle.loads(data)
+
+
+def test_damaged_entry_is_exported_anew(cache):
     x = jnp.arange(3.0)
     cached_jit(_scaled, static_argnames="n")(x, 2)
     (entry,) = _entries(cache)
-    entry.write_bytes(b"not a program")
-    fresh = cached_jit(_scaled, static_argnames="n")  # a new process holds nothing in memory
-    np.testing.assert_array_equal(fresh(x, 2), 2 * x)
-    assert _entries(cache) == [entry] and entry.stat().st_size > 1000
+    good = entry.read_bytes()
+    for damaged in (b"not a program", good[:-10], good.replace(MAGIC, b"jaxdea-exported-0\n")):
+        entry.write_bytes(damaged)
+        fresh = cached_jit(_scaled, static_argnames="n")  # a new process holds nothing in memory
+        np.testing.assert_array_equal(fresh(x, 2), 2 * x)
+        assert fresh.counts == {"loaded": 0, "exported": 1, "stored": 1}
+        assert _entries(cache) == [entry] and compiled.read_entry(entry) is not None  # rewritten
     again = cached_jit(_scaled, static_argnames="n")
     np.testing.assert_array_equal(again(x, 2), 2 * x)  # loads the rewritten entry
-    assert again._jit._cache_size() == 0
+    assert again.counts == {"loaded": 1, "exported": 0, "stored": 0}
 
 
-def test_entry_that_fails_to_run_is_compiled_anew(cache):
-    """An entry that loads but fails on its first run (here the program of another argument shape
-    under this key; in the wild, an executable that XLA:CPU re-serialised from JAX's cache) is
-    deleted and the program compiled anew."""
-    x3, x4 = jnp.arange(3.0), jnp.arange(4.0)
-    fun = cached_jit(_scaled, static_argnames="n")
-    fun(x3, 2)
+def _plant(entry, payload):
+    """Write ``payload`` at ``entry`` as a well-formed entry (magic line, valid checksum)."""
+    import hashlib
+
+    entry.write_bytes(MAGIC + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload)
+
+
+class _Exploit:
+    def __init__(self, marker):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (Path.touch, (Path(self.marker),))
+
+
+def test_a_crafted_pickle_is_never_executed(cache, tmp_path):
+    """An entry holding a pickle that would run code when unpickled (here: create a file), both
+    raw and behind a valid magic line and checksum, is never unpickled: the program is exported
+    anew and the marker never appears."""
+    x = jnp.arange(3.0)
+    cached_jit(_scaled, static_argnames="n")(x, 2)
     (entry,) = _entries(cache)
-    wrong = fun._entry(fun._key((x4, 2), {})[0])
-    wrong.write_bytes(entry.read_bytes())
+    marker = tmp_path / "owned"
+    exploit = pickle.dumps(_Exploit(marker))
+    pickle.loads(exploit)  # the payload works: it creates the marker when unpickled
+    assert marker.exists()
+    marker.unlink()
+    for planted in (lambda: entry.write_bytes(exploit), lambda: _plant(entry, exploit)):
+        planted()
+        fresh = cached_jit(_scaled, static_argnames="n")
+        np.testing.assert_array_equal(fresh(x, 2), 2 * x)
+        assert fresh.counts["exported"] == 1 and not marker.exists()
+
+
+def test_an_entry_writable_by_others_is_refused(cache):
+    x = jnp.arange(3.0)
+    cached_jit(_scaled, static_argnames="n")(x, 2)
+    (entry,) = _entries(cache)
+    entry.chmod(0o666)
     fresh = cached_jit(_scaled, static_argnames="n")
-    np.testing.assert_array_equal(fresh(x4, 2), 2 * x4)
-    assert fresh.counts == {"loaded": 0, "compiled": 1}
-    again = cached_jit(_scaled, static_argnames="n")
-    np.testing.assert_array_equal(again(x4, 2), 2 * x4)
-    assert again.counts == {"loaded": 1, "compiled": 0}
+    with pytest.warns(CacheWarning, match="writable by group or others"):
+        np.testing.assert_array_equal(fresh(x, 2), 2 * x)
+    assert fresh.counts == {"loaded": 0, "exported": 1, "stored": 1}
+    assert stat.S_IMODE(entry.stat().st_mode) == 0o600  # replaced by this process's own entry
+
+
+@pytest.mark.skipif(not hasattr(os, "getuid") or os.getuid() != 0, reason="chown needs root")
+def test_an_entry_of_another_user_is_refused(cache):
+    x = jnp.arange(3.0)
+    cached_jit(_scaled, static_argnames="n")(x, 2)
+    (entry,) = _entries(cache)
+    os.chown(entry, 4242, 4242)
+    fresh = cached_jit(_scaled, static_argnames="n")
+    with pytest.warns(CacheWarning, match="owned by uid 4242"):
+        np.testing.assert_array_equal(fresh(x, 2), 2 * x)
+    assert fresh.counts["loaded"] == 0 and entry.stat().st_uid == os.getuid()
+
+
+def test_a_folder_writable_by_others_is_not_used(cache):
+    """A shared, world-writable cache root: nothing is read or written there."""
+    x = jnp.arange(3.0)
+    cached_jit(_scaled, static_argnames="n")(x, 2)
+    (entry,) = _entries(cache)
+    cache.chmod(0o777)
+    fresh = cached_jit(_scaled, static_argnames="n")
+    with pytest.warns(CacheWarning, match="writable by group or others"):
+        np.testing.assert_array_equal(fresh(x, 2), 2 * x)
+    assert fresh.counts == {"loaded": 0, "exported": 1, "stored": 0}
+    with pytest.warns(CacheWarning):
+        assert compiled.private_folder("xla") is None  # nor JAX's cache there
+
+
+def test_another_environment_does_not_load(cache, monkeypatch):
+    """Entries written by another jaxdea or jax version (another environment digest) are not
+    read: the key holds the sources and versions."""
+    x = jnp.arange(3.0)
+    cached_jit(_scaled, static_argnames="n")(x, 2)
+    monkeypatch.setattr(compiled, "_environment", lambda: "another jax version")
+    fresh = cached_jit(_scaled, static_argnames="n")
+    np.testing.assert_array_equal(fresh(x, 2), 2 * x)
+    assert fresh.counts["loaded"] == 0 and len(_entries(cache)) == 2
+
+
+def test_clear_cache(cache):
+    cached_jit(_scaled, static_argnames="n")(jnp.arange(3.0), 2)
+    assert compiled.clear_cache() == cache and not cache.exists()
 
 
 def test_transformations_and_debugging_go_through_jit(cache):
@@ -83,7 +176,7 @@ def test_transformations_and_debugging_go_through_jit(cache):
     assert float(jax.grad(lambda x: fun(x, 3))(1.0)) == 3.0
     with jax.debug_nans(True):
         np.testing.assert_array_equal(fun(jnp.ones(2), 2), [2.0, 2.0])
-    assert _entries(cache) == [] and fun.counts == {"loaded": 0, "compiled": 0}
+    assert _entries(cache) == [] and fun.counts == {"loaded": 0, "exported": 0, "stored": 0}
 
 
 def test_off_writes_nothing(tmp_path, monkeypatch):
@@ -93,50 +186,32 @@ def test_off_writes_nothing(tmp_path, monkeypatch):
     assert fun._jit._cache_size() == 1 and not any(tmp_path.iterdir())
 
 
-FRESH_PROCESS = textwrap.dedent("""
-    import jax
-    jax.config.update("jax_enable_x64", True)
-    import jaxdea as jd
-    from jaxdea import dispersion, roots
-    # every program into JAX's cache, however fast it compiled (the third process reads them there)
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
-    tube = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
-    f = jd.characteristic(tube, 1.3, 0.445, n_layers=8)
-    omega = jd.frequencies(tube, 0.445, n_roots=2, n_layers=8)
-    programs = (dispersion._characteristic, roots._solve_frequencies)
-    counts = [(p.counts["loaded"], p.counts["compiled"], p._jit._cache_size()) for p in programs]
-    slope = jax.grad(lambda v: jd.characteristic(tube.replace(voltage=v), 1.3, 0.445, n_layers=8))(0.1)
-    print(repr(float(f)), *map(repr, map(float, omega)), repr(float(slope)))
-    print(counts)
-""")
+SURFACE = Path(__file__).with_name("public_surface.py")
 
 
-def test_a_fresh_process_loads_the_programs_without_tracing(cache):
-    """Two fresh processes: the first compiles and stores ``characteristic`` and ``frequencies``,
-    the second loads them (nothing traced by jax.jit) and prints the same bits; a gradient (tracers)
-    is compiled by jax.jit in both, equal too. A third, with the entries deleted, takes the programs
-    from JAX's persistent cache and writes none."""
-    env = dict(os.environ, JAXDEA_CACHE_DIR=str(cache))
-
-    def run():
-        out = subprocess.run([sys.executable, "-c", FRESH_PROCESS], env=env, capture_output=True,
-                             text=True, timeout=600)
-        assert out.returncode == 0, out.stderr
-        values, counts = out.stdout.splitlines()
-        return values, counts
-
-    first, compiled = run()
-    stored = _entries(cache)
-    second, loaded = run()
-    assert compiled == "[(0, 1, 0), (0, 1, 0)]"  # each compiled once, jax.jit's cache unused
-    assert loaded == "[(1, 0, 0), (1, 0, 0)]", "a program was traced where it could be loaded"
-    assert second == first  # f, the two roots and the gradient, to the last bit
-    assert len(stored) == 2 and _entries(cache) == stored
-    # programs that JAX's own cache supplies are not written (such entries failed to run)
-    for entry in stored:
-        entry.unlink()
-    third, from_xla = run()
-    assert from_xla == "[(0, 1, 0), (0, 1, 0)]" and third == first and _entries(cache) == []
+def test_every_public_entry_point_in_three_processes(tmp_path):
+    """Every public entry point (tests/public_surface.py) in three fresh processes sharing a new
+    cache: each exits 0 with the same bits; the first exports and stores every program, the
+    others load every one of them (nothing traced where a program could be loaded). This once
+    caught a segmentation fault of mode_shape in every process after the first."""
+    env = dict(os.environ, JAXDEA_CACHE_DIR=str(tmp_path / "cache"))
+    runs = []
+    for _ in range(3):
+        out = subprocess.run([sys.executable, str(SURFACE)], env=env, capture_output=True,
+                             text=True, timeout=900)
+        assert out.returncode == 0, (out.returncode, out.stderr[-3000:])
+        *values, counts = out.stdout.splitlines()
+        runs.append((values, json.loads(counts)))
+    (first, stored), (second, loaded), (third, loaded_again) = runs
+    assert len(first) >= 28 and all(len(line.split()) >= 2 for line in first)
+    assert second == first and third == first  # every number, to the last bit
+    assert {p["stored"] for p in stored.values()} != {0}
+    for name, counts in stored.items():
+        assert counts["stored"] == counts["exported"] > 0, name  # every program serialisable
+    for counts_by_program in (loaded, loaded_again):
+        assert counts_by_program.keys() == stored.keys()
+        for name, counts in counts_by_program.items():
+            assert counts == {"loaded": stored[name]["exported"], "exported": 0, "stored": 0}, name
 
 
 def test_compiler_options_on_top_level_programs_only():
