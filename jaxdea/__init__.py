@@ -1,4 +1,4 @@
-"""jaxdea: differentiable axisymmetric dispersion of pre-stretched, voltage-driven soft dielectric
+"""jaxdea: differentiable dispersion (every circumferential order m) of pre-stretched, voltage-driven soft dielectric
 elastomer tubes, empty or filled with an inviscid compressible fluid (see theory.md).
 
 64-bit floats are required: ``jax.config.update("jax_enable_x64", True)`` before use.
@@ -23,12 +23,15 @@ from .dispersion import characteristic
 from .modes import fluid_pressure, mode_shape
 from .params import Fluid, Tube, axial_wavenumber
 from .roots import (
+    Instability,
     Roots,
     critical_voltage,
     critical_voltages,
+    first_instability,
     frequencies,
     frequency,
     group_velocity,
+    growth_rates,
     phase_velocity,
     solve_critical_voltage,
     solve_critical_voltages,
@@ -48,6 +51,7 @@ __all__ = [
     "DesignStatus",
     "Estimate",
     "Fluid",
+    "Instability",
     "RootCount",
     "Roots",
     "Status",
@@ -60,11 +64,13 @@ __all__ = [
     "critical_voltages",
     "design_for_frequency",
     "dispersion_curve",
+    "first_instability",
     "fluid_pressure",
     "frequencies",
     "frequencies_with_error",
     "frequency",
     "group_velocity",
+    "growth_rates",
     "inner_stretch",
     "maximise_tunability",
     "mode_shape",

@@ -30,9 +30,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from .compiled import cached_jit, serializable
-from .dispersion import check_inputs
 from .params import Fluid, Tube, canonical, validate_layers
-from .roots import _problem, guard, scan_step, solve_frequencies
+from .roots import _guard_order, _order_inputs, _problem, guard, scan_step, solve_frequencies
+from .state_matrix import LONGITUDINAL
 from .scalar import Status, run_lanes, start_lanes
 from .transfer import laminate, scheme_order
 
@@ -58,16 +58,20 @@ class Estimate(NamedTuple):
     n_layers: np.ndarray
 
 
-@cached_jit(static_argnames=("n_layers", "order"))
-def _follow(tube, alpha, fluid, guesses, n_layers, order):
+@cached_jit(static_argnames=("n_layers", "order", "family"))
+def _follow(tube, alpha, fluid, guesses, n_layers, order, m=0.0, family=LONGITUDINAL):
     """Safeguarded Newton from each guess on the laminate of ``n_layers`` sublayers (one lane
-    per root, steps capped at a quarter of the scan step, as in :func:`jaxdea.solve_frequency`)."""
-    ok, tube, alpha, fluid = guard(tube, alpha, fluid)
-    wall, fun = _problem(tube, alpha, fluid, n_layers, order)
+    per root, steps capped at a quarter of the scan step, as in :func:`jaxdea.solve_frequency`).
+    ``family`` (static) and ``m`` (traced): the mode family, as in :func:`jaxdea.frequencies`."""
+    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
+        ok, tube, alpha, fluid = guard(tube, alpha, fluid)
+    else:
+        ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
+    wall, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
     finite = jnp.isfinite(guesses) & ok
     start = jnp.where(finite, guesses, 1.0)
     nan = jnp.full_like(start, jnp.nan)
-    cap = jnp.full_like(start, 0.25 * scan_step(wall, fluid))
+    cap = jnp.full_like(start, 0.25 * scan_step(wall, fluid, family))
     lanes = start_lanes(start, start, nan, nan, nan, nan, jnp.where(finite, 3, 0), max_step=cap,
                         pairs=False)
     roots, _, status = run_lanes(fun, lanes)
@@ -77,7 +81,8 @@ def _follow(tube, alpha, fluid, guesses, n_layers, order):
 
 def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
                            omega_max=None, n_layers: int = 30, rtol=None,
-                           max_layers: int = 1920, scheme: str = "midpoint") -> Estimate:
+                           max_layers: int = 1920, scheme: str = "midpoint", m=0,
+                           torsional: bool = False) -> Estimate:
     """The ``n_roots`` lowest roots with an error estimate each (module docstring).
 
     Levels N, 2N, 4N (at least three, for two Richardson values); with ``rtol`` further doublings
@@ -91,6 +96,8 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
         max_layers: finest level allowed.
         scheme: the propagation scheme of every level (:func:`jaxdea.frequencies`); its order p
             sets the Richardson factor 2^p.
+        m, torsional: the circumferential order and family (:func:`jaxdea.frequencies`); every
+            level follows the roots of that order.
 
     Returns:
         :class:`Estimate`.
@@ -99,21 +106,22 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
         >>> est = frequencies_with_error(Tube(), 0.445, rtol=1e-10)
         >>> est.omega, est.error
     """
-    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
+    order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_layers(max_layers)
     if max_layers < 4 * n_layers:
         raise ValueError(f"max_layers must be >= 4 * n_layers = {4 * n_layers}, got {max_layers!r}")
     if rtol is not None and not (np.isfinite(rtol) and rtol > 0):
         raise ValueError(f"rtol must be a finite number > 0, got {rtol!r}")
-    first = solve_frequencies(tube, alpha, fluid, n_roots, omega_max, n_layers, scheme)
-    tube, alpha, fluid = canonical(tube, alpha, fluid)
+    first = solve_frequencies(tube, alpha, fluid, n_roots, omega_max, n_layers, scheme, m, torsional)
+    tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
+    order_args = () if family == LONGITUDINAL else (m, family)
     levels = [np.asarray(first.omega)]
     status = np.asarray(first.status).copy()
     layers = [int(n_layers)]
     while True:
         n = 2 * layers[-1]
         omega, stat = (np.asarray(x) for x in _follow(tube, alpha, fluid, levels[-1],
-                                                      laminate(n, scheme), order))
+                                                      laminate(n, scheme), order, *order_args))
         status = np.where(status == Status.CONVERGED, stat, status)
         levels.append(omega)
         layers.append(n)

@@ -59,6 +59,7 @@ SYMBOLS = {
     "voltage": r"$\hat V$", "lambda_i": r"$\lambda_i$", "lambda_z": r"$\lambda_z$", "eta": r"$\eta$",
     "gent": r"$G$", "length_ratio": r"$L/R_o$", "thickness_ratio": r"$h/R_i$",
     "density_ratio": r"$\hat\rho_f$", "speed_ratio": r"$\hat c_f$", "alpha": r"$\hat\alpha$", "n": r"$n$",
+    "m": r"$m$",
 }
 LABELS = {
     "voltage": r"voltage $\hat V = V\sqrt{\varepsilon/\mu}\,/R_i$",
@@ -72,7 +73,9 @@ LABELS = {
     "speed_ratio": r"sound speed ratio $\hat c_f = c_f/c_s$",
     "alpha": r"axial wavenumber $\hat\alpha = \alpha R_i$",
     "n": r"axial mode number $n$ ($\hat\alpha = 2n\pi\eta/(\lambda_z L/R_o)$)",
+    "m": r"circumferential order $m$ (modes $\propto \cos m\theta$)",
 }
+INTEGER_AXES = ("n", "m")  # axes of integers: integer ticks
 OMEGA_LABEL = r"frequency $\Omega = \omega R_i/c_s$,  $c_s = \sqrt{\mu/\rho_s}$"
 LINE_STYLES = ("-", "--", ":", "-.")
 
@@ -115,7 +118,7 @@ def plot_sweep(result, x_name, path, title=None):
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small",
               frameon=False)
     ax.set_xlabel(LABELS[x_name])
-    if x_name == "n":
+    if x_name in INTEGER_AXES:
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_ylabel(OMEGA_LABEL)
     ax.set_title(title or _auto_title(result, others), fontsize="medium")

@@ -25,7 +25,8 @@ from .transfer import SCHEMES
 TOP_KEYS = ("tube", "fluid", "axes", "solver", "output")
 TUBE_KEYS = (*TUBE_LEAVES, "thickness_ratio", "material")
 FLUID_KEYS = (*FLUID_LEAVES, "coupling", "bessel_order")
-SOLVER_KEYS = ("n_roots", "n_layers", "scheme", "jacobian", "omega_max")
+SOLVER_KEYS = ("n_roots", "n_layers", "scheme", "jacobian", "omega_max", "m", "torsional")
+AXIS_NAMES = (*NAMES, "m")
 OUTPUT_KEYS = ("dir", "name", "formats", "plot", "title")
 LINSPACE_KEYS = ("start", "stop", "num")
 FORMATS = ("csv", "npz")
@@ -39,14 +40,15 @@ FORMAT = f"""\
           default ν = n)
 [axes]    the grid, in order: NAME = [v1, v2, ...] | {{start = a, stop = b, num = k}} | v (fixed);
           NAME one of {', '.join((*TUBE_LEAVES, 'thickness_ratio'))},
-          {', '.join((*FLUID_LEAVES, 'alpha', 'n'))};
+          {', '.join((*FLUID_LEAVES, 'alpha', 'n'))}, m (circumferential orders, integers >= 0);
           exactly one of alpha (α̂) and n (axial mode numbers, integers >= 1); a parameter is fixed
-          in [tube]/[fluid] or swept here, not both; the plot's x axis is the first axis with more
-          than one value
+          in [tube]/[fluid]/[solver] or swept here, not both; the plot's x axis is the first axis
+          with more than one value
 [solver]  n_roots = 3 (K lowest roots per point), n_layers = 30 (sublayers N),
           scheme = "midpoint" | "magnus4" | "magnus6" (how a sublayer is crossed),
           jacobian = false | true | [names] (dΩ/dθ and dΩ/dα̂ too), omega_max = a number
-          (default: automatic)
+          (default: automatic), m = 0 (circumferential order, integer >= 0; or axes.m),
+          torsional = false (the torsional family, m = 0 only)
 [output]  name = the config file's stem, formats = {json.dumps(list(FORMATS))}, plot = true (NAME.png),
           dir = the config file's folder (relative to it; --out overrides), title = a plot title
 """
@@ -64,6 +66,8 @@ RANGES = {
     "speed_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
     "alpha": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
     "n": ("integers >= 1 (axial mode numbers)", lambda v: np.isfinite(v) & (v >= 1) & (v == np.round(v))),
+    "m": ("integers >= 0 (circumferential orders)",
+          lambda v: np.isfinite(v) & (v >= 0) & (v == np.round(v))),
 }
 
 
@@ -81,6 +85,9 @@ class SweepConfig:
         scheme: the propagation scheme (``jaxdea.sweep``'s ``scheme``).
         jacobian: False, True or a tuple of parameter names (``jaxdea.sweep``'s ``jacobian``).
         omega_max: upper end of each root search, or None (automatic).
+        m: the fixed circumferential order (``jaxdea.sweep``'s ``m``; an axis ``m`` instead is in
+            ``axes``).
+        torsional: the torsional family (m = 0 only).
         out_dir: output folder as written in the config (relative to the config file), or None.
         name: file stem of the outputs.
         formats: a subset of ("csv", "npz").
@@ -96,6 +103,8 @@ class SweepConfig:
     scheme: str = "midpoint"
     jacobian: bool | tuple = False
     omega_max: float | None = None
+    m: int = 0
+    torsional: bool = False
     out_dir: str | None = None
     name: str = "sweep"
     formats: tuple = FORMATS
@@ -109,9 +118,15 @@ class SweepConfig:
 
     def sweep_arguments(self) -> dict:
         """Keyword arguments of :func:`jaxdea.sweep` besides ``tube`` and ``fluid``."""
+        orders = {}
+        if self.m or "m" in self.axes:  # m = 0 passes nothing: sweep's default, as before
+            orders["m"] = self.axes.get("m", self.m)
+        if self.torsional:
+            orders["torsional"] = True
+        axes = {k: v for k, v in self.axes.items() if k != "m"}
         return dict(n_roots=self.n_roots, n_layers=self.n_layers, scheme=self.scheme,
                     jacobian=self.jacobian if self.jacobian else None, omega_max=self.omega_max,
-                    **self.axes)
+                    **orders, **axes)
 
 
 def _fail(message: str):
@@ -205,7 +220,7 @@ def _parse_fluid(data) -> dict:
 def _parse_axes(data, tube: dict, fluid: dict | None) -> dict:
     if "axes" not in data:
         _fail("missing table 'axes' (the sweep grid, e.g. n = [1, 2, 3])")
-    table = _table(data["axes"], "axes", NAMES)
+    table = _table(data["axes"], "axes", AXIS_NAMES)
     if not table:
         _fail("'axes' is empty: give the wavenumber axis 'alpha' (α̂) or 'n' (axial mode numbers)")
     axes = {}
@@ -236,6 +251,12 @@ def _parse_solver(data, fluid: dict | None) -> dict:
             out[k] = _integer(f"solver.{k}", table[k], 1)
     if "scheme" in table:
         out["scheme"] = _choice("solver.scheme", table["scheme"], tuple(SCHEMES))
+    if "m" in table:
+        out["m"] = _integer("solver.m", table["m"], 0)
+    if "torsional" in table:
+        if not isinstance(table["torsional"], bool):
+            _fail(f"'solver.torsional' must be true or false, got {table['torsional']!r}")
+        out["torsional"] = table["torsional"]
     if "omega_max" in table:
         v = table["omega_max"]
         if not _is_number(v) or not (math.isfinite(v) and v > 0):
@@ -303,10 +324,18 @@ def parse_config(data, default_name: str = "sweep") -> SweepConfig:
     tube = _parse_tube(data.get("tube", {}))
     fluid = _parse_fluid(data["fluid"]) if "fluid" in data else None
     axes = _parse_axes(data, tube, fluid)
+    solver = _parse_solver(data, fluid)
+    if "m" in axes and "m" in solver:
+        _fail("'solver.m' is also a sweep axis ('axes.m'); give it in one place")
+    orders = axes["m"] if "m" in axes else np.asarray([solver.get("m", 0)])
+    if solver.get("torsional") and np.any(orders != 0):
+        _fail(f"'solver.torsional' = true needs m = 0 (the torsional family), got m = {orders.max():g}")
+    if fluid is not None and fluid.get("coupling") == "paper" and np.any(orders != 0):
+        _fail(f"the paper coupling is axisymmetric: it needs m = 0, got m = {orders.max():g}")
     if (fluid is not None and fluid.get("coupling") == "paper" and fluid.get("bessel_order") is None
             and "n" not in axes):
         _fail("the paper coupling needs 'fluid.bessel_order' (ν), or a sweep over 'axes.n' (ν = n)")
-    return SweepConfig(tube=tube, fluid=fluid, axes=axes, **_parse_solver(data, fluid),
+    return SweepConfig(tube=tube, fluid=fluid, axes=axes, **solver,
                        **_parse_output(data, default_name))
 
 

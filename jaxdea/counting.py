@@ -71,9 +71,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from .compiled import cached_jit, serializable
-from .dispersion import characteristic_on_wall, check_inputs
+from .dispersion import characteristic_on_wall
 from .params import Fluid, Tube, as_float, canonical, validate_positive
-from .roots import guard, scan_step
+from .roots import _guard_order, _order_inputs, guard, scan_step
+from .state_matrix import LONGITUDINAL, ORDER_M
 from .transfer import discretize, laminate
 
 LANES = 64  # midpoints evaluated per iteration (one vmapped call)
@@ -211,28 +212,37 @@ def _phase_count(phasor, lo, hi, height, symmetric, max_evaluations):
     return count, status.astype(jnp.int32), evals
 
 
-def default_height(wall, fluid, lo, hi):
+def default_height(wall, fluid, lo, hi, family=LONGITUDINAL):
     """δ = min(scan_step, (ω_hi − ω_lo)/16)/2 (module docstring)."""
-    return 0.5 * jnp.minimum(scan_step(wall, fluid), (hi - lo) / STEPS_PER_BOX)
+    return 0.5 * jnp.minimum(scan_step(wall, fluid, family), (hi - lo) / STEPS_PER_BOX)
 
 
 def count_roots_unchecked(tube, alpha, omega_lo, omega_hi, fluid, n_layers: int, order: int,
-                          height=None, max_evaluations=65536, symmetric: bool = True):
+                          height=None, max_evaluations=65536, symmetric: bool = True, m=0.0,
+                          family=LONGITUDINAL):
     """(count, status, evaluations) for one case (traceable; see :func:`count_roots`).
 
-    Inputs outside their range give count −1 with status INVALID (no exception).
+    ``family`` (static) and ``m`` (traced, ``"order_m"``): the mode family (theory_m.md); off the
+    axisymmetric family F(Ω) = f(w = Ω²) of the 8×8 system, entire and even in Ω as well.
+    Inputs outside their range (an inadmissible m included) give count −1 with status INVALID (no
+    exception).
     """
     lo, hi = as_float(omega_lo), as_float(omega_hi)
-    ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
+    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
+        ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
+    else:
+        ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
+    m_safe = jnp.where(ok, as_float(m), 0.0) if family == ORDER_M else 0
     ok &= jnp.isfinite(lo) & jnp.isfinite(hi) & (lo >= 0) & (hi > lo)
     lo, hi = jnp.where(ok, lo, 0.0), jnp.where(ok, hi, 1.0)
     wall = discretize(tube, n_layers)
-    delta = default_height(wall, fluid, lo, hi) if height is None else as_float(height)
+    delta = default_height(wall, fluid, lo, hi, family) if height is None else as_float(height)
     ok &= jnp.isfinite(delta) & (delta > 0) & (delta < hi - lo)
     delta = jnp.where(ok, delta, 1.0)
 
     def phasor(z):
-        f = jax.vmap(lambda om: characteristic_on_wall(wall, om, alpha, fluid, order))(z)
+        f = jax.vmap(lambda om: characteristic_on_wall(wall, om, alpha, fluid, order, "taylor",
+                                                       m_safe, family))(z)
         size = jnp.abs(f)
         finite = jnp.isfinite(size)
         return jnp.where(size > 0, f / jnp.where(size > 0, size, 1.0), 0.0), finite
@@ -242,16 +252,17 @@ def count_roots_unchecked(tube, alpha, omega_lo, omega_hi, fluid, n_layers: int,
             jnp.where(ok, status, CountStatus.INVALID).astype(jnp.int32), evals)
 
 
-@cached_jit(static_argnames=("n_layers", "order", "symmetric", "default"))
+@cached_jit(static_argnames=("n_layers", "order", "symmetric", "default", "family"))
 def _count_roots(tube, alpha, omega_lo, omega_hi, fluid, height, max_evaluations, n_layers, order,
-                 symmetric, default):
+                 symmetric, default, m=0.0, family=LONGITUDINAL):
     return count_roots_unchecked(tube, alpha, omega_lo, omega_hi, fluid, n_layers, order,
-                                 None if default else height, max_evaluations, symmetric)
+                                 None if default else height, max_evaluations, symmetric, m, family)
 
 
 def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = None,
                 n_layers: int = 30, height=None, max_evaluations: int = 65536,
-                symmetric: bool = True, scheme: str = "midpoint") -> RootCount:
+                symmetric: bool = True, scheme: str = "midpoint", m=0,
+                torsional: bool = False) -> RootCount:
     """The number of frequencies in (omega_lo, omega_hi), by the argument principle.
 
     Counts the zeros of det(B A S)(Ω), the characteristic function of the ``n_layers`` laminate
@@ -273,6 +284,8 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
             integrates the whole rectangle: twice the cost, the same count).
         scheme: the propagation scheme (static; :func:`jaxdea.frequencies`): the roots counted
             are those of that discretisation.
+        m: circumferential order (int >= 0; :func:`jaxdea.frequencies`): the roots of order m are
+            counted. torsional: the torsional family at m = 0.
 
     Returns:
         :class:`RootCount` (count, status): int32 arrays; count −1 unless status is
@@ -284,7 +297,7 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
     Example:
         >>> count_roots(Tube(), 0.445, 0.5, 3.0)  # RootCount(count=2, status=0)
     """
-    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
+    order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_positive("omega_hi", omega_hi)
     lo, hi = (np.asarray(v, dtype=np.float64) if not isinstance(v, jax.core.Tracer) else None
               for v in (omega_lo, omega_hi))
@@ -299,10 +312,13 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
     if (not isinstance(max_evaluations, (int, np.integer)) or isinstance(max_evaluations, bool)
             or max_evaluations < LANES):
         raise ValueError(f"max_evaluations must be an integer >= {LANES}, got {max_evaluations!r}")
-    tube, alpha, fluid, omega_lo, omega_hi = canonical(tube, alpha, fluid, omega_lo, omega_hi)
+    tube, alpha, fluid, omega_lo, omega_hi, m = canonical(tube, alpha, fluid, omega_lo, omega_hi, m)
     default = height is None
     height = as_float(1.0 if default else height)
-    count, status, _ = _count_roots(tube, alpha, omega_lo, omega_hi, fluid, height,
-                                    jnp.asarray(max_evaluations), laminate(n_layers, scheme), order,
-                                    bool(symmetric), default)
+    args = (tube, alpha, omega_lo, omega_hi, fluid, height, jnp.asarray(max_evaluations),
+            laminate(n_layers, scheme), order, bool(symmetric), default)
+    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
+        count, status, _ = _count_roots(*args)
+    else:
+        count, status, _ = _count_roots(*args, m, family)
     return RootCount(count, status)

@@ -64,9 +64,10 @@ import jax
 import jax.numpy as jnp
 
 from .compiled import cached_jit, serializable
-from .dispersion import characteristic_on_wall, check_inputs
+from .dispersion import characteristic_on_wall, order_m_admissible
 from .params import ALPHA_MIN, Fluid, Tube, as_float, canonical, guard, validate_count, validate_range
-from .roots import Roots, _with_derivatives, scan_roots
+from .roots import Roots, _order_inputs, _with_derivatives, scan_roots
+from .state_matrix import LONGITUDINAL, ORDER_M
 from .scalar import Status, iterate_lanes, lanes_from_slots
 from .transfer import discretize, laminate
 
@@ -145,17 +146,28 @@ def _track(fun, pred, curvature=None):
     return omega, ok, jnp.where(measured, lanes.curvature[:k], jnp.nan)
 
 
-def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order) -> Curve:
-    """The curve for one tube (traceable; the grid ``alpha`` has shape (M,))."""
+def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order, m=0.0,
+                    family=LONGITUDINAL) -> Curve:
+    """The curve for one tube (traceable; the grid ``alpha`` has shape (M,)). ``family`` (static)
+    and ``m`` (traced, ``"order_m"``): the mode family, as in :func:`jaxdea.frequencies`; an
+    inadmissible m gives INVALID everywhere."""
     ok_tube, tube, _, fluid = guard(tube, 1.0, fluid)
+    if family != LONGITUDINAL:
+        ok_tube &= order_m_admissible(m, fluid, family)
+    m_safe = jnp.where(ok_tube, as_float(m), 0.0) if family == ORDER_M else 0.0
     alpha = as_float(alpha)
     ok_alpha = ok_tube & jnp.isfinite(alpha) & (alpha >= ALPHA_MIN)
     wall = discretize(tube, n_layers)
     conservative = fluid is None or fluid.coupling == "acoustic"
     unknown = (jnp.full(n_roots, jnp.nan), jnp.full(n_roots, PRIOR_AGE))  # (K, its age in steps)
 
+    def on_wall(om, a, method="adaptive"):
+        if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
+            return characteristic_on_wall(wall, om, a, fluid, order, method)
+        return characteristic_on_wall(wall, om, a, fluid, order, method, m_safe, family)
+
     def at(a):
-        return lambda om: characteristic_on_wall(wall, om, a, fluid, order, "adaptive")
+        return lambda om: on_wall(om, a)
 
     def tangent(a, omega):
         """dΩ_k/dα̂ = −(∂f/∂α̂)/(∂f/∂Ω) at the roots Ω_k (implicit function theorem): the slope of
@@ -169,8 +181,7 @@ def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order) -> Curve:
         shift = jnp.array([[1.0, -1.0, 0.0, 0.0], [0.0, 0.0, 1.0, -1.0]])[:, :, None]  # Ω±, α̂±
         points_om = jnp.ravel(om + shift[0] * dw)
         points_al = jnp.ravel(a + shift[1] * jnp.full_like(om, da))
-        f = jax.vmap(lambda x, al: characteristic_on_wall(wall, x, al, fluid, order, "adaptive"))(
-            points_om, points_al).reshape(4, -1)
+        f = jax.vmap(on_wall)(points_om, points_al).reshape(4, -1)
         f_omega, f_alpha = (f[0] - f[1]) / (2.0 * dw), (f[2] - f[3]) / (2.0 * da)
         return jnp.where(found, -f_alpha / f_omega, jnp.nan)
 
@@ -214,7 +225,10 @@ def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order) -> Curve:
         hist_alpha, hist_omega, n_hist = carry[:3]
         scan = ok & ~accepted
         def scanned():
-            found = scan_roots(wall, at(a), a, fluid, None, n_roots)
+            if family == LONGITUDINAL:
+                found = scan_roots(wall, at(a), a, fluid, None, n_roots)
+            else:
+                found = scan_roots(wall, at(a), a, fluid, None, n_roots, m_safe, family)
             return found, tangent(a, found.omega)
 
         roots, slope = jax.lax.cond(scan, scanned, lambda: (
@@ -235,11 +249,13 @@ def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order) -> Curve:
     return Curve(alpha, omega, status, scanned)
 
 
-_solve_curve = cached_jit(curve_unchecked, static_argnames=("n_roots", "n_layers", "order"))
+_solve_curve = cached_jit(curve_unchecked,
+                          static_argnames=("n_roots", "n_layers", "order", "family"))
 
 
 def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
-                     n_layers: int = 30, scheme: str = "midpoint") -> Curve:
+                     n_layers: int = 30, scheme: str = "midpoint", m=0,
+                     torsional: bool = False) -> Curve:
     """The ``n_roots`` lowest frequencies at every α̂ of a grid, by certified continuation.
 
     The roots at each α̂ are those of :func:`jaxdea.frequencies` (search range ``omega_max=None``),
@@ -256,6 +272,8 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
         n_roots: K, the number of roots at each α̂ (static).
         n_layers: sublayers N (static).
         scheme: ``"midpoint"``, ``"magnus4"`` or ``"magnus6"`` (static; :func:`jaxdea.frequencies`).
+        m, torsional: circumferential order (int >= 0) and, at m = 0, the torsional family: the
+            roots of that order at every α̂ (:func:`jaxdea.frequencies`).
 
     Returns:
         :class:`Curve` (omega, status of shape (M, K); ``scanned`` says where the scan ran).
@@ -275,11 +293,16 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
     if fluid is not None and fluid.coupling == "paper" and fluid.bessel_order is None:
         raise ValueError("fluid.bessel_order must be set for a dispersion curve with the 'paper' "
                          "coupling (one Bessel order for every α̂ of the curve), got None")
-    order = check_inputs(tube, 1.0, fluid, n_layers, scheme)
+    order, family = _order_inputs(tube, 1.0, fluid, n_layers, scheme, m, torsional)
     n_roots = validate_count("n_roots", n_roots)
-    tube, alpha, fluid = canonical(tube, alpha, fluid)
+    tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
     layers = laminate(n_layers, scheme)
-    curve = _solve_curve(*jax.lax.stop_gradient((tube, alpha, fluid)), n_roots, layers, order)
-    with_derivatives = jax.vmap(lambda w, s, x: _with_derivatives(Roots(w, s), (tube, x, fluid),
-                                                                  layers, order).omega)
+    values = jax.lax.stop_gradient((tube, alpha, fluid))
+    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
+        curve = _solve_curve(*values, n_roots, layers, order)
+    else:
+        curve = _solve_curve(*values, n_roots, layers, order, jax.lax.stop_gradient(m), family)
+    with_derivatives = jax.vmap(lambda w, s, x: _with_derivatives(Roots(w, s), (tube, x, fluid, m),
+                                                                  layers, order, "omega",
+                                                                  family).omega)
     return curve._replace(alpha=alpha, omega=with_derivatives(curve.omega, curve.status, alpha))

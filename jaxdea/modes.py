@@ -26,19 +26,41 @@ import jax.numpy as jnp
 
 from .bessel import coupling_log_factor, coupling_pair
 from .compiled import cached_jit
-from .dispersion import OUTER_ROWS, U, W, check_inputs, initial_basis
+from .dispersion import (
+    OUTER_ROWS,
+    U,
+    W,
+    check_inputs,
+    initial_basis,
+    initial_basis_of_w,
+    mode_family,
+    order_m_admissible,
+    outer_conditions,
+)
 from .params import Fluid, Tube, admissible, as_float, canonical, validate_count, validate_real
-from .state_matrix import state_matrix
+from .state_matrix import LONGITUDINAL, ORDER_M, TORSIONAL, family_matrix, state_matrix
 from .transfer import Wall, discretize, expm_taylor, propagate_basis_history
 
+TORSIONAL_FIELDS = (1, 5)
+"""Where the torsional state [V, Q] sits among the 8 fields [ū, v̄, w̄, Φ, T̄, Q̄, S̄, D̄]."""
 
-def _interface_solution(wall: Wall, omega, alpha, fluid, order):
-    """States Y_k (N+1, 6) at the interfaces r̂_i = r̂_0 < … < r̂_N = r̂_o and the coefficients
-    x (3,) of the initial basis, Y_0 = S x (module docstring, steps 1–2). Unnormalised."""
-    basis = initial_basis(wall, omega, alpha, fluid, order)
-    qs, rs = propagate_basis_history(wall, omega, alpha, basis)
-    # null vector of the outer-face conditions in the last basis, then back through the R factors
-    _, _, vt = jnp.linalg.svd(qs[-1][OUTER_ROWS, :])
+
+def _interface_solution(wall: Wall, omega, alpha, fluid, order, m=0.0, family=LONGITUDINAL):
+    """States Y_k (N+1, n) at the interfaces r̂_i = r̂_0 < … < r̂_N = r̂_o and the coefficients
+    x (k,) of the initial basis, Y_0 = S x (module docstring, steps 1–2). Unnormalised.
+
+    ``family`` (static) and ``m`` (traced, ``"order_m"``): the basis, propagation and outer rows of
+    that family (theory_m.md §4), n × k = 6 × 3, 8 × 4 or 2 × 1."""
+    if family == LONGITUDINAL:
+        basis = initial_basis(wall, omega, alpha, fluid, order)
+        qs, rs = propagate_basis_history(wall, omega, alpha, basis)
+        # null vector of the outer-face conditions in the last basis, then back through the R factors
+        _, _, vt = jnp.linalg.svd(qs[-1][OUTER_ROWS, :])
+    else:
+        w = omega * omega
+        basis = initial_basis_of_w(wall, w, alpha, fluid, order, m, family)
+        qs, rs = propagate_basis_history(wall, omega, alpha, basis, "taylor", m, family)
+        _, _, vt = jnp.linalg.svd(outer_conditions(wall, alpha, m, family) @ qs[-1])
 
     def back(c, r):
         return jax.scipy.linalg.solve_triangular(r, c, lower=False), c
@@ -48,33 +70,42 @@ def _interface_solution(wall: Wall, omega, alpha, fluid, order):
     return states, jax.scipy.linalg.solve_triangular(rs[0], c_0, lower=False)
 
 
-def _wall_fields(wall: Wall, states, omega, alpha, n_points: int, n_layers: int):
-    """Radii (n_points,) from r̂_i to r̂_o and the fields (n_points, 6) there (module docstring,
-    step 3), unnormalised."""
+def _wall_fields(wall: Wall, states, omega, alpha, n_points: int, n_layers: int, m=0.0,
+                 family=LONGITUDINAL):
+    """Radii (n_points,) from r̂_i to r̂_o and the fields (n_points, n) there (module docstring,
+    step 3), unnormalised; the state matrix of ``family`` (order ``m``) in each sublayer."""
     r = jnp.linspace(wall.r_inner, wall.r_outer, n_points)
     layer = jnp.clip(jnp.floor((r - wall.r_inner) / wall.step).astype(int), 0, n_layers - 1)
     start = wall.r_inner + layer * wall.step
     coef = jax.tree_util.tree_map(lambda x: x[layer], wall.coef)
-    mats = jax.vmap(state_matrix, (0, 0, None, None))(coef, wall.radii[layer], omega, alpha)
+    if family == LONGITUDINAL:
+        mats = jax.vmap(state_matrix, (0, 0, None, None))(coef, wall.radii[layer], omega, alpha)
+    else:
+        mats = jax.vmap(lambda c, rad: family_matrix(family, c, rad, omega * omega, alpha, m))(
+            coef, wall.radii[layer])
     return r, jax.vmap(lambda m, d, y: expm_taylor(d * m) @ y)(mats, r - start, states[layer])
 
 
-def _displacement_scale(fields):
-    """The displacement entry (ū or w̄) of largest modulus over the sampled fields (n_points, 6).
+def _displacement_scale(fields, displacements=slice(U, W + 1)):
+    """The displacement entry (ū or w̄) of largest modulus over the sampled fields (n_points, 6)
+    (``displacements``: the columns of the displacements, e.g. ū, v̄, w̄ of order m).
 
     A direction without displacement (below 1e-13 of the largest field: e.g. the electrical
     direction that is least singular at a non-root Ω of a tube at V̂ = 0, where the electrical
     problem decouples) is scaled by its entry of largest modulus instead: finite, never 0/0."""
-    big = jnp.argmax(jnp.max(jnp.abs(fields[:, U:W + 1]), axis=1))
-    comp = jnp.argmax(jnp.abs(fields[big, U:W + 1]))
-    displacement = fields[big, comp]
+    big = jnp.argmax(jnp.max(jnp.abs(fields[:, displacements]), axis=1))
+    comp = jnp.argmax(jnp.abs(fields[big, displacements]))
+    displacement = fields[big, displacements][comp]
     flat = jnp.ravel(fields)
     largest = flat[jnp.argmax(jnp.abs(flat))]
     return jnp.where(jnp.abs(displacement) > 1e-13 * jnp.abs(largest), displacement, largest)
 
 
-def _cavity_pressure(wall: Wall, omega, alpha, fluid: Fluid, c_u, n_points: int):
+def _cavity_pressure(wall: Wall, omega, alpha, fluid: Fluid, c_u, n_points: int, m=None):
     """Radii (n_points,) from 0 to r̂_i and p̂*(r̂) = Ω²ρ̂_f r̂_i c_u · N_0(χ̂²r̂²) e^{g(χ̂²r̂_i²) − g(χ̂²r̂²)}.
+
+    With an order ``m`` (None: the axisymmetric code, order 0): the same with N_m, times
+    (r̂/r̂_i)^m, i.e. p̂*(r̂_i) J_m(χ̂r̂)/J_m(χ̂r̂_i) (N_m ∝ J_m(x)/x^m, theory_m.md §5).
 
     N_0(s) e^{−g(s)} is J_0(sqrt(s)) (s ≥ 0) or I_0(sqrt(−s)) (s < 0) (:func:`coupling_log_factor`),
     and the basis column carries N_0(χ̂²r̂_i²) with its own factor e^{g(χ̂²r̂_i²)}, so this is
@@ -86,26 +117,49 @@ def _cavity_pressure(wall: Wall, omega, alpha, fluid: Fluid, c_u, n_points: int)
     chi2 = (omega / c_f) ** 2 - alpha**2  # χ̂²
     r = jnp.linspace(0.0, ri, n_points)
     s = chi2 * r**2
-    n = jax.vmap(lambda x: coupling_pair(x, 0)[0])(s)
-    ratio = jnp.exp(coupling_log_factor(chi2 * ri**2, 0) - coupling_log_factor(s, 0))
-    return r, omega**2 * rho * ri * c_u * n * ratio
+    if m is None:
+        n = jax.vmap(lambda x: coupling_pair(x, 0)[0])(s)
+        ratio = jnp.exp(coupling_log_factor(chi2 * ri**2, 0) - coupling_log_factor(s, 0))
+        return r, omega**2 * rho * ri * c_u * n * ratio
+    n = jax.vmap(lambda x: coupling_pair(x, m)[0])(s)
+    ratio = jnp.exp(coupling_log_factor(chi2 * ri**2, m) - coupling_log_factor(s, m))
+    return r, omega**2 * rho * ri * c_u * n * ratio * (r / ri) ** m
 
 
-@cached_jit(static_argnames=("n_points", "n_layers", "order"))
-def _solve_mode(tube, alpha, omega, fluid, n_points, n_layers, order):
-    """(r, fields (6, n_points), r_f, p) in the normalisation of :func:`mode_shape`; r_f, p are the
-    cavity radii and acoustic pressure for the ``acoustic`` coupling, None otherwise."""
+@cached_jit(static_argnames=("n_points", "n_layers", "order", "family"))
+def _solve_mode(tube, alpha, omega, fluid, n_points, n_layers, order, m=0.0, family=LONGITUDINAL):
+    """(r, fields (n, n_points), r_f, p) in the normalisation of :func:`mode_shape`; r_f, p are the
+    cavity radii and acoustic pressure for the ``acoustic`` coupling, None otherwise.
+
+    ``family`` (static) ``"longitudinal"``: the 6 fields of theory.md §3 (the axisymmetric code);
+    ``"order_m"`` (traced ``m``) and ``"torsional"``: the 8 fields [ū, v̄, w̄, Φ, T̄, Q̄, S̄, D̄] of
+    theory_m.md §1 (torsional: v̄, Q̄ only, the others 0)."""
     alpha, omega = as_float(alpha), as_float(omega)
     wall = discretize(tube, n_layers)
-    states, coefficients = _interface_solution(wall, omega, alpha, fluid, order)
-    r, fields = _wall_fields(wall, states, omega, alpha, n_points, n_layers)
-    scale = _displacement_scale(fields)
+    if family == LONGITUDINAL:
+        states, coefficients = _interface_solution(wall, omega, alpha, fluid, order)
+        r, fields = _wall_fields(wall, states, omega, alpha, n_points, n_layers)
+        scale = _displacement_scale(fields)
+        order_ok = True
+    else:
+        order_ok = order_m_admissible(m, fluid, family)
+        m = jnp.where(order_ok, as_float(m), 0.0) if family == ORDER_M else 0.0
+        states, coefficients = _interface_solution(wall, omega, alpha, fluid, order, m, family)
+        r, fields = _wall_fields(wall, states, omega, alpha, n_points, n_layers, m, family)
+        if family == TORSIONAL:  # [V, Q] into the 8 fields
+            fields = jnp.zeros((n_points, 8), fields.dtype).at[:, jnp.array(TORSIONAL_FIELDS)].set(fields)
+        scale = _displacement_scale(fields, slice(0, 3))
     r_f = p = None
     if fluid is not None and fluid.coupling == "acoustic":
-        r_f, p = _cavity_pressure(wall, omega, alpha, fluid, coefficients[0], n_points)
+        if family == LONGITUDINAL:
+            r_f, p = _cavity_pressure(wall, omega, alpha, fluid, coefficients[0], n_points)
+        elif family == ORDER_M:
+            r_f, p = _cavity_pressure(wall, omega, alpha, fluid, coefficients[0], n_points, m)
+        else:  # an inviscid fluid exerts no shear: a torsional mode leaves it at rest
+            r_f, p = jnp.linspace(0.0, wall.r_inner, n_points), jnp.zeros(n_points)
         p = p / scale
     # traced inputs outside their range give NaN (concrete ones were validated by the callers)
-    ok = admissible(tube, alpha, fluid) & jnp.isfinite(omega)
+    ok = admissible(tube, alpha, fluid) & jnp.isfinite(omega) & order_ok
     nan = lambda x: None if x is None else jnp.where(ok, x, jnp.nan)  # noqa: E731
     return nan(r), nan((fields / scale).T), nan(r_f), nan(p)
 
@@ -117,9 +171,22 @@ def _check_mode_arguments(omega, n_points) -> None:
     validate_count("n_points", n_points)
 
 
+def _solve(tube, alpha, omega, fluid, n_points, n_layers, m, torsional):
+    """Validate, then :func:`_solve_mode` (the axisymmetric program unchanged for m = 0)."""
+    order = check_inputs(tube, alpha, fluid, n_layers)
+    family = mode_family(m, torsional, fluid)
+    _check_mode_arguments(omega, n_points)
+    tube, alpha, omega, fluid, m = canonical(tube, alpha, omega, fluid, m)
+    if family == LONGITUDINAL:
+        return _solve_mode(tube, alpha, omega, fluid, int(n_points), int(n_layers), order)
+    return _solve_mode(tube, alpha, omega, fluid, int(n_points), int(n_layers), order,
+                       as_float(m), family)
+
+
 def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: int = 64,
-               n_layers: int = 30):
-    """The state fields [ū, w̄, Φ, T̄, S̄, D̄] across the wall for the root ``omega``.
+               n_layers: int = 30, m=0, torsional: bool = False):
+    """The state fields [ū, w̄, Φ, T̄, S̄, D̄] across the wall for the root ``omega``
+    ([ū, v̄, w̄, Φ, T̄, Q̄, S̄, D̄] for order m ≥ 1, a traced m or ``torsional=True``).
 
     Y = [ū, w̄, Φ, T̄, S̄, D̄] is the state of theory.md §3 (u_r = R_i ū cos αz, u_z = R_i w̄ sin αz,
     Ṫ_rr = μ T̄ cos αz, …). The null vector of the outer-face conditions (theory.md §4) is carried
@@ -132,6 +199,12 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
     conditions (they then violate them); one without displacement (at V̂ = 0 the electrical
     problem decouples) is scaled so that its entry of largest modulus is +1.
 
+    Circumferential order m (theory_m.md §1): u_r = R_i ū cos mθ cos αz, u_θ = R_i v̄ sin mθ cos αz,
+    u_z = R_i w̄ cos mθ sin αz, Ṫ_rθ = μ Q̄ sin mθ cos αz, the others as for m = 0; the 8 fields
+    are scaled so that max(|ū|, |v̄|, |w̄|) = 1. ``torsional=True`` (m = 0): the torsional mode
+    (u_θ alone), as 8 fields with only v̄ and Q̄ non-zero. A traced m (e.g. under ``vmap``) gives
+    8 fields at every m (at m = 0 the longitudinal mode with v̄ = Q̄ = 0).
+
     Args:
         tube: the :class:`~jaxdea.Tube`.
         alpha: α̂ = α R_i > 0.
@@ -141,27 +214,31 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
         n_layers: number of sublayers N of the midpoint laminate (static; use the value the root
             was found with; for a root from a Magnus scheme, an N whose laminate resolves the
             shape: the fields inside a sublayer need the midpoint exponential).
+        m: circumferential order, an integer ≥ 0 (the order the root was found with).
+        torsional: with m = 0, the torsional family (static).
 
     Returns:
-        (r, fields): radii r̂ (n_points,) from r̂_i to r̂_o and fields (6, n_points).
+        (r, fields): radii r̂ (n_points,) from r̂_i to r̂_o and fields (6, n_points) for m = 0
+        (longitudinal), (8, n_points) otherwise.
 
     Raises:
-        ValueError: for invalid concrete inputs, naming the parameter.
+        ValueError: for invalid concrete inputs, naming the parameter (m not an integer ≥ 0,
+            ``torsional=True`` with m ≥ 1, the ``"paper"`` coupling with m ≥ 1).
 
     Example:
         >>> import jaxdea as jd
         >>> tube = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
         >>> omega = jd.frequencies(tube, 0.445)[0]
         >>> r, (u, w, phi, t, s, d) = jd.mode_shape(tube, 0.445, omega)
+        >>> omega2 = jd.frequencies(tube, 0.445, m=2)[0]
+        >>> r, (u, v, w, phi, t, q, s, d) = jd.mode_shape(tube, 0.445, omega2, m=2)
     """
-    order = check_inputs(tube, alpha, fluid, n_layers)
-    _check_mode_arguments(omega, n_points)
-    tube, alpha, omega, fluid = canonical(tube, alpha, omega, fluid)
-    r, fields, _, _ = _solve_mode(tube, alpha, omega, fluid, int(n_points), int(n_layers), order)
+    r, fields, _, _ = _solve(tube, alpha, omega, fluid, n_points, n_layers, m, torsional)
     return r, fields
 
 
-def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64, n_layers: int = 30):
+def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64, n_layers: int = 30,
+                   m=0):
     """The acoustic excess pressure p̂*(r̂) in the cavity for the root ``omega`` (theory.md §4(c)).
 
     The fluid field of the consistent acoustic coupling, p* = μ p̂*(r̂) cos αz with
@@ -179,6 +256,10 @@ def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64, n
     In SI units the pressure is μ p̂* per unit of the displacement scale R_i (see
     :mod:`jaxdea.units`): a mode with largest displacement δ has pressure μ (δ/R_i) p̂*.
 
+    Order m (theory_m.md §5): p* = μ p̂*(r̂) cos mθ cos αz with p̂*(r̂) = A J_m(χ̂ r̂) (A I_m(χ̃ r̂)
+    when χ̂² < 0), p̂*(r̂_i) = Ω²ρ̂_f B̂_m ū_i, in the normalisation of ``mode_shape(..., m=m)``;
+    computed as p̂*(r̂_i) J_m(χ̂r̂)/J_m(χ̂r̂_i) without that division (0 on the axis for m ≥ 1).
+
     Args:
         tube: the :class:`~jaxdea.Tube`.
         alpha: α̂ = α R_i > 0.
@@ -186,6 +267,7 @@ def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64, n
         fluid: a :class:`~jaxdea.Fluid` with ``coupling="acoustic"``.
         n_points: number of radii sampled in the cavity and across the wall (static).
         n_layers: number of sublayers N (static; use the value the root was found with).
+        m: circumferential order, an integer ≥ 0 (the order the root was found with).
 
     Returns:
         (r, p): radii r̂ (n_points,) from 0 (the axis) to r̂_i and p̂*(r̂) (n_points,).
@@ -209,8 +291,5 @@ def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64, n
             "coupling='paper' has no fluid pressure field: the paper's model (theory.md §4(b)) loads the "
             "inner face with an Ω-dependent follower pressure P̂_f only; use coupling='acoustic'"
         )
-    order = check_inputs(tube, alpha, fluid, n_layers)
-    _check_mode_arguments(omega, n_points)
-    tube, alpha, omega, fluid = canonical(tube, alpha, omega, fluid)
-    _, _, r, p = _solve_mode(tube, alpha, omega, fluid, int(n_points), int(n_layers), order)
+    _, _, r, p = _solve(tube, alpha, omega, fluid, n_points, n_layers, m, False)
     return r, p

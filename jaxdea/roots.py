@@ -32,7 +32,14 @@ import numpy as np
 
 from .base_state import voltage_limit
 from .compiled import cached_jit, jit, serializable
-from .dispersion import characteristic_on_wall, check_inputs
+from .dispersion import (
+    characteristic_of_w,
+    characteristic_on_wall,
+    check_inputs,
+    mode_family,
+    order_m_admissible,
+    problem_function,
+)
 from .params import (
     Fluid,
     Tube,
@@ -56,6 +63,7 @@ from .scalar import (
     start_lanes,
     value_and_slope,
 )
+from .state_matrix import LONGITUDINAL, ORDER_M
 from .transfer import Wall, discretize, laminate, voltage_expansion, wall_at_voltage
 
 CHUNK = 32  # points per scan chunk: 64 cost twice the work where one chunk holds the roots
@@ -74,10 +82,17 @@ class Roots(NamedTuple):
     status: jax.Array
 
 
-def scan_step(wall: Wall, fluid: Fluid | None):
+def _slowest_shear(coef, family):
+    """c_min² over the wall: the shear moduli c − εd² and a, and e = 2W_1λ² off the axisymmetric
+    family (θ-shear, theory_m.md §2)."""
+    shear = jnp.minimum(coef.c - coef.eps * coef.d**2, coef.a)
+    return jnp.min(shear if family == LONGITUDINAL else jnp.minimum(shear, coef.e))
+
+
+def scan_step(wall: Wall, fluid: Fluid | None, family: str = LONGITUDINAL):
     """Scan step Δ = min(π c_min/ĥ, π ĉ_f/r̂_i)/16 (a sixteenth of the shortest oscillation of f)."""
     coef = wall.coef
-    c_min = jnp.sqrt(jnp.min(jnp.minimum(coef.c - coef.eps * coef.d**2, coef.a)))
+    c_min = jnp.sqrt(_slowest_shear(coef, family))
     thickness = wall.thickness
     scale = np.pi * c_min / thickness
     if fluid is not None:
@@ -85,7 +100,7 @@ def scan_step(wall: Wall, fluid: Fluid | None):
     return scale / STEPS_PER_OSCILLATION
 
 
-def cutoff_steps(wall: Wall, alpha, fluid: Fluid | None, step):
+def cutoff_steps(wall: Wall, alpha, fluid: Fluid | None, step, family: str = LONGITUDINAL):
     """next(x): the grid point after x, at most Δ = ``step`` beyond it and denser near the cutoffs.
 
     Above a cutoff Ω_c = c_z α̂ (c_z = sqrt(a), the speed of shear waves along z, between its
@@ -97,7 +112,7 @@ def cutoff_steps(wall: Wall, alpha, fluid: Fluid | None, step):
     oscillation far above the cutoff).
     """
     coef = wall.coef
-    c_min = jnp.sqrt(jnp.min(jnp.minimum(coef.c - coef.eps * coef.d**2, coef.a)))
+    c_min = jnp.sqrt(_slowest_shear(coef, family))
     c_z = jnp.sqrt(coef.a)
     cut = [jnp.min(c_z) * alpha, jnp.max(c_z) * alpha]
     speed = [c_min, c_min]
@@ -118,12 +133,14 @@ def cutoff_steps(wall: Wall, alpha, fluid: Fluid | None, step):
     return next_point
 
 
-def default_omega_max(wall: Wall, alpha, n_roots: int):
-    """Search limit when none is given: (n_roots + 1) thickness-mode spacings plus 3α̂ c_max."""
+def default_omega_max(wall: Wall, alpha, n_roots: int, m=0.0):
+    """Search limit when none is given: (n_roots + 1) thickness-mode spacings plus 3α̂ c_max, plus
+    3 m c_max/r̂_i at order m (the circumferential wavenumber m/r̂ adds like α̂)."""
     coef = wall.coef
     c_max = jnp.sqrt(jnp.max(jnp.maximum(jnp.maximum(coef.a, coef.b), coef.c)))
     thickness = wall.thickness
-    return (n_roots + 1) * np.pi * c_max / thickness + 3.0 * alpha * c_max
+    return ((n_roots + 1) * np.pi * c_max / thickness + 3.0 * alpha * c_max
+            + 3.0 * as_float(m) * c_max / wall.r_inner)
 
 
 def _head(step):
@@ -311,58 +328,75 @@ def _first_root(fun, step, end, rtol=1e-13, max_rounds=1000) -> Roots:
     return Roots(jnp.where(status == Status.CONVERGED, root, jnp.nan), status.astype(jnp.int32))
 
 
-def _residual(x, tube, alpha, fluid, n_layers, order, unknown, method="taylor"):
+def _residual(x, tube, alpha, fluid, m, n_layers, order, unknown, family=LONGITUDINAL,
+              method="taylor"):
     """The characteristic function as a function of the unknown x and of every parameter:
-    unknown = "omega": f(Ω = x); "voltage": f(Ω = 0; V̂ = x). ``method="adaptive"`` for the
-    solvers (same values, forward mode only), the default for derivatives of any order."""
+    unknown = "omega": f(Ω = x); "voltage": f(Ω = 0; V̂ = x), fluid-free off the axisymmetric
+    family (κ ∝ Ω² vanishes there, theory_m.md §6). ``family`` static, the order ``m`` a parameter.
+    ``method="adaptive"`` for the solvers (same values, forward mode only), the default for
+    derivatives of any order."""
     if unknown == "voltage":
         wall = discretize(tube.replace(voltage=x), n_layers)
-        return characteristic_on_wall(wall, jnp.zeros_like(x), alpha, fluid, order, method)
-    return characteristic_on_wall(discretize(tube, n_layers), x, alpha, fluid, order, method)
+        if family == LONGITUDINAL:
+            return characteristic_on_wall(wall, jnp.zeros_like(x), alpha, fluid, order, method)
+        return characteristic_of_w(wall, jnp.zeros_like(x), alpha, None, order, method, m, family)
+    wall = discretize(tube, n_layers)
+    if family == LONGITUDINAL:
+        return characteristic_on_wall(wall, x, alpha, fluid, order, method)
+    if unknown == "growth":  # f at Ω = i s: Ω² = −s²
+        return characteristic_of_w(wall, -x * x, alpha, fluid, order, method, m, family)
+    return characteristic_of_w(wall, x * x, alpha, fluid, order, method, m, family)
 
 
-@jit(static_argnames=("n_layers", "order", "unknown"))
-def _root_tangent(x, params, dparams, n_layers, order, unknown):
+@jit(static_argnames=("n_layers", "order", "unknown", "family"))
+def _root_tangent(x, params, dparams, n_layers, order, unknown, family):
     """ẋ = −(∂f/∂θ · θ̇)/(∂f/∂x) at a root x (implicit function theorem), vectorised over roots."""
     def one(x):
-        f = lambda y, p: _residual(y, *p, n_layers, order, unknown)  # noqa: E731
+        # a NaN root (padding, a failed solve) gets a zero tangent, not NaN: under reverse mode a
+        # NaN coefficient would spoil the cotangent of every other root (0 · NaN = NaN)
+        found = jnp.isfinite(x)
+        x = jnp.where(found, x, 1.0)
+        f = lambda y, p: _residual(y, *p, n_layers, order, unknown, family)  # noqa: E731
         f_x = value_and_slope(lambda y: f(y, params), x)[1]
         _, f_dot = jax.jvp(lambda p: f(x, p), (params,), (dparams,))
-        return -f_dot / f_x
+        return jnp.where(found, -f_dot / jnp.where(found, f_x, 1.0), 0.0)
 
     return jax.vmap(one)(x) if jnp.ndim(x) else one(x)
 
 
-@functools.partial(jax.custom_jvp, nondiff_argnums=(2, 3, 4))
-def _implicit(x, params, n_layers, order, unknown):
+@functools.partial(jax.custom_jvp, nondiff_argnums=(2, 3, 4, 5))
+def _implicit(x, params, n_layers, order, unknown, family):
     """Roots x (computed without derivatives) with implicit-function derivatives attached.
 
     The solver is compiled once, for values only; differentiating recompiles only f and its
     derivatives (:func:`_root_tangent`), never the iterations."""
-    del params, n_layers, order, unknown
+    del params, n_layers, order, unknown, family
     return x
 
 
 @_implicit.defjvp
-def _implicit_jvp(n_layers, order, unknown, primals, tangents):
+def _implicit_jvp(n_layers, order, unknown, family, primals, tangents):
     x, params = primals
     _, dparams = tangents
     # the root re-attached to its parameters: differentiating this rule again (second and higher
     # derivatives) then sees dx/dθ too, not only the explicit dependence of f on θ at a fixed x
-    x = _implicit(x, params, n_layers, order, unknown)
-    return x, _root_tangent(x, params, dparams, n_layers, order, unknown)
+    x = _implicit(x, params, n_layers, order, unknown, family)
+    return x, _root_tangent(x, params, dparams, n_layers, order, unknown, family)
 
 
-def _with_derivatives(roots: Roots, params, n_layers, order, unknown="omega") -> Roots:
-    omega = _implicit(jax.lax.stop_gradient(roots.omega), params, n_layers, order, unknown)
+def _with_derivatives(roots: Roots, params, n_layers, order, unknown="omega",
+                      family=LONGITUDINAL) -> Roots:
+    """``roots`` with implicit derivatives with respect to ``params`` = (tube, α̂, fluid[, m])."""
+    if len(params) == 3:
+        params = (*params, 0.0)
+    omega = _implicit(jax.lax.stop_gradient(roots.omega), params, n_layers, order, unknown, family)
     return Roots(omega, roots.status)
 
 
-def _problem(tube, alpha, fluid, n_layers, order):
+def _problem(tube, alpha, fluid, n_layers, order, m=0.0, family=LONGITUDINAL):
     """(wall, f) with f(Ω) the characteristic function of one case, for the solvers (values and
-    forward-mode slopes: the adaptive exponential)."""
-    wall = discretize(tube, n_layers)
-    return wall, lambda om: characteristic_on_wall(wall, om, alpha, fluid, order, "adaptive")
+    forward-mode slopes: the adaptive exponential); :func:`jaxdea.dispersion.problem_function`."""
+    return problem_function(tube, alpha, fluid, n_layers, order, m, family)
 
 
 def invalid_where(ok, roots: Roots) -> Roots:
@@ -371,46 +405,131 @@ def invalid_where(ok, roots: Roots) -> Roots:
                  jnp.where(ok, roots.status, Status.INVALID).astype(jnp.int32))
 
 
-def scan_roots(wall: Wall, fun, alpha, fluid, omega_max, n_roots: int) -> Roots:
+def scan_roots(wall: Wall, fun, alpha, fluid, omega_max, n_roots: int, m=0.0,
+               family=LONGITUDINAL) -> Roots:
     """The ``n_roots`` lowest roots of ``fun`` in (0, omega_max] (None: :func:`default_omega_max`)
     by the guaranteed scan on ``wall``; INVALID where the search limit is not finite and > 0."""
-    end = default_omega_max(wall, alpha, n_roots) if omega_max is None else as_float(omega_max)
+    end = default_omega_max(wall, alpha, n_roots, m) if omega_max is None else as_float(omega_max)
     ok = jnp.isfinite(end) & (end > 0)
-    step = jnp.minimum(scan_step(wall, fluid), end / CHUNK)
+    step = jnp.minimum(scan_step(wall, fluid, family), end / CHUNK)
     return invalid_where(ok, _scan_for_roots(fun, step, end, n_roots,
-                                             cutoff_steps(wall, alpha, fluid, step)))
+                                             cutoff_steps(wall, alpha, fluid, step, family)))
 
 
-def frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, order) -> Roots:
-    """The ``n_roots`` lowest roots for one case (traceable; ``order`` may be traced)."""
+def _guard_order(tube, alpha, fluid, m, family):
+    """:func:`~jaxdea.params.guard` and, off the axisymmetric family, an admissible traced m."""
     ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
-    wall, fun = _problem(tube, alpha, fluid, n_layers, order)
-    return invalid_where(ok, scan_roots(wall, fun, alpha, fluid, omega_max, n_roots))
+    return ok & order_m_admissible(m, fluid, family), tube, alpha, fluid
 
 
-_solve_frequencies = cached_jit(frequencies_unchecked, static_argnames=("n_roots", "n_layers", "order"))
+def frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, order, m=0.0,
+                          family=LONGITUDINAL) -> Roots:
+    """The ``n_roots`` lowest roots for one case (traceable; ``order`` static, ``m`` traced)."""
+    ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
+    wall, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
+    return invalid_where(ok, scan_roots(wall, fun, alpha, fluid, omega_max, n_roots, m, family))
+
+
+_solve_frequencies = cached_jit(frequencies_unchecked,
+                                static_argnames=("n_roots", "n_layers", "order", "family"))
+
+
+def growth_rates_unchecked(tube, alpha, fluid, s_max, n_roots, n_layers, order, m=0.0,
+                           family=LONGITUDINAL) -> Roots:
+    """The growth rates s = √(−Ω²) > 0 of one case, largest first (traceable): the roots of
+    f(Ω² = −s²) in (0, s_max] by the same guaranteed scan as the frequencies (f is entire in Ω²,
+    theory_m.md §6), reversed; NaN-padded at the end."""
+    ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
+    wall, of_w = problem_function(tube, alpha, fluid, n_layers, order, m, _growth_family(family),
+                                  "omega_squared")
+
+    def fun(s):
+        return of_w(-s * s)
+
+    end = default_omega_max(wall, alpha, n_roots, m) if s_max is None else as_float(s_max)
+    ok &= jnp.isfinite(end) & (end > 0)
+    step = jnp.minimum(scan_step(wall, fluid, ORDER_M), end / CHUNK)
+    found = _scan_for_roots(fun, step, end, n_roots)
+    order_desc = jnp.argsort(jnp.where(jnp.isnan(found.omega), jnp.inf, -found.omega))
+    return invalid_where(ok, Roots(found.omega[order_desc], found.status[order_desc]))
+
+
+_solve_growth_rates = cached_jit(growth_rates_unchecked,
+                                 static_argnames=("n_roots", "n_layers", "order", "family"))
+
+
+def _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional):
+    """Validate the public inputs with the order: (Bessel order, family)."""
+    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
+    return order, mode_family(m, torsional, fluid)
+
+
+def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3, m=0,
+                 torsional: bool = False, s_max=None, n_layers: int = 30,
+                 scheme: str = "midpoint"):
+    """Growth rates s = √(−Ω²) of the unstable modes of order m at α̂, largest first, NaN-padded.
+
+    An unstable state has modes with Ω² < 0 (e^{st} growth, s > 0): zeros of the characteristic
+    function continued to Ω² = −s² (entire in Ω², theory_m.md §6), found by the guaranteed scan of
+    :func:`frequencies` in s ∈ (0, s_max] (None: the frequencies' automatic limit). All NaN for a
+    state that is stable at (m, α̂). :func:`frequencies` keeps returning the positive real roots
+    only: past an instability its lowest root is the second branch, so check ``growth_rates`` (or
+    :func:`first_instability`) before reading ``frequencies(...)[0]`` as the fundamental.
+    Derivatives are implicit (ds/dθ).
+
+    Args:
+        tube, alpha, fluid, n_layers, scheme: as in :func:`frequencies`.
+        n_roots: how many of the lowest-|Ω²| unstable modes to look for (static).
+        m: circumferential order (int >= 0). torsional: the torsional family at m = 0.
+        s_max: upper end of the search in s (None: automatic).
+
+    Example:
+        >>> growth_rates(Tube(voltage=0.1, lambda_i=0.95, lambda_z=1.2), 0.445, m=2)  # ≈ [0.7466, nan, nan]
+    """
+    order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    n_roots = validate_count("n_roots", n_roots)
+    if s_max is not None:
+        validate_positive("s_max", s_max)
+    tube, alpha, fluid, s_max, m = canonical(tube, alpha, fluid, s_max, m)
+    layers = laminate(n_layers, scheme)
+    roots = _solve_growth_rates(*jax.lax.stop_gradient((tube, alpha, fluid, s_max)), n_roots, layers,
+                                order, jax.lax.stop_gradient(m), family)
+    return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "growth",
+                             _growth_family(family)).omega
+
+
+def _growth_family(family):
+    """The family scanned for growth rates: the axisymmetric one in Ω² through the 8×8 path at m = 0
+    (the 6×6 path is written in Ω)."""
+    return ORDER_M if family == LONGITUDINAL else family
 
 
 def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
-                      omega_max=None, n_layers: int = 30, scheme: str = "midpoint") -> Roots:
+                      omega_max=None, n_layers: int = 30, scheme: str = "midpoint", m=0,
+                      torsional: bool = False) -> Roots:
     """The ``n_roots`` lowest roots in (0, omega_max] with a status per root (module docstring).
 
     Returns:
         :class:`Roots` (omega ascending, NaN-padded; status CONVERGED, NO_ROOT or NOT_FINITE).
     """
-    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
+    order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     n_roots = validate_count("n_roots", n_roots)
     if omega_max is not None:
         validate_positive("omega_max", omega_max)
-    tube, alpha, fluid, omega_max = canonical(tube, alpha, fluid, omega_max)
+    tube, alpha, fluid, omega_max, m = canonical(tube, alpha, fluid, omega_max, m)
     layers = laminate(n_layers, scheme)
-    roots = _solve_frequencies(*jax.lax.stop_gradient((tube, alpha, fluid, omega_max)),
-                               n_roots, layers, order)
-    return _with_derivatives(roots, (tube, alpha, fluid), layers, order)
+    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
+        roots = _solve_frequencies(*jax.lax.stop_gradient((tube, alpha, fluid, omega_max)),
+                                   n_roots, layers, order)
+    else:
+        roots = _solve_frequencies(*jax.lax.stop_gradient((tube, alpha, fluid, omega_max)),
+                                   n_roots, layers, order, jax.lax.stop_gradient(m), family)
+    return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "omega", family)
 
 
 def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
-                omega_max=None, n_layers: int = 30, scheme: str = "midpoint"):
+                omega_max=None, n_layers: int = 30, scheme: str = "midpoint", m=0,
+                torsional: bool = False):
     """The ``n_roots`` lowest frequencies Ω in (0, omega_max], ascending, NaN-padded.
 
     Every root in the range is found, including close pairs and roots near Ω = 0 (scan with Hermite
@@ -427,12 +546,22 @@ def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
         n_layers: sublayers N (static; laminate error O(N⁻²)).
         scheme: ``"midpoint"`` (the laminate), ``"magnus4"`` or ``"magnus6"`` (errors O(N⁻⁴),
             O(N⁻⁶); static, see :mod:`jaxdea.transfer`).
+        m: circumferential order (int >= 0; theory_m.md): 0 the axisymmetric longitudinal modes,
+            1 bending, 2, 3, … ovalisation and higher ring modes. May be traced (one program
+            for every m >= 1 or a traced m).
+        torsional: at m = 0, the torsional family (u_θ alone) instead of the longitudinal one.
+
+    Only positive real roots are returned: an unstable state (Ω² < 0 at this (m, α̂), e.g. m = 2
+    buckling under voltage) has its lowest mode in :func:`growth_rates` instead, and ``[0]`` is
+    then the second branch. :func:`first_instability` gives the voltage where that begins.
 
     Example:
         >>> frequencies(Tube(eta=0.85), 0.445, n_roots=3)  # ≈ [0.745, 1.910, 17.844]
         >>> frequencies(Tube(eta=0.85), 0.445, n_layers=6, scheme="magnus6")  # the wall to ≈ 1e-9
+        >>> frequencies(Tube(eta=0.85), 0.445, m=2)  # ovalisation modes
     """
-    return solve_frequencies(tube, alpha, fluid, n_roots, omega_max, n_layers, scheme).omega
+    return solve_frequencies(tube, alpha, fluid, n_roots, omega_max, n_layers, scheme, m,
+                             torsional).omega
 
 
 def _newton_from_guess(fun, guess, max_step):
@@ -446,29 +575,35 @@ def _newton_from_guess(fun, guess, max_step):
     return roots[0], status[0]
 
 
-@cached_jit(static_argnames=("n_layers", "order"))
-def _solve_frequency(tube, alpha, guess, fluid, n_layers, order):
-    ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
+@cached_jit(static_argnames=("n_layers", "order", "family"))
+def _solve_frequency(tube, alpha, guess, fluid, n_layers, order, m=0.0, family=LONGITUDINAL):
+    ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
     guess = as_float(guess)
     ok &= jnp.isfinite(guess) & (guess > 0)
-    wall, fun = _problem(tube, alpha, fluid, n_layers, order)
+    wall, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
     guess = jnp.where(ok, guess, 1.0)
-    return invalid_where(ok, Roots(*_newton_from_guess(fun, guess, 4.0 * scan_step(wall, fluid))))
+    return invalid_where(ok, Roots(*_newton_from_guess(fun, guess,
+                                                       4.0 * scan_step(wall, fluid, family))))
 
 
 def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
-                    n_layers: int = 30, scheme: str = "midpoint") -> Roots:
+                    n_layers: int = 30, scheme: str = "midpoint", m=0,
+                    torsional: bool = False) -> Roots:
     """The root reached by safeguarded Newton from ``guess``, with its status (scalar Roots)."""
-    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
+    order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_positive("guess", guess)
-    tube, alpha, guess, fluid = canonical(tube, alpha, guess, fluid)
+    tube, alpha, guess, fluid, m = canonical(tube, alpha, guess, fluid, m)
     layers = laminate(n_layers, scheme)
-    roots = _solve_frequency(*jax.lax.stop_gradient((tube, alpha, guess, fluid)), layers, order)
-    return _with_derivatives(roots, (tube, alpha, fluid), layers, order)
+    values = jax.lax.stop_gradient((tube, alpha, guess, fluid))
+    if family == LONGITUDINAL:
+        roots = _solve_frequency(*values, layers, order)
+    else:
+        roots = _solve_frequency(*values, layers, order, jax.lax.stop_gradient(m), family)
+    return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "omega", family)
 
 
 def frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, n_layers: int = 30,
-              scheme: str = "midpoint"):
+              scheme: str = "midpoint", m=0, torsional: bool = False):
     """The root Ω reached by safeguarded Newton from ``guess``, with implicit derivatives.
 
     ``jax.grad``/``jax.jacfwd`` with respect to any Tube/Fluid leaf, α̂ and the ``h_over_Ri`` of
@@ -479,11 +614,11 @@ def frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, n_layers: in
     Example:
         >>> jax.grad(lambda v: frequency(Tube(voltage=v), 0.445, 0.7))(0.1)
     """
-    return solve_frequency(tube, alpha, guess, fluid, n_layers, scheme).omega
+    return solve_frequency(tube, alpha, guess, fluid, n_layers, scheme, m, torsional).omega
 
 
 def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: int = 30,
-                   scheme: str = "midpoint"):
+                   scheme: str = "midpoint", m=0, torsional: bool = False):
     """dΩ/dα̂ on the branch through the root ``omega``: −(∂f/∂α̂)/(∂f/∂Ω) (implicit function theorem).
 
     ``omega`` should be a root (e.g. from :func:`frequencies`); the formula is exact for the
@@ -497,42 +632,55 @@ def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layer
         fluid: a :class:`~jaxdea.Fluid`, or None for the empty tube.
         n_layers: number of sublayers N (static; use the value the root was found with).
         scheme: the propagation scheme the root was found with (:func:`frequencies`).
+        m, torsional: the order the root was found with (:func:`frequencies`).
 
     Raises:
         ValueError: for invalid concrete inputs, naming the parameter. Traced invalid inputs give
             NaN.
     """
-    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
+    order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_range("omega", omega, "a finite real number > 0 (a root of the characteristic function)",
                    lambda v: v > 0)
-    tube, alpha, omega, fluid = canonical(tube, alpha, omega, fluid)
-    return _group_velocity(tube, alpha, omega, fluid, laminate(n_layers, scheme), order)
+    tube, alpha, omega, fluid, m = canonical(tube, alpha, omega, fluid, m)
+    if family == LONGITUDINAL:
+        return _group_velocity(tube, alpha, omega, fluid, laminate(n_layers, scheme), order)
+    return _group_velocity(tube, alpha, omega, fluid, laminate(n_layers, scheme), order, m, family)
 
 
-@cached_jit(static_argnames=("n_layers", "order"))
-def _group_velocity(tube, alpha, omega, fluid, n_layers, order):
-    ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
+@cached_jit(static_argnames=("n_layers", "order", "family"))
+def _group_velocity(tube, alpha, omega, fluid, n_layers, order, m=0.0, family=LONGITUDINAL):
+    ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
     omega = as_float(omega)
     ok &= jnp.isfinite(omega) & (omega > 0)
     omega = jnp.where(ok, omega, 1.0)
-    wall = discretize(tube, n_layers)
-    f = lambda om, al: characteristic_on_wall(wall, om, al, fluid, order)  # noqa: E731
+    if family == LONGITUDINAL:
+        wall = discretize(tube, n_layers)
+        f = lambda om, al: characteristic_on_wall(wall, om, al, fluid, order)  # noqa: E731
+    else:
+        f = lambda om, al: _residual(om, tube, al, fluid, m, n_layers, order, "omega",  # noqa: E731
+                                     family)
     f_omega, f_alpha = jax.grad(f, argnums=(0, 1))(omega, alpha)
     return jnp.where(ok, -f_alpha / f_omega, jnp.nan)
 
 
 def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
-                           n_layers: int = 30, scheme: str = "midpoint"):
+                           n_layers: int = 30, scheme: str = "midpoint", m=0,
+                           torsional: bool = False):
     """(V̂_cr, status): the smallest V̂ > 0 with f(Ω = 0; V̂) = 0 (see :func:`critical_voltage`)."""
-    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
-    tube, alpha, fluid = canonical(tube, alpha, fluid)
+    order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
     layers = laminate(n_layers, scheme)
-    roots = Roots(*_solve_critical_voltage(*jax.lax.stop_gradient((tube, alpha, fluid)), layers,
-                                           order))
-    return _with_derivatives(roots, (tube, alpha, fluid), layers, order, "voltage")
+    values = jax.lax.stop_gradient((tube, alpha, fluid))
+    if family == LONGITUDINAL:
+        roots = Roots(*_solve_critical_voltage(*values, layers, order))
+    else:
+        roots = Roots(*_solve_critical_voltage(*values, layers, order, m=jax.lax.stop_gradient(m),
+                                               family=family))
+    return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "voltage", family)
 
 
-def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=128, v_end=None):
+def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=128, v_end=None, m=0.0,
+                               family=LONGITUDINAL):
     """(V̂_cr, status) for one case (traceable); see :func:`critical_voltage`.
 
     :func:`_first_root` over (0, V̂_lim] with step V̂_lim/``n_grid``: the chunked scan with Hermite
@@ -544,14 +692,19 @@ def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=128, 
     :func:`voltage_limit` (values only: about 0.25 s of the first call's compilation, measured); a
     root above ``v_end`` is reported as NO_ROOT.
     """
-    ok, tube, alpha, fluid = guard(tube.replace(voltage=0.0), as_float(alpha), fluid)
+    ok, tube, alpha, fluid = _guard_order(tube.replace(voltage=0.0), alpha, fluid, m, family)
     v_end = voltage_limit(tube) if v_end is None else as_float(v_end)
 
     expansion = voltage_expansion(tube, n_layers)
+    m_safe = jnp.where(ok, as_float(m), 0.0)
 
     def g(v):  # f(Ω = 0; V̂ = v), the wall formed from its expansion in V̂ (the same function)
         wall = wall_at_voltage(expansion, v)
-        return characteristic_on_wall(wall, jnp.zeros_like(v), alpha, fluid, order, "adaptive")
+        if family == LONGITUDINAL:
+            return characteristic_on_wall(wall, jnp.zeros_like(v), alpha, fluid, order, "adaptive")
+        # fluid-free: κ ∝ Ω² vanishes at Ω = 0 (theory_m.md §6)
+        return characteristic_of_w(wall, jnp.zeros_like(v), alpha, None, order, "adaptive", m_safe,
+                                   family)
 
     roots = _first_root(g, v_end / n_grid, v_end)
     empty = (v_end == 0) & (roots.status == Status.NOT_FINITE)  # no range, so no root
@@ -559,26 +712,28 @@ def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=128, 
 
 
 _solve_critical_voltage = cached_jit(critical_voltage_unchecked,
-                                     static_argnames=("n_layers", "order", "n_grid"))
+                                     static_argnames=("n_layers", "order", "n_grid", "family"))
 
 
 def critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None, n_layers: int = 30,
-                     scheme: str = "midpoint"):
-    """The smallest V̂ > 0 at which the lowest frequency at α̂ reaches zero.
+                     scheme: str = "midpoint", m=0, torsional: bool = False):
+    """The smallest V̂ > 0 at which the lowest frequency of order ``m`` at α̂ reaches zero.
 
     Solves f(Ω = 0; V̂) = 0 in V̂ directly (the tube's ``voltage`` is ignored; λ_i, λ_z fixed): scan of
     (0, V̂_lim] with Hermite classification, then zooming on the first candidate (:func:`_first_root`,
     to rounding); implicit derivatives. V̂_lim is
     the pull-in limit: the largest voltage of the static response of the tube held at its zero-voltage
     pressure difference (:func:`jaxdea.base_state.voltage_limit`). Fluids do not change V̂_cr (their
-    terms vanish like Ω²). NaN (status NO_ROOT) if no root below V̂_lim. ``n_layers`` and
-    ``scheme`` as in :func:`frequencies`.
+    terms vanish like Ω²). NaN (status NO_ROOT) if no root below V̂_lim. ``n_layers``,
+    ``scheme``, ``m`` and ``torsional`` as in :func:`frequencies`. The tube's first instability
+    over every order and axial mode is :func:`first_instability`: for the paper's tube m = 2
+    buckles at about a tenth of the axisymmetric (m = 0) value.
     """
-    return solve_critical_voltage(tube, alpha, fluid, n_layers, scheme)[0]
+    return solve_critical_voltage(tube, alpha, fluid, n_layers, scheme, m, torsional)[0]
 
 
 def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
-                            n_layers: int = 30, scheme: str = "midpoint") -> Roots:
+                            n_layers: int = 30, scheme: str = "midpoint", m=0) -> Roots:
     """(V̂_cr, status) for every axial mode n = 1 … n_max in one compiled call.
 
     α̂_n = 2nπη/(length_ratio λ_z) (:func:`jaxdea.axial_wavenumber`); each entry as
@@ -589,27 +744,126 @@ def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
         :class:`Roots` whose ``omega`` field holds V̂_cr, shape (n_max,).
     """
     check_inputs(tube, 1.0, fluid, n_layers, scheme)
-    if not isinstance(n_max, (int, np.integer)) or isinstance(n_max, bool) or n_max < 1:
-        raise ValueError(f"n_max must be an integer >= 1, got {n_max!r}")
-    return _critical_voltages(canonical(tube), int(n_max), laminate(n_layers, scheme))
+    family = mode_family(m, False, fluid)
+    n_max = _validate_max("n_max", n_max, 1)
+    layers = laminate(n_layers, scheme)
+    if family == LONGITUDINAL:
+        return _critical_voltages(canonical(tube), n_max, layers)
+    return _critical_voltages(canonical(tube), n_max, layers, as_float(m), family)
 
 
-@cached_jit(static_argnames=("n_max", "n_layers"))
-def _critical_voltages(tube, n_max, n_layers):
+def _validate_max(name, value, low):
+    if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < low:
+        raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    return int(value)
+
+
+@cached_jit(static_argnames=("n_max", "n_layers", "family"))
+def _critical_voltages(tube, n_max, n_layers, m=0.0, family=LONGITUDINAL):
     alphas = mode_wavenumber(tube, jnp.arange(1, n_max + 1, dtype=jnp.float64))
 
     def one(alpha):
         values = jax.lax.stop_gradient((tube, alpha))
-        roots = Roots(*critical_voltage_unchecked(*values, None, n_layers, 0))
-        return _with_derivatives(roots, (tube, alpha, None), n_layers, 0, "voltage")
+        roots = Roots(*critical_voltage_unchecked(*values, None, n_layers, 0, m=m, family=family))
+        return _with_derivatives(roots, (tube, alpha, None, m), n_layers, 0, "voltage", family)
 
     return jax.lax.map(one, alphas)
 
 
 def critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None, n_layers: int = 30,
-                      scheme: str = "midpoint"):
-    """V̂_cr of the axial modes n = 1 … n_max, shape (n_max,) (see :func:`solve_critical_voltages`)."""
-    return solve_critical_voltages(tube, n_max, fluid, n_layers, scheme).omega
+                      scheme: str = "midpoint", m=0):
+    """V̂_cr of the axial modes n = 1 … n_max at order ``m``, shape (n_max,)
+    (see :func:`solve_critical_voltages`)."""
+    return solve_critical_voltages(tube, n_max, fluid, n_layers, scheme, m).omega
+
+
+@serializable
+class Instability(NamedTuple):
+    """The first instability of a tube (:func:`first_instability`).
+
+    Attributes:
+        voltage: the smallest critical voltage V̂_cr over the orders and axial modes searched
+            (NaN where none of them has one below the pull-in limit), with implicit derivatives.
+        m: its circumferential order (−1 where none).
+        n: its axial mode number (0 where none).
+        status: CONVERGED, or NO_ROOT where no (m, n) loses stability below the pull-in limit.
+        critical: V̂_cr of every (m, n), shape (m_max + 1, n_max) (values only; NaN: none).
+    """
+
+    voltage: jax.Array
+    m: jax.Array
+    n: jax.Array
+    status: jax.Array
+    critical: jax.Array
+
+
+@cached_jit(static_argnames=("n_max", "m_max", "n_layers"))
+def _instability_grid(tube, n_max, m_max, n_layers):
+    """(V̂_cr, status) of every (m, n), m = 0 … m_max, n = 1 … n_max, shape (m_max + 1, n_max):
+    one compiled search over the traced m (the 8×8 path, longitudinal at m = 0, theory_m.md §3),
+    the pull-in limit formed once."""
+    ok, tube, _, _ = guard(tube.replace(voltage=0.0), 1.0, None)
+    v_end = voltage_limit(tube)
+    m, n = jnp.meshgrid(jnp.arange(m_max + 1.0), jnp.arange(1.0, n_max + 1.0), indexing="ij")
+    alphas = mode_wavenumber(tube, n.ravel())
+
+    def one(args):
+        order_m, alpha = args
+        return critical_voltage_unchecked(tube, alpha, None, n_layers, 0, v_end=v_end, m=order_m,
+                                          family=ORDER_M)
+
+    voltage, status = jax.lax.map(one, (m.ravel(), alphas))
+    shape = (m_max + 1, n_max)
+    return (jnp.where(ok, voltage, jnp.nan).reshape(shape),
+            jnp.where(ok, status, Status.INVALID).reshape(shape))
+
+
+def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = None,
+                      n_layers: int = 30, scheme: str = "midpoint") -> Instability:
+    """The tube's first instability: the smallest critical voltage over every circumferential
+    order 0 ≤ m ≤ m_max and axial mode 1 ≤ n ≤ n_max, and which (m, n) it belongs to.
+
+    Each V̂_cr is :func:`critical_voltage` of order m at α̂_n (:func:`jaxdea.axial_wavenumber`):
+    the smallest V̂ at which the lowest Ω² of that (m, n) reaches 0 (λ_i, λ_z held; the tube's
+    ``voltage`` is ignored). m = 0 is the axisymmetric family the paper studies; m = 1 is Euler
+    column buckling, m ≥ 2 ring (ovalisation) buckling under the pressure that holds λ_i, which
+    for the paper's tube sets in about ten times below the axisymmetric value. A fluid does not
+    change V̂_cr (its terms vanish like Ω²), so ``fluid`` is only validated. A state with
+    ``tube.voltage`` below ``voltage`` is stable in every (m, n) searched; check a given state
+    directly with :func:`growth_rates`. ``voltage`` carries implicit derivatives with respect to
+    the tube's leaves (those of the (m, n) that is first); vmappable.
+
+    Args:
+        tube: the :class:`~jaxdea.Tube`.
+        n_max: largest axial mode number (static, >= 1).
+        m_max: largest circumferential order (static, >= 0).
+        fluid: a :class:`~jaxdea.Fluid` or None (validated only).
+        n_layers, scheme: the discretisation (:func:`frequencies`).
+
+    Returns:
+        :class:`Instability` (voltage, m, n, status, critical).
+
+    Example:
+        >>> first = first_instability(Tube(lambda_i=0.9, lambda_z=1.2, eta=0.85), n_max=1)
+        >>> float(first.voltage), int(first.m), int(first.n)  # ≈ (0.0293, 2, 1)
+    """
+    check_inputs(tube, 1.0, fluid, n_layers, scheme)
+    n_max = _validate_max("n_max", n_max, 1)
+    m_max = _validate_max("m_max", m_max, 0)
+    tube = canonical(tube)
+    layers = laminate(n_layers, scheme)
+    voltage, status = _instability_grid(jax.lax.stop_gradient(tube), n_max, m_max, layers)
+    flat = jnp.where(jnp.isnan(voltage), jnp.inf, voltage).ravel()
+    first = jnp.argmin(flat)
+    found = jnp.isfinite(flat[first])
+    m = jnp.where(found, first // n_max, -1)
+    n = jnp.where(found, first % n_max + 1, 0)
+    alpha = mode_wavenumber(tube, jnp.maximum(n, 1).astype(jnp.float64))
+    root = Roots(jnp.where(found, flat[first], jnp.nan),
+                 jnp.where(found, Status.CONVERGED, Status.NO_ROOT).astype(jnp.int32))
+    root = _with_derivatives(root, (tube, alpha, None, jnp.maximum(m, 0).astype(jnp.float64)),
+                             layers, 0, "voltage", ORDER_M)
+    return Instability(root.omega, m, n, root.status, voltage)
 
 
 def phase_velocity(omega, alpha):

@@ -33,7 +33,7 @@ from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
 from .compiled import cached_jit
-from .dispersion import characteristic_on_wall
+from .dispersion import characteristic_on_wall, mode_family
 from .leaves import FLUID_LEAVES, TUBE_LEAVES, apply_parameters, check_names, get_parameter
 from .params import (
     Fluid,
@@ -47,6 +47,7 @@ from .params import (
 )
 from .roots import frequencies_unchecked, guard
 from .scalar import Status
+from .state_matrix import LONGITUDINAL, ORDER_M
 from .transfer import discretize, laminate, validate_scheme
 
 SENSITIVITY = ("voltage", "lambda_i", "lambda_z", "density_ratio", "speed_ratio", "thickness_ratio",
@@ -153,11 +154,17 @@ class SweepResult:
                 f"{ok}/{self.status.size} converged)")
 
 
-def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_names):
-    """Roots (and derivatives) at one grid point; ``values`` maps axis names to scalars."""
+def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_names, m=0.0,
+           family=LONGITUDINAL):
+    """Roots (and derivatives) at one grid point; ``values`` maps axis names to scalars (the
+    circumferential order from the axis ``m`` if there is one, else ``m``; ``family`` static)."""
     point = apply_parameters(tube, alpha, fluid, values)
     nu = values["n"] if order == "n" else order
-    roots = frequencies_unchecked(*point, omega_max, n_roots, n_layers, nu)
+    m = values.get("m", m)
+    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
+        roots = frequencies_unchecked(*point, omega_max, n_roots, n_layers, nu)
+    else:
+        roots = frequencies_unchecked(*point, omega_max, n_roots, n_layers, nu, m, family)
     alpha_point = as_float(point[1])
     if jac_names is None:
         return roots.omega, roots.status, alpha_point
@@ -167,7 +174,9 @@ def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_
         moved = dict(zip(jac_names, x[2:], strict=True), **held)
         t, a, f = apply_parameters(*point, moved)
         _, t, a, f = guard(t, as_float(a) + x[1], f)
-        return characteristic_on_wall(discretize(t, n_layers), x[0], a, f, nu)
+        if family == LONGITUDINAL:
+            return characteristic_on_wall(discretize(t, n_layers), x[0], a, f, nu)
+        return characteristic_on_wall(discretize(t, n_layers), x[0], a, f, nu, "taylor", m, family)
 
     theta = [get_parameter(*point, name) for name in jac_names]
 
@@ -183,14 +192,18 @@ def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_
 
 
 @cached_jit(static_argnames=("names", "n_roots", "n_layers", "order", "jac_names",
-                                             "batch_size"))
+                                             "batch_size", "family"))
 def _sweep_chunk(columns, tube, alpha, fluid, omega_max, names, n_roots, n_layers, order, jac_names,
-                 batch_size):
+                 batch_size, m=0.0, family=LONGITUDINAL):
     """One chunk of grid points (columns: one array per axis): ``lax.map`` over the points,
-    ``batch_size`` of them vectorised at a time."""
+    ``batch_size`` of them vectorised at a time. ``family`` (static) and ``m`` (traced, the fixed
+    order when there is no axis ``m``): the mode family; the longitudinal program is unchanged."""
     def one(vals):
-        return _point(dict(zip(names, vals, strict=True)), tube, alpha, fluid, omega_max,
-                      n_roots, n_layers, order, jac_names)
+        values = dict(zip(names, vals, strict=True))
+        if family == LONGITUDINAL:
+            return _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_names)
+        return _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_names,
+                      m, family)
 
     return jax.lax.map(one, columns, batch_size=batch_size if batch_size > 1 else None)
 
@@ -217,6 +230,8 @@ def _solve_chunk(cols, base, omega_max, static, devices):
     sharding = NamedSharding(Mesh(np.array(devices), ("points",)), P("points"))
     arrays = jax.device_put(cols, sharding)
     static = dict(static, batch_size=min(static["batch_size"], len(cols[0]) // len(devices)))
+    if "m" in static:  # the fixed order: a traced scalar, on each device with its block
+        static = dict(static, m=np.float64(static["m"]))
     shards = [{shard.device: shard.data for shard in a.addressable_shards} for a in arrays]
     blocks = [_sweep_chunk(tuple(by_device[d] for by_device in shards), *base, omega_max, **static)
               for d in devices]  # block k of the mesh lies on devices[k]
@@ -271,7 +286,8 @@ def _axis(name, values):
 
 def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max=None,
           n_layers: int = 30, scheme: str = "midpoint", jacobian=None, chunk_size: int = CHUNK_SIZE,
-          batch_size=None, progress=None, devices=None, client=None, **axes) -> SweepResult:
+          batch_size=None, progress=None, devices=None, client=None, m=0, torsional: bool = False,
+          **axes) -> SweepResult:
     """The ``n_roots`` lowest frequencies over the grid spanned by ``axes``.
 
     Args:
@@ -298,6 +314,11 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         client: a Dask ``distributed.Client`` (extra ``jaxdea[dask]``): the chunks are sent as
             tasks to its workers, each solving on all its own devices (``devices`` must then be
             None), and gathered in grid order. None: solve in this process.
+        m: the circumferential order (theory_m.md): an integer >= 0 (a fixed order, not an axis;
+            0 the axisymmetric longitudinal family, as :func:`jaxdea.frequencies`), or a 1-D array
+            of integers >= 0: a grid axis ``m`` (one compiled program for every order; at m = 0 the
+            longitudinal family's roots through the order-m system).
+        torsional: the torsional family (u_θ alone) instead; only with m = 0 (static).
         **axes: ``name=values`` grid axes (1-D arrays, or scalars for a fixed value) over the names
             of :mod:`jaxdea.leaves`; exactly one of ``alpha`` / ``n`` is required.
 
@@ -305,12 +326,15 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         :class:`SweepResult` with Ω of shape (*grid_shape, n_roots) in the order of ``axes``.
 
     Raises:
-        ValueError: an unknown or repeated axis, a missing ``alpha``/``n``, bad settings. Values of
-            the axes are not validated point by point: an invalid point gives NaN, status INVALID.
+        ValueError: an unknown or repeated axis, a missing ``alpha``/``n``, bad settings, an
+            order m that is not an integer >= 0 (or with ``torsional=True`` or the paper coupling
+            not 0), naming m. Values of the other axes are not validated point by point: an invalid
+            point gives NaN, status INVALID.
 
     Example:
         >>> res = sweep(Tube(lambda_z=1.2), voltage=np.linspace(0, 0.2, 5), n=np.arange(1, 11))
         >>> res.omega.shape  # (5, 10, 3)
+        >>> sweep(Tube(lambda_z=1.2), m=np.arange(4), alpha=0.445).omega.shape  # (4, 1, 3)
     """
     require_x64()
     if not isinstance(tube, Tube):
@@ -342,10 +366,13 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
                              ("batch_size", batch_size, 1)):
         if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < low:
             raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    m_axis, family = _orders(m, torsional, fluid)
     check_names(list(axes), fluid)
+    if m_axis is not None:
+        axes = {"m": m_axis, **axes}
     if "alpha" not in axes and "n" not in axes:
         raise ValueError("give the wavenumber axis: alpha=... (α̂) or n=... (axial mode numbers)")
-    axes = {name: _axis(name, v) for name, v in axes.items()}
+    axes = {name: v if name == "m" else _axis(name, v) for name, v in axes.items()}
     jac_names = _jacobian_names(jacobian, fluid)
     if omega_max is not None:
         validate_positive("omega_max", omega_max, "a finite number > 0")
@@ -368,6 +395,8 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
     grids = [g.ravel() for g in np.meshgrid(*axes.values(), indexing="ij")]
     static = dict(names=tuple(axes), n_roots=int(n_roots), n_layers=laminate(n_layers, scheme), order=order,
                   jac_names=jac_names, batch_size=min(int(batch_size), size))
+    if family != LONGITUDINAL:  # the longitudinal chunk program is called as before order m
+        static.update(m=float(0 if m_axis is not None else m), family=family)
     starts = range(0, total, size)
 
     def chunk(start):  # every chunk has ``size`` points, the last one padded with its last point
@@ -402,8 +431,25 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
             reshape(outputs[4]) if jac_names else np.empty((*shape, n_roots, 0))),
         jacobian_names=jac_names or (),
         group_velocity=None if jac_names is None else reshape(outputs[3]),
-        settings=_settings(tube, fluid, n_roots, omega_max, n_layers, scheme),
+        settings=_settings(tube, fluid, n_roots, omega_max, n_layers, scheme, m_axis, m, torsional),
     )
+
+
+def _orders(m, torsional, fluid):
+    """(the axis ``m`` as a float64 array or None, the static family) of sweep's ``m``: a scalar is
+    a fixed order (its family from :func:`jaxdea.dispersion.mode_family`), a 1-D array an axis of
+    the order-m family (traced m; each value validated by ``mode_family``)."""
+    if np.ndim(m) == 0:
+        return None, mode_family(m, torsional, fluid)
+    values = np.asarray(m)
+    if values.ndim != 1 or values.size == 0:
+        raise ValueError(f"m must be an integer >= 0 or a non-empty 1-D array of them, got {m!r}")
+    if values.dtype == object or not np.issubdtype(values.dtype, np.number):
+        raise ValueError(f"m must hold integers >= 0 (the circumferential order), got {m!r}")
+    for value in values:
+        mode_family(value.item(), torsional, fluid)
+    family = mode_family(0, torsional, fluid)
+    return values.astype(np.float64), ORDER_M if family == LONGITUDINAL else family
 
 
 def _check_client(client):
@@ -466,11 +512,15 @@ def _order(fluid, axes):
     return "n"
 
 
-def _settings(tube, fluid, n_roots, omega_max, n_layers, scheme):
+def _settings(tube, fluid, n_roots, omega_max, n_layers, scheme, m_axis=None, m=0, torsional=False):
     leaf = lambda x: float(np.asarray(x)) if np.ndim(x) == 0 else np.asarray(x).tolist()  # noqa: E731
     out = {"tube": {k: leaf(getattr(tube, k)) for k in TUBE_LEAVES}, "material": tube.material,
            "n_roots": int(n_roots), "omega_max": omega_max, "n_layers": int(n_layers),
            "scheme": scheme}
+    if m_axis is None and int(m) != 0:
+        out["m"] = int(m)
+    if torsional:
+        out["torsional"] = True
     if fluid is not None:
         out["fluid"] = {k: leaf(getattr(fluid, k)) for k in FLUID_LEAVES}
         out["coupling"] = fluid.coupling

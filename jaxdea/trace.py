@@ -78,7 +78,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .compiled import cached_jit, serializable
-from .dispersion import characteristic_on_wall, check_inputs
+from .dispersion import characteristic_on_wall, order_m_admissible
 from .leaves import FLUID_LEAVES, check_names, get_parameter, set_parameter
 from .params import (
     Fluid,
@@ -91,7 +91,8 @@ from .params import (
     validate_real,
     validate_tube,
 )
-from .roots import scan_step
+from .roots import _order_inputs, scan_step
+from .state_matrix import LONGITUDINAL, ORDER_M
 from .transfer import discretize, laminate
 
 DEFAULT_MAX_STEP = 0.1  # scaled arclength: at least ten points between the start and ``stop``
@@ -390,20 +391,27 @@ def continue_branch(fun, s0, omega0, stop, max_points: int, max_step=DEFAULT_MAX
 
 
 # ------------------------------------------------------------------------------------- the tube
-@cached_jit(static_argnames=("along", "max_points", "n_layers", "order"))
-def _trace_branch(tube, alpha, omega, fluid, stop, max_step, along, max_points, n_layers, order):
+@cached_jit(static_argnames=("along", "max_points", "n_layers", "order", "family"))
+def _trace_branch(tube, alpha, omega, fluid, stop, max_step, along, max_points, n_layers, order,
+                  m=0.0, family=LONGITUDINAL):
     alpha = as_float(alpha)
     s0 = get_parameter(tube, alpha, fluid, along)
     wall0 = discretize(tube, n_layers)
     wall_is_fixed = along == "alpha" or along in FLUID_LEAVES
+    # off the axisymmetric family: f is NaN where the (traced) order m is inadmissible (NO_START)
+    ok = order_m_admissible(m, fluid, family)
+    m_safe = jnp.where(ok, as_float(m), 0.0) if family == ORDER_M else 0.0
 
     def residual(s, om):
         t, a, fl = set_parameter(tube, alpha, fluid, along, s)
         wall = wall0 if wall_is_fixed else discretize(t, n_layers)
-        return characteristic_on_wall(wall, om, as_float(a), fl, order)
+        if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
+            return characteristic_on_wall(wall, om, as_float(a), fl, order)
+        f = characteristic_on_wall(wall, om, as_float(a), fl, order, "taylor", m_safe, family)
+        return jnp.where(ok, f, jnp.nan)
 
     return continue_branch(residual, s0, omega, stop, max_points, max_step,
-                           4.0 * scan_step(wall0, fluid))
+                           4.0 * scan_step(wall0, fluid, family))
 
 
 def _validate_finite(name, x):
@@ -412,7 +420,7 @@ def _validate_finite(name, x):
 
 def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along: str = "alpha",
                  stop, max_points: int = 256, max_step=None, n_layers: int = 30,
-                 scheme: str = "midpoint") -> Branch:
+                 scheme: str = "midpoint", m=0, torsional: bool = False) -> Branch:
     """Follow the dispersion branch through the root ``omega`` along the parameter ``along``.
 
     The branch is the curve f(Ω; s) = 0 through (s_0, Ω_0), with f the characteristic function of
@@ -442,6 +450,8 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
             (None: 0.1, i.e. at least ten points on a straight branch).
         n_layers: sublayers N (static).
         scheme: the propagation scheme (static; :func:`jaxdea.frequencies`).
+        m, torsional: the circumferential order (int >= 0; fixed along the trace) and, at m = 0,
+            the torsional family (:func:`jaxdea.frequencies`): the branch of that order.
 
     Returns:
         :class:`Branch`: ``parameter``, ``omega``, ``slope`` (dΩ/ds), NaN-padded to ``max_points``;
@@ -458,7 +468,7 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
         >>> k = int(branch.n_points)  # 24 points, status REACHED_STOP, last Ω(2.0) ≈ 3.8956
         >>> alphas, omegas = branch.parameter[:k], branch.omega[:k]
     """
-    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
+    order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     if not isinstance(along, str):
         raise ValueError(f"along must be a parameter name (str), got {along!r}")
     try:
@@ -481,5 +491,8 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
         except ValueError as exc:
             raise ValueError(f"stop = {stop!r} is outside the valid range of {along!r}: {exc}") from exc
     args = jax.lax.stop_gradient(canonical(tube, alpha, omega, fluid, stop, max_step))
-    return _trace_branch(*args, along=along, max_points=int(max_points), n_layers=laminate(n_layers, scheme),
-                         order=order)
+    static = dict(along=along, max_points=int(max_points), n_layers=laminate(n_layers, scheme),
+                  order=order)
+    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
+        return _trace_branch(*args, **static)
+    return _trace_branch(*args, m=jax.lax.stop_gradient(canonical(m)), family=family, **static)

@@ -62,6 +62,11 @@ CALLS = {
     "count_roots": lambda: jd.count_roots(TUBE, ALPHA, 0.1, 2.0),
     "frequencies_with_error": lambda: jd.frequencies_with_error(TUBE, ALPHA, n_roots=2),
     "tunability": lambda: jd.tunability(TUBE, ALPHA, OMEGA),
+    "frequencies_m2": lambda: jd.frequencies(TUBE, ALPHA, m=2),
+    "growth_rates": lambda: jd.growth_rates(TUBE, ALPHA, m=2),
+    "first_instability": lambda: jd.first_instability(TUBE, n_max=1, m_max=2),
+    "mode_shape_m2": lambda: jd.mode_shape(TUBE, ALPHA, float(jd.frequencies(TUBE, ALPHA, m=2)[0]), m=2),
+    "characteristic_torsional": lambda: jd.characteristic(TUBE, 1.3, ALPHA, torsional=True),
     "design_for_frequency": _design,
     "maximise_tunability": _tunability_design,
 }

@@ -203,7 +203,7 @@ def test_every_public_entry_point_in_three_processes(tmp_path):
         *values, counts = out.stdout.splitlines()
         runs.append((values, json.loads(counts)))
     (first, stored), (second, loaded), (third, loaded_again) = runs
-    assert len(first) >= 28 and all(len(line.split()) >= 2 for line in first)
+    assert len(first) >= 33 and all(len(line.split()) >= 2 for line in first)
     assert second == first and third == first  # every number, to the last bit
     assert {p["stored"] for p in stored.values()} != {0}
     for name, counts in stored.items():
