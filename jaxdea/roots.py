@@ -435,13 +435,13 @@ _solve_frequencies = cached_jit(frequencies_unchecked,
 
 
 def growth_rates_unchecked(tube, alpha, fluid, s_max, n_roots, n_layers, order, m=0.0,
-                           family=LONGITUDINAL) -> Roots:
+                           family=ORDER_M) -> Roots:
     """The growth rates s = √(−Ω²) > 0 of one case, largest first (traceable): the roots of
     f(Ω² = −s²) in (0, s_max] by the same guaranteed scan as the frequencies (f is entire in Ω²,
-    theory_m.md §6), reversed; NaN-padded at the end."""
+    theory_m.md §6), reversed; NaN-padded at the end. ``family``: ``ORDER_M`` (at m = 0 the
+    longitudinal modes) or ``TORSIONAL`` (:func:`_growth_family`)."""
     ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
-    wall, of_w = problem_function(tube, alpha, fluid, n_layers, order, m, _growth_family(family),
-                                  "omega_squared")
+    wall, of_w = problem_function(tube, alpha, fluid, n_layers, order, m, family, "omega_squared")
 
     def fun(s):
         return of_w(-s * s)
@@ -450,8 +450,8 @@ def growth_rates_unchecked(tube, alpha, fluid, s_max, n_roots, n_layers, order, 
     ok &= jnp.isfinite(end) & (end > 0)
     step = jnp.minimum(scan_step(wall, fluid, ORDER_M), end / CHUNK)
     found = _scan_for_roots(fun, step, end, n_roots)
-    order_desc = jnp.argsort(jnp.where(jnp.isnan(found.omega), jnp.inf, -found.omega))
-    return invalid_where(ok, Roots(found.omega[order_desc], found.status[order_desc]))
+    largest_first = jnp.argsort(jnp.where(jnp.isnan(found.omega), jnp.inf, -found.omega))
+    return invalid_where(ok, Roots(found.omega[largest_first], found.status[largest_first]))
 
 
 _solve_growth_rates = cached_jit(growth_rates_unchecked,
@@ -487,6 +487,7 @@ def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3
         >>> growth_rates(Tube(voltage=0.1, lambda_i=0.95, lambda_z=1.2), 0.445, m=2)  # ≈ [0.7466, nan, nan]
     """
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    family = _growth_family(family)
     n_roots = validate_count("n_roots", n_roots)
     if s_max is not None:
         validate_positive("s_max", s_max)
@@ -494,8 +495,7 @@ def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3
     layers = laminate(n_layers, scheme)
     roots = _solve_growth_rates(*jax.lax.stop_gradient((tube, alpha, fluid, s_max)), n_roots, layers,
                                 order, jax.lax.stop_gradient(m), family)
-    return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "growth",
-                             _growth_family(family)).omega
+    return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "growth", family).omega
 
 
 def _growth_family(family):

@@ -17,6 +17,8 @@ import pytest
 from scipy.optimize import brentq
 from scipy.special import iv, ivp, jv, jvp, yv
 
+from exact_cylinder_m import EXACT_TABLE, roots_m
+
 import jaxdea as jd
 from jaxdea import dispersion as dp
 from jaxdea import state_matrix as sm
@@ -210,14 +212,7 @@ def test_torsional_family_ignores_the_fluid():
 
 # ------------------------------------------------------------------ exact linear cylinder (§7b)
 
-EXACT = {  # theory_m.md §7(b), 8 digits: the five lowest roots below Ω = 21
-    (1, 0.534): [0.27304509, 1.22366123, 2.72102485, 17.86345744, 18.01774454],
-    (1, 1.5): [0.98534049, 1.97940334, 3.72491886, 17.95486789, 18.21048515],
-    (2, 0.534): [0.26753475, 1.96497658, 4.17829830, 17.92863525, 18.32878359],
-    (2, 1.5): [0.69877963, 2.53032586, 4.92738770, 18.00555853, 18.52888065],
-    (3, 0.534): [0.64836308, 2.82967936, 5.79768505, 18.04544640, 18.81858430],
-    (3, 1.5): [0.87100773, 3.23062751, 6.37125587, 18.11397749, 19.01639974],
-}
+EXACT = EXACT_TABLE  # theory_m.md §7(b), 8 digits: the five lowest roots below Ω = 21
 
 
 @pytest.mark.parametrize("key", list(EXACT), ids=[f"m{m}-a{a}" for m, a in EXACT])
@@ -237,11 +232,10 @@ def test_exact_linear_cylinder(key):
 
 
 def test_exact_linear_cylinder_reference_solver():
-    """Against the independent exact solver tests/exact_cylinder_m.py (where present): magnus6
+    """Against the independent exact solver tests/exact_cylinder_m.py: magnus6
     N = 8 roots of orders 1 and 4 within 1e-9."""
-    exact_m = pytest.importorskip("exact_cylinder_m")
     for m, alpha in ((1, 0.534), (4, 1.0)):
-        exact = np.asarray(exact_m.roots_m(m, alpha, R_I, R_O, 5, 21.0))
+        exact = np.asarray(roots_m(m, alpha, R_I, R_O, 5, 21.0))
         found = roots_in_omega(LINEAR, alpha, m, layers=MAGNUS6)
         np.testing.assert_allclose(found[:5], exact, rtol=1e-9)
 
