@@ -176,8 +176,10 @@ def _sweep(args):
     if not args.quiet:
         converged = int(np.sum(result.status == Status.CONVERGED))
         grid = " x ".join(f"{k}[{len(v)}]" for k, v in result.axes.items())
+        unstable = "" if result.unstable is None else \
+            f", {int(np.sum(result.unstable))}/{result.unstable.size} points unstable"
         print(f"sweep {grid}: {result.omega.shape[-1]} roots per point, {converged}/{result.status.size} "
-              f"converged ({seconds:.1f} s)")
+              f"converged{unstable} ({seconds:.1f} s)")
     for path in paths:
         print(path)
     return 0

@@ -25,7 +25,8 @@ from .transfer import SCHEMES
 TOP_KEYS = ("tube", "fluid", "axes", "solver", "output")
 TUBE_KEYS = (*TUBE_LEAVES, "thickness_ratio", "material")
 FLUID_KEYS = (*FLUID_LEAVES, "coupling", "bessel_order")
-SOLVER_KEYS = ("n_roots", "n_layers", "scheme", "jacobian", "omega_max", "m", "torsional")
+SOLVER_KEYS = ("n_roots", "n_layers", "scheme", "jacobian", "omega_max", "m", "torsional",
+               "n_growth")
 AXIS_NAMES = (*NAMES, "m")
 OUTPUT_KEYS = ("dir", "name", "formats", "plot", "title")
 LINSPACE_KEYS = ("start", "stop", "num")
@@ -48,7 +49,8 @@ FORMAT = f"""\
           scheme = "midpoint" | "magnus4" | "magnus6" (how a sublayer is crossed),
           jacobian = false | true | [names] (dΩ/dθ and dΩ/dα̂ too), omega_max = a number
           (default: automatic), m = 0 (circumferential order, integer >= 0; or axes.m),
-          torsional = false (the torsional family, m = 0 only)
+          torsional = false (the torsional family, m = 0 only), n_growth = 0 (growth rates
+          s = sqrt(-Ω²) of the unstable modes per point, largest first; 0: none)
 [output]  name = the config file's stem, formats = {json.dumps(list(FORMATS))}, plot = true (NAME.png),
           dir = the config file's folder (relative to it; --out overrides), title = a plot title
 """
@@ -88,6 +90,7 @@ class SweepConfig:
         m: the fixed circumferential order (``jaxdea.sweep``'s ``m``; an axis ``m`` instead is in
             ``axes``).
         torsional: the torsional family (m = 0 only).
+        n_growth: growth rates per point (``jaxdea.sweep``'s ``n_growth``; 0: none).
         out_dir: output folder as written in the config (relative to the config file), or None.
         name: file stem of the outputs.
         formats: a subset of ("csv", "npz").
@@ -105,6 +108,7 @@ class SweepConfig:
     omega_max: float | None = None
     m: int = 0
     torsional: bool = False
+    n_growth: int = 0
     out_dir: str | None = None
     name: str = "sweep"
     formats: tuple = FORMATS
@@ -123,6 +127,8 @@ class SweepConfig:
             orders["m"] = self.axes.get("m", self.m)
         if self.torsional:
             orders["torsional"] = True
+        if self.n_growth:
+            orders["n_growth"] = self.n_growth
         axes = {k: v for k, v in self.axes.items() if k != "m"}
         return dict(n_roots=self.n_roots, n_layers=self.n_layers, scheme=self.scheme,
                     jacobian=self.jacobian if self.jacobian else None, omega_max=self.omega_max,
@@ -253,6 +259,8 @@ def _parse_solver(data, fluid: dict | None) -> dict:
         out["scheme"] = _choice("solver.scheme", table["scheme"], tuple(SCHEMES))
     if "m" in table:
         out["m"] = _integer("solver.m", table["m"], 0)
+    if "n_growth" in table:
+        out["n_growth"] = _integer("solver.n_growth", table["n_growth"], 0)
     if "torsional" in table:
         if not isinstance(table["torsional"], bool):
             _fail(f"'solver.torsional' must be true or false, got {table['torsional']!r}")

@@ -45,7 +45,7 @@ from .params import (
     validate_layers,
     validate_positive,
 )
-from .roots import frequencies_unchecked, guard
+from .roots import _growth_family, frequencies_unchecked, growth_rates_unchecked, guard
 from .scalar import Status
 from .state_matrix import LONGITUDINAL, ORDER_M
 from .transfer import discretize, laminate, validate_scheme
@@ -67,6 +67,9 @@ class SweepResult:
         jacobian: dΩ/dθ, shape (*grid_shape, n_roots, len(jacobian_names)), or None.
         jacobian_names: the coordinates θ of ``jacobian``.
         group_velocity: dΩ/dα̂ per root (with the jacobian), or None.
+        growth_rate: s = √(−Ω²) of the unstable modes (Ω² < 0) per point, largest first,
+            NaN-padded (all NaN: stable at that point), shape (*grid_shape, n_growth), or None
+            (``n_growth=0``).
         settings: the fixed parameters and solver settings (JSON-serialisable dict).
     """
 
@@ -77,12 +80,21 @@ class SweepResult:
     jacobian: np.ndarray | None = None
     jacobian_names: tuple = ()
     group_velocity: np.ndarray | None = None
+    growth_rate: np.ndarray | None = None
     settings: dict = dataclasses.field(default_factory=dict)
 
     @property
     def shape(self) -> tuple:
         """The grid shape."""
         return self.alpha.shape
+
+    @property
+    def unstable(self) -> np.ndarray | None:
+        """True where the point has an unstable mode (a finite growth rate), shape grid_shape;
+        None without growth rates (``n_growth=0``)."""
+        if self.growth_rate is None:
+            return None
+        return np.any(np.isfinite(self.growth_rate), axis=-1)
 
     @property
     def phase_velocity(self) -> np.ndarray:
@@ -113,10 +125,15 @@ class SweepResult:
         for m, name in enumerate(self.jacobian_names):
             for j in range(k):
                 cols[f"d_omega_{j + 1}/d_{name}"] = flat(self.jacobian[..., m])[:, j]
+        if self.growth_rate is not None:
+            growth = self.growth_rate.reshape(-1, self.growth_rate.shape[-1])
+            for j in range(growth.shape[1]):
+                cols[f"growth_rate_{j + 1}"] = growth[:, j]
         return cols
 
     def to_csv(self, path) -> None:
-        """Write one row per grid point (axes, α̂, Ω_k, status_k, derivatives); header line first."""
+        """Write one row per grid point (axes, α̂, Ω_k, status_k, derivatives, growth rates); header
+        line first."""
         cols = self.columns()
         table = np.column_stack(list(cols.values()))
         fmt = ["%d" if name.startswith("status") else "%.17g" for name in cols]
@@ -131,6 +148,8 @@ class SweepResult:
                       jacobian_names=np.array(json.dumps(list(self.jacobian_names))))
         if self.jacobian is not None:
             arrays.update(jacobian=self.jacobian, group_velocity=self.group_velocity)
+        if self.growth_rate is not None:
+            arrays.update(growth_rate=self.growth_rate)
         np.savez(path, **arrays)
 
     @classmethod
@@ -144,6 +163,7 @@ class SweepResult:
                 jacobian=data["jacobian"] if "jacobian" in data else None,
                 jacobian_names=tuple(json.loads(str(data["jacobian_names"]))),
                 group_velocity=data["group_velocity"] if "group_velocity" in data else None,
+                growth_rate=data["growth_rate"] if "growth_rate" in data else None,
                 settings=json.loads(str(data["settings"])),
             )
 
@@ -155,9 +175,10 @@ class SweepResult:
 
 
 def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_names, m=0.0,
-           family=LONGITUDINAL):
-    """Roots (and derivatives) at one grid point; ``values`` maps axis names to scalars (the
-    circumferential order from the axis ``m`` if there is one, else ``m``; ``family`` static)."""
+           family=LONGITUDINAL, n_growth=0):
+    """Roots (and derivatives, and growth rates) at one grid point; ``values`` maps axis names to
+    scalars (the circumferential order from the axis ``m`` if there is one, else ``m``; ``family``
+    static). Outputs: Ω, status, α̂, [growth rates,] [dΩ/dα̂, jacobian]."""
     point = apply_parameters(tube, alpha, fluid, values)
     nu = values["n"] if order == "n" else order
     m = values.get("m", m)
@@ -166,8 +187,12 @@ def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_
     else:
         roots = frequencies_unchecked(*point, omega_max, n_roots, n_layers, nu, m, family)
     alpha_point = as_float(point[1])
+    growth = ()
+    if n_growth:  # the scan in Ω² = −s² (the 8×8 path at m = 0: theory_m.md §6)
+        growth = (growth_rates_unchecked(*point, None, n_growth, n_layers, nu, as_float(m),
+                                         _growth_family(family)).omega,)
     if jac_names is None:
-        return roots.omega, roots.status, alpha_point
+        return roots.omega, roots.status, alpha_point, *growth
     held = {k: v for k, v in values.items() if k == "n"}  # α̂ of mode n follows the tube
 
     def residual(x):  # x = [Ω, δα̂, θ...]: f at the point moved by θ, α̂ shifted by δα̂
@@ -188,22 +213,23 @@ def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_
 
     d = jax.vmap(derivatives)(roots.omega)  # (n_roots, 1 + len(jac_names))
     jac = (d[:, 1:],) if jac_names else ()  # no zero-size outputs (lax.map cannot batch them)
-    return roots.omega, roots.status, alpha_point, d[:, 0], *jac
+    return roots.omega, roots.status, alpha_point, *growth, d[:, 0], *jac
 
 
 @cached_jit(static_argnames=("names", "n_roots", "n_layers", "order", "jac_names",
-                                             "batch_size", "family"))
+                                             "batch_size", "family", "n_growth"))
 def _sweep_chunk(columns, tube, alpha, fluid, omega_max, names, n_roots, n_layers, order, jac_names,
-                 batch_size, m=0.0, family=LONGITUDINAL):
+                 batch_size, m=0.0, family=LONGITUDINAL, n_growth=0):
     """One chunk of grid points (columns: one array per axis): ``lax.map`` over the points,
     ``batch_size`` of them vectorised at a time. ``family`` (static) and ``m`` (traced, the fixed
-    order when there is no axis ``m``): the mode family; the longitudinal program is unchanged."""
+    order when there is no axis ``m``): the mode family; the longitudinal program is unchanged.
+    ``n_growth`` (static): growth rates per point (0: none)."""
     def one(vals):
         values = dict(zip(names, vals, strict=True))
-        if family == LONGITUDINAL:
+        if family == LONGITUDINAL and not n_growth:
             return _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_names)
         return _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_names,
-                      m, family)
+                      m, family, n_growth)
 
     return jax.lax.map(one, columns, batch_size=batch_size if batch_size > 1 else None)
 
@@ -287,7 +313,7 @@ def _axis(name, values):
 def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max=None,
           n_layers: int = 30, scheme: str = "midpoint", jacobian=None, chunk_size: int = CHUNK_SIZE,
           batch_size=None, progress=None, devices=None, client=None, m=0, torsional: bool = False,
-          **axes) -> SweepResult:
+          n_growth: int = 0, **axes) -> SweepResult:
     """The ``n_roots`` lowest frequencies over the grid spanned by ``axes``.
 
     Args:
@@ -319,6 +345,11 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
             of integers >= 0: a grid axis ``m`` (one compiled program for every order; at m = 0 the
             longitudinal family's roots through the order-m system).
         torsional: the torsional family (u_θ alone) instead; only with m = 0 (static).
+        n_growth: growth rates s = √(−Ω²) of the unstable modes per point (static, >= 0; 0: none),
+            largest first, as :func:`jaxdea.growth_rates` (searched up to the frequencies'
+            automatic limit); ``SweepResult.growth_rate`` and ``.unstable``. ``frequencies`` lists
+            only the positive real roots: past an instability its first column is the second
+            branch, and ``unstable`` says so.
         **axes: ``name=values`` grid axes (1-D arrays, or scalars for a fixed value) over the names
             of :mod:`jaxdea.leaves`; exactly one of ``alpha`` / ``n`` is required.
 
@@ -363,7 +394,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
     if batch_size is None:
         batch_size = 1 if jax.default_backend() == "cpu" else chunk_size
     for name, value, low in (("n_roots", n_roots, 1), ("chunk_size", chunk_size, 1),
-                             ("batch_size", batch_size, 1)):
+                             ("batch_size", batch_size, 1), ("n_growth", n_growth, 0)):
         if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < low:
             raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
     m_axis, family = _orders(m, torsional, fluid)
@@ -395,8 +426,8 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
     grids = [g.ravel() for g in np.meshgrid(*axes.values(), indexing="ij")]
     static = dict(names=tuple(axes), n_roots=int(n_roots), n_layers=laminate(n_layers, scheme), order=order,
                   jac_names=jac_names, batch_size=min(int(batch_size), size))
-    if family != LONGITUDINAL:  # the longitudinal chunk program is called as before order m
-        static.update(m=float(0 if m_axis is not None else m), family=family)
+    if family != LONGITUDINAL or n_growth:  # the longitudinal program is called as before order m
+        static.update(m=float(0 if m_axis is not None else m), family=family, n_growth=int(n_growth))
     starts = range(0, total, size)
 
     def chunk(start):  # every chunk has ``size`` points, the last one padded with its last point
@@ -423,15 +454,20 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         bar.update(stop - start)
     bar.close()
     omega, status, alpha = outputs[:3]
+    k = 4 if n_growth else 3  # the first output after the growth rates
     reshape = lambda a: a.reshape(*shape, *a.shape[1:])  # noqa: E731
+    settings = _settings(tube, fluid, n_roots, omega_max, n_layers, scheme, m_axis, m, torsional)
+    if n_growth:
+        settings["n_growth"] = int(n_growth)
     return SweepResult(
         axes=axes, omega=reshape(omega), status=reshape(status).astype(np.int32),
         alpha=reshape(alpha),
         jacobian=None if jac_names is None else (
-            reshape(outputs[4]) if jac_names else np.empty((*shape, n_roots, 0))),
+            reshape(outputs[k + 1]) if jac_names else np.empty((*shape, n_roots, 0))),
         jacobian_names=jac_names or (),
-        group_velocity=None if jac_names is None else reshape(outputs[3]),
-        settings=_settings(tube, fluid, n_roots, omega_max, n_layers, scheme, m_axis, m, torsional),
+        group_velocity=None if jac_names is None else reshape(outputs[k]),
+        growth_rate=reshape(outputs[3]) if n_growth else None,
+        settings=settings,
     )
 
 

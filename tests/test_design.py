@@ -1,6 +1,7 @@
 """Design optimisation (jaxdea.design): bad inputs, the tunability and its exact gradient against
-central finite differences, and convergence of both example problems from several starts, each
-optimum checked by a direct root solve (frequencies) and by critical_voltage."""
+central finite differences, the stability bound (the first instability over every order m and
+axial mode n) and convergence of both example problems from several starts, each optimum checked
+by a direct root solve (frequencies) and by first_instability."""
 
 import math
 
@@ -29,15 +30,52 @@ ALPHA = jd.axial_wavenumber(TUBE, 1)
     (lambda: design.maximise_tunability(TUBE, voltage_fraction=0.0), "voltage_fraction"),
     (lambda: design.maximise_tunability(TUBE, lambda_i=1.2), "lambda_i"),
     (lambda: design.maximise_tunability("tube"), "tube"),
+    (lambda: design.maximise_tunability(TUBE, m_max=-1), "m_max"),
+    (lambda: design.design_for_frequency(TUBE, 0.7, n_max=0), "n_max"),
+    (lambda: design.design_for_frequency(TUBE, 0.7, m_max=1.5), "m_max"),
 ])
 def test_bad_inputs_name_the_parameter(call, name):
     with pytest.raises(ValueError, match=name):
         call()
 
 
-def _objective(x, setting, kind, guess):
-    aux, grad = design._evaluate(jnp.asarray(x, jnp.float64), guess, setting, kind, 30)
+def test_candidates_are_the_modes_near_the_first_instability():
+    grid = np.array([[0.30, 0.28], [0.20, 0.19], [0.030, 0.0315], [0.031, np.nan]])
+    cands = design._candidates(grid)  # within 5 % of 0.030: (2, 1), (3, 1), (2, 2); padded
+    assert np.asarray(cands.m).tolist() == [2.0, 3.0, 2.0, 2.0]
+    assert np.asarray(cands.n).tolist() == [1.0, 1.0, 2.0, 1.0]
+    assert design._candidates(np.full((2, 2), np.nan)) is None
+
+
+def _objective(x, setting, kind, guess, candidates):
+    aux, grad = design._evaluate(jnp.asarray(x, jnp.float64), guess, setting, kind, 30, "midpoint",
+                                 candidates)
     return float(aux["loss"]), np.asarray(grad), aux
+
+
+@pytest.mark.slow
+def test_bound_is_the_first_instability_and_refreshes_when_overtaken():
+    """The candidate bound equals first_instability; a run that tracked only the axisymmetric mode
+    is not confirmed, and the refresh brings in the (m, n) that buckles first."""
+    setting = dict(tube=TUBE.replace(voltage=0.0), n=1.0, margin=0.8, li_lo=0.0, li_hi=1.0)
+    setting = jax.tree_util.tree_map(lambda v: jnp.asarray(v, jnp.float64), setting)
+    first = jd.first_instability(TUBE, n_max=3, m_max=8)
+    bound = design._Bound(setting, "tunability", 30, "midpoint", 8, 3)
+    x = [1.0]
+    assert bound.refresh(x)
+    assert bound.first == pytest.approx(float(first.voltage), rel=1e-13)
+    assert bound.mode == (int(first.m), int(first.n)) == (2, 1)
+    guess = float(jd.frequencies(TUBE.replace(voltage=0.05), ALPHA, n_roots=1)[0])
+    _, _, aux = _objective(x, setting, "tunability", guess, bound.candidates)
+    assert float(aux["critical_voltage"]) == pytest.approx(float(first.voltage), rel=1e-12)
+    assert bound.confirmed(x, aux)
+    axisymmetric = design.Candidates(jnp.zeros(4), jnp.ones(4))  # (0, 1) only, the paper's bound
+    _, _, aux = _objective(x, setting, "tunability", guess, axisymmetric)
+    assert float(aux["critical_voltage"]) == pytest.approx(float(jd.critical_voltage(TUBE, ALPHA)),
+                                                         rel=1e-12)
+    assert not bound.confirmed(x, aux)
+    assert (2.0, 1.0) in zip(np.asarray(bound.candidates.m).tolist(),
+                             np.asarray(bound.candidates.n).tolist())
 
 
 @pytest.mark.slow
@@ -46,14 +84,17 @@ def test_tunability_objective_gradient_matches_central_differences():
     (through V̂_cr(λ_i) and the root); central differences of the loss, each point solved afresh."""
     setting = dict(tube=TUBE.replace(voltage=0.0), n=1.0, margin=0.8, li_lo=0.9, li_hi=1.4)
     x = np.array([1.9, 1.3])  # s = 0.66, λ_i = 1.16
-    guess = float(jd.frequencies(TUBE.replace(voltage=0.1), ALPHA, n_roots=1)[0])
-    loss, grad, aux = _objective(x, setting, "tunability_lambda", guess)
+    bound = design._Bound(setting, "tunability_lambda", 30, "midpoint", 8, 3)
+    assert bound.refresh(x)
+    cands = bound.candidates  # several (m, n) near the first instability; the gradient of the min
+    guess = float(jd.frequencies(TUBE.replace(voltage=0.05), ALPHA, n_roots=1)[0])
+    loss, grad, aux = _objective(x, setting, "tunability_lambda", guess, cands)
     omega = float(aux["omega"])
     h = 1e-4  # truncation ~ h² |L'''| ≈ 1e-8, rounding ~ 1e-15/h
     for i in range(2):
         e = np.eye(2)[i] * h
-        fd = (_objective(x + e, setting, "tunability_lambda", omega)[0]
-              - _objective(x - e, setting, "tunability_lambda", omega)[0]) / (2 * h)
+        fd = (_objective(x + e, setting, "tunability_lambda", omega, cands)[0]
+              - _objective(x - e, setting, "tunability_lambda", omega, cands)[0]) / (2 * h)
         np.testing.assert_allclose(grad[i], fd, rtol=1e-6)
     # the tunability itself against central differences of directly solved roots in V̂
     tube = aux["tube"]
@@ -82,9 +123,12 @@ def _check_frequency_design(res, target, rtol):
     lowest = float(jd.frequencies(res.tube, res.alpha, n_roots=1)[0])  # direct, independent solve
     # converged to rtol at the tracked root; the direct solve agrees with it to Newton's accuracy
     assert abs(lowest / target - 1.0) <= rtol + 1e-12
-    v_cr = float(jd.critical_voltage(res.tube, jd.axial_wavenumber(res.tube, 1)))
-    assert res.voltage <= 0.8 * v_cr
-    assert abs(res.voltage / (0.8 * v_cr) - 0.5) <= rtol + 1e-12
+    first = jd.first_instability(res.tube, n_max=3, m_max=8)  # independent of the run's candidates
+    v_first = float(first.voltage)
+    assert res.critical_voltage == pytest.approx(v_first, rel=1e-9)
+    assert res.unstable_mode == (int(first.m), int(first.n))
+    assert res.voltage <= 0.8 * v_first
+    assert abs(res.voltage / (0.8 * v_first) - 0.5) <= rtol + 1e-12
     assert res.alpha == pytest.approx(float(jd.axial_wavenumber(res.tube, 1)), rel=1e-14)
     assert res.n_steps == len(res.history)
 
@@ -99,16 +143,33 @@ def test_frequency_design_converges_from_several_starts():
     thickness = [r.thickness for r in results]
     # both residuals below rtol: H/R_i agrees to rtol / |d ln Ω/dH| ≈ 1e-5
     np.testing.assert_allclose(thickness, thickness[0], rtol=3e-5)
+    # ring buckling bounds the voltage far below the axisymmetric V̂_cr of the mode
+    assert results[0].unstable_mode == (2, 1)
+    v_axisymmetric = float(jd.critical_voltage(results[0].tube, results[0].alpha))
+    assert results[0].critical_voltage < 0.7 * v_axisymmetric
+
+
+@pytest.mark.slow
+def test_frequency_design_with_the_axisymmetric_bound_only():
+    """m_max = 0, n_max = 1: the bound is the designed mode's own V̂_cr (the paper's constraint)."""
+    res = design.design_for_frequency(TUBE, 0.72, m_max=0, n_max=1)
+    assert res.converged, res.status
+    assert res.unstable_mode == (0, 1)
+    v_cr = float(jd.critical_voltage(res.tube, res.alpha))
+    assert res.critical_voltage == pytest.approx(v_cr, rel=1e-9)
+    assert abs(res.voltage / (0.8 * v_cr) - 0.5) <= 1e-6 + 1e-12
+    assert float(jd.frequencies(res.tube, res.alpha, n_roots=1)[0]) == pytest.approx(0.72, rel=1e-6)
 
 
 @pytest.mark.slow
 def test_tunability_optimum_is_on_the_constraint_from_several_starts():
     results = [design.maximise_tunability(TUBE, voltage_fraction=s0) for s0 in (0.2, 0.5, 0.8)]
-    v_cr = float(jd.critical_voltage(TUBE, ALPHA))
+    v_first = float(jd.first_instability(TUBE, n_max=3, m_max=8).voltage)
     for res in results:
         assert res.converged, res.status
-        assert res.voltage <= 0.8 * v_cr * (1 + 1e-12)
-        assert res.voltage == pytest.approx(0.8 * v_cr, rel=1e-6)  # the active constraint
+        assert res.unstable_mode == (2, 1)
+        assert res.voltage <= 0.8 * v_first * (1 + 1e-12)
+        assert res.voltage == pytest.approx(0.8 * v_first, rel=1e-6)  # the active constraint
         v = res.voltage
         dv = 1e-5 * v
         roots = [float(jd.frequencies(TUBE.replace(voltage=v + d), ALPHA, n_roots=1)[0])

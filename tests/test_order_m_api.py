@@ -188,6 +188,36 @@ def test_sweep_rejects_bad_m(m):
         sweep(TUBE, alpha=ALPHA, m=1, torsional=True, n_layers=N, progress=False)
 
 
+@pytest.mark.slow  # compiles the sweep with the growth-rate scan: minutes on 2 cores
+def test_sweep_growth_rates_mark_the_unstable_voltages():
+    """n_growth: the growth rates of a voltage sweep at m = 2 equal growth_rates point by point and
+    are finite exactly above the order's critical voltage; m = 0 points stay stable below theirs."""
+    tube = jd.Tube(lambda_i=0.9, lambda_z=1.2, eta=0.85)
+    v_cr = float(jd.critical_voltage(tube, ALPHA, m=2, n_layers=N))  # ≈ 0.03 on the paper's tube
+    voltages = np.array([0.5, 0.9, 1.1, 2.0]) * v_cr
+    res = sweep(tube, m=np.array([0, 2]), voltage=voltages, alpha=ALPHA, n_layers=N, n_growth=2,
+                progress=False)
+    assert res.growth_rate.shape == (2, 4, 1, 2)
+    np.testing.assert_array_equal(res.unstable[1, :, 0], [False, False, True, True])
+    assert not np.any(res.unstable[0])  # m = 0 buckles only at ≈ 0.29
+    for i, v in enumerate(voltages):
+        ref = np.asarray(jd.growth_rates(tube.replace(voltage=v), ALPHA, m=2, n_roots=2, n_layers=N))
+        np.testing.assert_allclose(res.growth_rate[1, i, 0], ref, rtol=1e-12)
+    assert res.settings["n_growth"] == 2
+    cols = res.columns()
+    np.testing.assert_array_equal(cols["growth_rate_1"], res.growth_rate[..., 0].ravel())
+    # without growth rates: the m = 0 program as before, and no growth columns
+    plain = sweep(tube, voltage=voltages, alpha=ALPHA, n_layers=N, progress=False)
+    assert plain.growth_rate is None and plain.unstable is None
+    np.testing.assert_allclose(plain.omega[:, 0], res.omega[0, :, 0], rtol=1e-12)
+    with pytest.raises(ValueError, match="n_growth"):
+        sweep(tube, alpha=ALPHA, n_growth=-1, progress=False)
+    cfg = parse_config({"axes": {"alpha": 0.445}, "solver": {"n_growth": 2}})
+    assert cfg.sweep_arguments()["n_growth"] == 2
+    with pytest.raises(ValueError, match="solver.n_growth"):
+        parse_config({"axes": {"alpha": 0.445}, "solver": {"n_growth": -2}})
+
+
 def test_config_axis_and_key_m():
     cfg = parse_config({"axes": {"m": [0, 1, 2], "alpha": 0.445}})
     np.testing.assert_array_equal(cfg.sweep_arguments()["m"], [0.0, 1.0, 2.0])
