@@ -1,7 +1,11 @@
 """Static (biasing) deformation and field of the tube (theory.md §1; paper Eqs. 5–8, 15–17 corrected).
 
-All lengths are in units of R_i and stresses in units of μ. Quadrature is composite Gauss–Legendre
-(differentiable, no adaptive control flow). The reference gauge is P_o = 0, P_i = ΔP̂.
+All lengths are in units of R_i and stresses in units of μ. The reference gauge is P_o = 0,
+P_i = ΔP̂. The elastic integral of Eq. (1.1) is rational in x = λ² for the Gent and neo-Hookean
+energies and is evaluated in closed form (:func:`gent_elastic_integral`): exact up to Gent locking,
+where W_1 ∝ 1/(1 − (I_1 − 3)/G) has a boundary layer at the inner face that no fixed quadrature in r̂
+resolves (composite Gauss–Legendre, 16 panels of 8 nodes, gave ΔP̂ = −11.1948 for −11.2026 at 99 %
+of locking, G = 4). Other energies use that quadrature (:func:`elastic_quadrature`).
 """
 
 from typing import NamedTuple
@@ -81,9 +85,80 @@ def _elastic_integrand(tube: Tube, r):
     return 2.0 * w1 * (lam**2 - lam_r**2) / r
 
 
-def _elastic_integral(tube: Tube, width, panels=PANELS):
+GENT_CLOSED_MAX = 1e150
+"""Largest Gent constant evaluated by :func:`gent_elastic_integral`; above it (and at G = inf) the
+neo-Hookean closed form is used: the smaller pole x₋ ≈ 1/(λ_z² G) of the Gent integrand would
+underflow near G = 1e300, while (I_1 − 3)/G < 1e-140 there (I_1 − 3 is bounded through WIDTH_MAX)."""
+
+
+def stretch_squared_increment(tube: Tube, width):
+    """(x_i, Δx) with x = λ² at r̂_i and Δx = λ²(r̂_i + width) − λ_i², free of cancellation:
+    λ² = r̂²/(λ_z(r̂² − r̂_i²) + 1) gives Δx = (r̂² − r̂_i²)(1 − λ_z λ_i²)/(λ_z(r̂² − r̂_i²) + 1) with
+    r̂² − r̂_i² = width (2r̂_i + width)."""
+    li, lz = as_float(tube.lambda_i), as_float(tube.lambda_z)
+    width = jnp.asarray(width, jnp.float64)
+    s = width * (2.0 * li + width)
+    x_i = li * li
+    return x_i, s * (1.0 - lz * x_i) / (lz * s + 1.0)
+
+
+def neo_hookean_elastic_integral(x_i, dx, lambda_z):
+    """∫ (λ² − λ_r²) dr̂/r̂ over x = λ² from x_i to x_i + Δx (W_1 = 1/2):
+    with dr̂/r̂ = dx/(2x(1 − λ_z x)) the integrand is −(λ_z x + 1)/(2λ_z² x²), so the integral is
+    −ln(1 + Δx/x_i)/(2λ_z) − Δx/(2λ_z² x_i (x_i + Δx))."""
+    lz = lambda_z
+    return -jnp.log1p(dx / x_i) / (2.0 * lz) - dx / (2.0 * lz * lz * x_i * (x_i + dx))
+
+
+def gent_elastic_integral(x_i, dx, lambda_z, gent):
+    """∫ 2W_1(λ² − λ_r²) dr̂/r̂ for the Gent energy over x = λ² from x_i to x_i + Δx, in closed form.
+
+    With 2W_1 = G/(G − (I_1 − 3)), I_1 = x + 1/(λ_z² x) + λ_z² and dr̂/r̂ = dx/(2x(1 − λ_z x)) the
+    integrand is G(λ_z x + 1)/(2x q(x)), q(x) = λ_z²x² − Kλ_z²x + 1 = λ_z²(x − x₊)(x − x₋),
+    K = G + 3 − λ_z² (q = −λ_z² x (G − (I_1 − 3)): its roots x₋ < x < x₊ are the two Gent locking
+    stretches, x₊x₋ = 1/λ_z², x₊ − x₋ = √(K² − 4/λ_z²)). Partial fractions,
+    (λ_z x + 1)/(λ_z² x (x − x₊)(x − x₋)) = 1/x + B₊/(x − x₊) + B₋/(x − x₋), give
+
+        (G/2)[ln(1 − x₋Δx/(x_i(x − x₋))) + (1 + B₋) ln(1 + Δx/(x_i − x₋)) + B₊ ln(1 + Δx/(x_i − x₊))],
+
+    1 + B₋ = −(λ_z x₋ + 1)/(λ_z(x₊ − x₋)), B₊ = (λ_z x₊ + 1)/(λ_z² x₊(x₊ − x₋)), x = x_i + Δx: the
+    1/x and B₋ terms, each O(G) for large G, are combined without cancellation (the form tends
+    to :func:`neo_hookean_elastic_integral` as G → ∞). Exact up to locking: the log of the distance
+    to the pole resolves the boundary layer of W_1 at the inner face."""
+    lz, g = lambda_z, gent
+    k = g + 3.0 - lz * lz
+    root = jnp.sqrt(k - 2.0 / lz) * jnp.sqrt(k + 2.0 / lz)  # x₊ − x₋, without overflow of K²
+    x_plus = 0.5 * (k + root)
+    x_minus = 1.0 / (lz * lz * x_plus)
+    d_minus, d_plus = x_i - x_minus, x_i - x_plus
+    minus_log = jnp.log1p(-x_minus * dx / (x_i * (d_minus + dx)))
+    minus_pole = -(lz * x_minus + 1.0) / (lz * root) * jnp.log1p(dx / d_minus)
+    plus_pole = (lz * x_plus + 1.0) / (lz * lz * x_plus * root) * jnp.log1p(dx / d_plus)
+    return 0.5 * g * (minus_log + minus_pole + plus_pole)
+
+
+def _elastic_integral(tube: Tube, width):
+    """∫_{r̂_i}^{r̂_i + width} 2W_1(λ² − λ_r²) dr̂/r̂ (vectorised in width; the whole wall is
+    width = ĥ): in closed form for the Gent and neo-Hookean energies, else by quadrature."""
+    if tube.material not in ("gent", "neo_hookean"):
+        return elastic_quadrature(tube, width)
+    x_i, dx = stretch_squared_increment(tube, width)
+    lz = as_float(tube.lambda_z)
+    neo_hookean = neo_hookean_elastic_integral(x_i, dx, lz)
+    if tube.material == "neo_hookean":
+        return neo_hookean
+    g = as_float(tube.gent)
+    limit = g > GENT_CLOSED_MAX  # also G = inf
+    # double where: the unused branch gets a Gent constant above I_1 − 3 of the whole wall (its
+    # largest value is at r̂_i), so that its derivatives stay finite
+    inner_excess = x_i + 1.0 / (lz * lz * x_i) + lz * lz - 3.0
+    gent = gent_elastic_integral(x_i, dx, lz, jnp.where(limit, 2.0 * inner_excess + 1.0, g))
+    return jnp.where(limit, neo_hookean, gent)
+
+
+def elastic_quadrature(tube: Tube, width, panels=PANELS):
     """∫_{r̂_i}^{r̂_i + width} 2W_1(λ² − λ_r²) dr̂/r̂ by composite Gauss–Legendre (vectorised in
-    width; the whole wall is width = ĥ)."""
+    width), for energies without a closed form (smooth W_1 only: no boundary layer is resolved)."""
     x, w = np.polynomial.legendre.leggauss(GAUSS_ORDER)
     r0 = geometry(tube).r_inner
     half = 0.5 * jnp.asarray(width)[..., None, None] / panels  # half a panel, not a difference
