@@ -58,11 +58,12 @@ import numpy as np
 import optax
 
 from .compiled import cached_jit, jit, serializable
-from .dispersion import characteristic
+from .dispersion import characteristic, check_inputs
+from .modes import ROOT_RTOL, root_distance
 from .params import Fluid, Tube, as_float, canonical, mode_wavenumber, require_x64, validate_layers
 from .roots import first_instability, frequencies, solve_critical_voltage, solve_frequency
 from .scalar import Status, implicit_root
-from .transfer import validate_scheme
+from .transfer import laminate, validate_scheme
 
 DECAY = 0.97  # learning-rate factor per step
 FLOOR = 1e-9  # the rate never falls below FLOOR x its initial value
@@ -128,9 +129,12 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
                scheme: str = "midpoint"):
     """dΩ/dV̂ on the branch through the root ``omega``: T = −(∂f/∂V̂)/(∂f/∂Ω) (implicit function theorem).
 
-    ``omega`` should be a root (from :func:`jaxdea.frequency` or :func:`jaxdea.frequencies`). When it
-    carries its implicit derivatives, as those functions' roots do, ``jax.jacfwd``/``jax.grad`` of T
-    with respect to any leaf is the exact second derivative d²Ω/dV̂dθ of the discretisation.
+    ``omega`` must be a root (from :func:`jaxdea.frequency` or :func:`jaxdea.frequencies`), to the
+    relative Newton distance ``jaxdea.modes.ROOT_RTOL`` = 1e-4 of the same discretisation: a
+    concrete non-root raises a ValueError (a traced one gives NaN), since −f_V̂/f_Ω off a root is a
+    plausible number that means nothing. When ``omega`` carries its implicit derivatives, as those
+    functions' roots do, ``jax.jacfwd``/``jax.grad`` of T with respect to any leaf is the exact
+    second derivative d²Ω/dV̂dθ of the discretisation.
 
     Args:
         tube: the :class:`~jaxdea.Tube` (its ``voltage`` is the operating point).
@@ -146,6 +150,8 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
         >>> tunability(t, a, frequencies(t, a)[0])  # ≈ −1.217
     """
     require_x64()
+    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
+    concrete = not isinstance(omega, jax.core.Tracer)
     tube, alpha, omega = canonical(tube, alpha, omega)
     voltage = as_float(tube.voltage)
 
@@ -154,7 +160,13 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
 
     f_omega = jax.jvp(lambda om: f(om, voltage), (omega,), (jnp.ones_like(omega),))[1]
     f_voltage = jax.jvp(lambda v: f(omega, v), (voltage,), (jnp.ones_like(voltage),))[1]
-    return -f_voltage / f_omega
+    distance = root_distance(*jax.lax.stop_gradient((tube, alpha, omega, fluid)),
+                             laminate(n_layers, scheme), order)
+    if concrete and not isinstance(distance, jax.core.Tracer) and not float(distance) <= ROOT_RTOL:
+        raise ValueError(f"omega = {float(omega)!r} is not a root of the characteristic function "
+                         f"(a Newton step moves it by {float(distance):.2g} of itself, above "
+                         f"{ROOT_RTOL:g}): pass a root from jaxdea.frequency or jaxdea.frequencies")
+    return jnp.where(distance <= ROOT_RTOL, -f_voltage / f_omega, jnp.nan)
 
 
 def _with_implicit_derivatives(residual, root):

@@ -36,13 +36,33 @@ from .dispersion import (
     mode_family,
     order_m_admissible,
     outer_conditions,
+    problem_function,
 )
 from .params import Fluid, Tube, admissible, as_float, canonical, validate_count, validate_real
+from .scalar import value_and_slope
 from .state_matrix import LONGITUDINAL, ORDER_M, TORSIONAL, family_matrix, state_matrix
 from .transfer import Wall, discretize, expm_taylor, propagate_basis_history
 
 TORSIONAL_FIELDS = (1, 5)
 """Where the torsional state [V, Q] sits among the 8 fields [ū, v̄, w̄, Φ, T̄, Q̄, S̄, D̄]."""
+
+ROOT_RTOL = 1e-4
+"""Largest relative distance |f/f'|/|Ω| of ``omega`` from a root of the characteristic function of
+the laminate the shape is computed on (one Newton step: the residual against its own scale). A
+root of any discretisation that resolves the tube to better than 1e-4 (the default midpoint
+N = 30: about 1e-5) passes; Ω = 0.123 at α̂ = 0.4 (no root nearby) is ≈ 0.3 away."""
+
+
+def root_distance(tube, alpha, omega, fluid, n_layers, order, m=0.0, family=LONGITUDINAL):
+    """|f(Ω)|/(|f'(Ω)| |Ω|): the relative size of the Newton step from Ω to the nearest root (0 at a
+    root; at Ω = 0, where f' = 0 by symmetry, 0 if |f| ≤ 1e-12 (f is normalised, |f| ≤ 1), else
+    inf)."""
+    _, f = problem_function(tube, alpha, fluid, n_layers, order, m, family)
+    value, slope = value_and_slope(f, omega)
+    size = jnp.abs(slope) * jnp.abs(omega)
+    at_zero = jnp.where(jnp.abs(value) <= 1e-12, 0.0, jnp.inf)
+    return jnp.where(omega == 0.0, at_zero, jnp.abs(value) / jnp.where(size > 0, size, 1.0)
+                     + jnp.where(size > 0, 0.0, jnp.inf))
 
 
 def _interface_solution(wall: Wall, omega, alpha, fluid, order, m=0.0, family=LONGITUDINAL):
@@ -128,8 +148,9 @@ def _cavity_pressure(wall: Wall, omega, alpha, fluid: Fluid, c_u, n_points: int,
 
 @cached_jit(static_argnames=("n_points", "n_layers", "order", "family"))
 def _solve_mode(tube, alpha, omega, fluid, n_points, n_layers, order, m=0.0, family=LONGITUDINAL):
-    """(r, fields (n, n_points), r_f, p) in the normalisation of :func:`mode_shape`; r_f, p are the
-    cavity radii and acoustic pressure for the ``acoustic`` coupling, None otherwise.
+    """(r, fields (n, n_points), r_f, p, distance) in the normalisation of :func:`mode_shape`; r_f, p
+    are the cavity radii and acoustic pressure for the ``acoustic`` coupling, None otherwise; NaN
+    where ``omega`` is farther than ROOT_RTOL from a root (``distance``: :func:`root_distance`).
 
     ``family`` (static) ``"longitudinal"``: the 6 fields of theory.md §3 (the axisymmetric code);
     ``"order_m"`` (traced ``m``) and ``"torsional"``: the 8 fields [ū, v̄, w̄, Φ, T̄, Q̄, S̄, D̄] of
@@ -158,10 +179,13 @@ def _solve_mode(tube, alpha, omega, fluid, n_points, n_layers, order, m=0.0, fam
         else:  # an inviscid fluid exerts no shear: a torsional mode leaves it at rest
             r_f, p = jnp.linspace(0.0, wall.r_inner, n_points), jnp.zeros(n_points)
         p = p / scale
-    # traced inputs outside their range give NaN (concrete ones were validated by the callers)
+    # traced inputs outside their range give NaN (concrete ones were validated by the callers), and
+    # so does an omega that is no root: its "shape" would look plausible and mean nothing
+    distance = root_distance(tube, alpha, omega, fluid, n_layers, order, m, family)
     ok = admissible(tube, alpha, fluid) & jnp.isfinite(omega) & order_ok
+    ok &= distance <= ROOT_RTOL
     nan = lambda x: None if x is None else jnp.where(ok, x, jnp.nan)  # noqa: E731
-    return nan(r), nan((fields / scale).T), nan(r_f), nan(p)
+    return nan(r), nan((fields / scale).T), nan(r_f), nan(p), distance
 
 
 def _check_mode_arguments(omega, n_points) -> None:
@@ -172,15 +196,26 @@ def _check_mode_arguments(omega, n_points) -> None:
 
 
 def _solve(tube, alpha, omega, fluid, n_points, n_layers, m, torsional):
-    """Validate, then :func:`_solve_mode` (the axisymmetric program unchanged for m = 0)."""
+    """Validate, then :func:`_solve_mode` (the axisymmetric program unchanged for m = 0); a
+    concrete ``omega`` that is no root raises (a traced one gives NaN fields)."""
     order = check_inputs(tube, alpha, fluid, n_layers)
     family = mode_family(m, torsional, fluid)
     _check_mode_arguments(omega, n_points)
+    concrete = not isinstance(omega, jax.core.Tracer)
     tube, alpha, omega, fluid, m = canonical(tube, alpha, omega, fluid, m)
     if family == LONGITUDINAL:
-        return _solve_mode(tube, alpha, omega, fluid, int(n_points), int(n_layers), order)
-    return _solve_mode(tube, alpha, omega, fluid, int(n_points), int(n_layers), order,
-                       as_float(m), family)
+        out = _solve_mode(tube, alpha, omega, fluid, int(n_points), int(n_layers), order)
+    else:
+        out = _solve_mode(tube, alpha, omega, fluid, int(n_points), int(n_layers), order,
+                          as_float(m), family)
+    distance = out[-1]
+    if concrete and not isinstance(distance, jax.core.Tracer) and not float(distance) <= ROOT_RTOL:
+        raise ValueError(
+            f"omega = {float(omega)!r} is not a root of the characteristic function of this case "
+            f"(order m = {m if family == ORDER_M else 0}, N = {n_layers}): a Newton step moves it "
+            f"by {float(distance):.2g} of itself, above the tolerance {ROOT_RTOL:g}; pass a root "
+            "from jaxdea.frequencies (or frequency) of the same tube, α̂, fluid and order")
+    return out[:-1]
 
 
 def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: int = 64,
@@ -195,9 +230,11 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
     the ``n_points`` samples, the displacement entry of largest modulus being +1; the acoustic
     pressure of :func:`fluid_pressure` with the same ``n_points`` uses the same scale.
 
-    At a non-root ``omega`` the fields are those of the least-singular direction of the outer-face
-    conditions (they then violate them); one without displacement (at V̂ = 0 the electrical
-    problem decouples) is scaled so that its entry of largest modulus is +1.
+    ``omega`` must be a root of the characteristic function of the same case and laminate, to a
+    relative Newton distance |f/f'|/|Ω| ≤ ``ROOT_RTOL`` = 1e-4 (a root from another discretisation
+    that resolves the tube passes): a concrete non-root raises a ValueError, a traced one gives NaN
+    fields. A mode without displacement (at V̂ = 0 the electrical problem decouples) is scaled so
+    that its entry of largest modulus is +1.
 
     Circumferential order m (theory_m.md §1): u_r = R_i ū cos mθ cos αz, u_θ = R_i v̄ sin mθ cos αz,
     u_z = R_i w̄ cos mθ sin αz, Ṫ_rθ = μ Q̄ sin mθ cos αz, the others as for m = 0; the 8 fields
@@ -223,7 +260,8 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
 
     Raises:
         ValueError: for invalid concrete inputs, naming the parameter (m not an integer ≥ 0,
-            ``torsional=True`` with m ≥ 1, the ``"paper"`` coupling with m ≥ 1).
+            ``torsional=True`` with m ≥ 1, the ``"paper"`` coupling with m ≥ 1, an ``omega`` that
+            is not a root).
 
     Example:
         >>> import jaxdea as jd

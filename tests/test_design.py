@@ -39,6 +39,15 @@ def test_bad_inputs_name_the_parameter(call, name):
         call()
 
 
+def test_tunability_refuses_an_omega_that_is_no_root():
+    tube = TUBE.replace(voltage=0.1)
+    root = float(jd.frequencies(tube, ALPHA, n_roots=1)[0])
+    assert math.isfinite(float(design.tunability(tube, ALPHA, root)))
+    with pytest.raises(ValueError, match="omega = 0.5 is not a root"):
+        design.tunability(tube, ALPHA, 0.5)
+    assert math.isnan(float(jax.jit(lambda w: design.tunability(tube, ALPHA, w))(0.5)))
+
+
 def test_candidates_are_the_modes_near_the_first_instability():
     grid = np.array([[0.30, 0.28], [0.20, 0.19], [0.030, 0.0315], [0.031, np.nan]])
     cands = design._candidates(grid)  # within 5 % of 0.030: (2, 1), (3, 1), (2, 2); padded

@@ -17,6 +17,8 @@ import jaxdea as jd
 from jaxdea import modes
 from jaxdea.bessel import _switch, coupling_log_factor, coupling_pair
 from jaxdea.modes import fluid_pressure
+from jaxdea.params import canonical
+from jaxdea.transfer import discretize
 
 TUBE = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
 N_POINTS = 401  # fine enough for 4th-order finite differences of p̂*(r̂) (h = r̂_i/400)
@@ -130,8 +132,30 @@ def test_fluid_pressure_shares_the_mode_shape_program():
     _solution("light", 0)
     before = modes._solve_mode._cache_size()
     fluid, alpha = SETUPS["light"]
-    fluid_pressure(TUBE.replace(voltage=0.05), alpha * 1.1, 0.2, fluid, n_points=N_POINTS)
+    tube = TUBE.replace(voltage=0.05)
+    omega = jd.frequencies(tube, alpha * 1.1, fluid, n_roots=1)[0]
+    fluid_pressure(tube, alpha * 1.1, omega, fluid, n_points=N_POINTS)
     assert modes._solve_mode._cache_size() == before
+
+
+def test_a_non_root_omega_raises_or_gives_nan():
+    """Ω = 0.123 at α̂ = 0.4 is no root: a concrete call raises naming omega, a traced one gives NaN
+    fields; a root passes, and so does the root of a finer laminate (relative distance ~1e-5)."""
+    tube = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
+    with pytest.raises(ValueError, match="omega = 0.123 is not a root"):
+        jd.mode_shape(tube, 0.4, 0.123)
+    with pytest.raises(ValueError, match="not a root"):
+        jd.mode_shape(tube, 0.4, 0.123, m=2)
+    r, fields = jax.jit(lambda w: jd.mode_shape(tube, 0.4, w))(0.123)
+    assert np.all(np.isnan(np.asarray(fields)))
+    root = float(jd.frequencies(tube, 0.4, n_roots=1)[0])
+    fine = float(jd.frequencies(tube, 0.4, n_roots=1, scheme="magnus6", n_layers=8)[0])
+    assert 1e-7 < abs(fine / root - 1) < 1e-4  # the midpoint N = 30 laminate's error
+    for w in (root, fine):
+        assert np.all(np.isfinite(np.asarray(jd.mode_shape(tube, 0.4, w)[1])))
+    # the distance is the Newton step relative to Ω: 1e-3 off the root is 1e-3 away
+    d = modes.root_distance(*canonical(tube, 0.4, root * (1 + 1e-3)), None, 30, 0)
+    assert float(d) == pytest.approx(1e-3, rel=1e-2)
 
 
 @pytest.mark.parametrize("zero", [3.8317059702075125, 10.173468135062722])  # j_{1,1}, j_{1,3}
@@ -142,9 +166,15 @@ def test_fluid_pressure_at_a_rigid_wall_cavity_resonance(zero):
     ri = float(TUBE.lambda_i)
     chi = zero / ri
     omega = float(fluid.speed_ratio) * np.hypot(chi, alpha)
-    r_wall, y = jd.mode_shape(TUBE, alpha, omega, fluid, n_points=N_POINTS)
-    r, p = fluid_pressure(TUBE, alpha, omega, fluid, n_points=N_POINTS)
-    r, p = np.asarray(r), np.asarray(p)
+    # not a root, so not through the public functions (they refuse it): the same pieces, unmasked
+    tube, a, w, f = canonical(TUBE, alpha, omega, fluid)
+    wall = discretize(tube, 30)
+    states, coefficients = modes._interface_solution(wall, w, a, f, 0)
+    _, fields = modes._wall_fields(wall, states, w, a, N_POINTS, 30)
+    scale = modes._displacement_scale(fields)
+    y = np.asarray(fields / scale).T
+    r, p = modes._cavity_pressure(wall, w, a, f, coefficients[0], N_POINTS)
+    r, p = np.asarray(r), np.asarray(p / scale)
     assert np.all(np.isfinite(p)) and np.max(np.abs(p)) > 1e-3
     assert abs(float(y[0, 0])) < 1e-12
     np.testing.assert_allclose(p, p[0] * special.j0(chi * r), rtol=0, atol=1e-12 * np.max(np.abs(p)))
