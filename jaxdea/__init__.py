@@ -39,6 +39,7 @@ from .roots import (
     solve_frequency,
 )
 from .scalar import Status
+from .stability import Stability, stability
 from .sweeps import SweepResult, sweep
 from .trace import Branch, BranchEnd, trace_branch
 
@@ -54,6 +55,7 @@ __all__ = [
     "Instability",
     "RootCount",
     "Roots",
+    "Stability",
     "Status",
     "SweepResult",
     "Tube",
@@ -81,6 +83,7 @@ __all__ = [
     "solve_critical_voltages",
     "solve_frequencies",
     "solve_frequency",
+    "stability",
     "sweep",
     "thickness_ratio",
     "trace_branch",
