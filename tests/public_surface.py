@@ -65,6 +65,7 @@ CALLS = {
     "frequencies_m2": lambda: jd.frequencies(TUBE, ALPHA, m=2),
     "growth_rates": lambda: jd.growth_rates(TUBE, ALPHA, m=2),
     "first_instability": lambda: jd.first_instability(TUBE, n_max=1, m_max=2),
+    "stability": lambda: jd.stability(TUBE, n_max=1, m_max=2),
     "mode_shape_m2": lambda: jd.mode_shape(TUBE, ALPHA, float(jd.frequencies(TUBE, ALPHA, m=2)[0]), m=2),
     "characteristic_torsional": lambda: jd.characteristic(TUBE, 1.3, ALPHA, torsional=True),
     "design_for_frequency": _design,
