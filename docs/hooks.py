@@ -1,0 +1,89 @@
+"""Build hooks: the API reference lists every name of ``jaxdea.__all__``, grouped by the module that
+defines it (read from ``jaxdea/__init__.py`` without importing the package), and the docstrings'
+reST cross-references become links."""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+MARKER = "<!-- public API of jaxdea -->"
+ROLE = re.compile(r":(?:func|class|meth|attr|data|mod|exc):<code>~?([\w.]+)</code>")
+ANCHOR = re.compile(r'id="(jaxdea\.[\w.]+)"')
+SECTION_TITLES = {
+    "params": "Parameters",
+    "dispersion": "Characteristic function",
+    "roots": "Frequencies, critical voltages and growth rates",
+    "stability": "Stability of a state",
+    "curves": "Dispersion curves",
+    "trace": "Branch tracing",
+    "sweeps": "Sweeps",
+    "accuracy": "Accuracy control",
+    "counting": "Root counting",
+    "modes": "Mode shapes",
+    "base_state": "Static state",
+    "design": "Design",
+    "scalar": "Status codes",
+    "units": "Units",
+}
+
+
+def public_names_by_module(init_file: Path) -> dict[str, list[str]]:
+    """Map each module of the package to the names of ``__all__`` it defines, in import order; a
+    public submodule maps to itself."""
+    tree = ast.parse(init_file.read_text(encoding="utf-8"))
+    exported: list[str] = []
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and any(
+            isinstance(target, ast.Name) and target.id == "__all__" for target in node.targets
+        ):
+            exported = list(ast.literal_eval(node.value))
+    source: dict[str, str] = {}
+    for node in tree.body:
+        if isinstance(node, ast.ImportFrom) and node.level == 1:
+            for alias in node.names:
+                name = alias.asname or alias.name
+                source[name] = alias.name if node.module is None else node.module
+    groups: dict[str, list[str]] = {}
+    for name in sorted(exported, key=lambda n: list(source).index(n) if n in source else len(source)):
+        groups.setdefault(source.get(name, name), []).append(name)
+    return groups
+
+
+def api_markdown(init_file: Path) -> str:
+    """One section per defining module, one mkdocstrings block per public name."""
+    lines = []
+    for module, names in public_names_by_module(init_file).items():
+        lines += [f"## {SECTION_TITLES.get(module, module)}", ""]
+        for name in names:
+            path = f"jaxdea.{module}" if name == module else f"jaxdea.{module}.{name}"
+            lines += [f"::: {path}", "    options:", "      heading_level: 3", ""]
+    return "\n".join(lines)
+
+
+def on_page_markdown(markdown, page, config, files):
+    if MARKER not in markdown:
+        return markdown
+    init_file = Path(config["config_file_path"]).parent / "jaxdea" / "__init__.py"
+    return markdown.replace(MARKER, api_markdown(init_file))
+
+
+def resolve_roles(page_html: str) -> str:
+    """Docstring cross-references written as reST roles (``:func:`name```) become code, linked to
+    the entry of the same name on the page where there is one."""
+    anchors: dict[str, str] = {}
+    for anchor in sorted(ANCHOR.findall(page_html), key=len, reverse=True):
+        anchors[anchor.rsplit(".", 1)[-1]] = anchor  # the shortest path of a name wins
+
+    def link(match):
+        name = match.group(1)
+        short = name.rsplit(".", 1)[-1]
+        code = f"<code>{short if name.startswith('jaxdea.') else name}</code>"
+        return f'<a href="#{anchors[short]}">{code}</a>' if short in anchors else code
+
+    return ROLE.sub(link, page_html)
+
+
+def on_page_content(html, page, config, files):
+    return resolve_roles(html) if ":<code>" in html else html

@@ -1,0 +1,1 @@
+../../notebooks/paper_reproduction.py

@@ -1,0 +1,1 @@
+../../notebooks/sensitivity_maps.py
