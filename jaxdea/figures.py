@@ -12,9 +12,17 @@ the curves against V̂ end at (V̂_cr, 0). V̂_cr is solved directly (:func:`jax
 a blank point never hides a wrong branch: the lowest real root found above V̂_cr belongs to another
 branch and is not drawn.
 
+The tube loses stability earlier in a non-axisymmetric order m (theory_m.md): for λ_i = 0.9 the
+ring mode (m, n) = (2, 1) at V̂ ≈ 0.029, a tenth of the axisymmetric V̂_cr. The first instability
+(the smallest V̂_cr over m ≤ 4, n ≤ max_mode, as :func:`jaxdea.first_instability`) is shaded on the
+figures against V̂ (Figs. 2, 5) and stated on those against n (Figs. 3, 4, 6, 7; the curves past it
+faded). Three figures of order m follow: the stability map (V̂_cr of m = 0 … 4 against λ_i and n),
+the cross-sections of the lowest m = 1, 2, 3 modes, and the dispersion curves Ω(α̂) of m = 0, 1, 2.
+
 Data layout of every CSV: one row per point and coupling, long format (``figure``, the swept
 parameters, ``coupling``, ``alpha_hat``, ``omega``, ``phase_velocity`` = Ω/α̂, ``v_critical``,
-``status``).
+``status``; Figs. 2–7 add ``v_first``, ``m_first``, ``n_first``, the first instability at the row's
+λ_i).
 """
 
 from __future__ import annotations
@@ -29,12 +37,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base_state import _squared_voltage, pull_in, with_thickness_ratio_unchecked
+from .base_state import _squared_voltage, pull_in, voltage_limit, with_thickness_ratio_unchecked
 from .compiled import cached_jit, jit
+from .curves import dispersion_curve
 from .leaves import apply_parameters
-from .params import Fluid, Tube
+from .modes import mode_shape
+from .params import Fluid, Tube, guard, mode_wavenumber
 from .roots import critical_voltage_unchecked
 from .scalar import Status
+from .state_matrix import ORDER_M
 from .sweeps import sweep
 
 PAPER_TUBE = Tube(lambda_z=1.2, eta=0.85, gent=97.2, length_ratio=10.0)
@@ -42,7 +53,16 @@ PAPER_FLUID = dict(density_ratio=0.13, speed_ratio=0.27)
 COUPLINGS = ("acoustic", "paper")
 STRETCHES = (0.9, 1.1)  # subcritical and overcritical λ_i of the paper
 MODES = (1, 2, 3)
-COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red")
+COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple")
+SHAPE_STRETCH, SHAPE_VOLTAGE = 0.9, 0.01  # a stable state of the paper's tube (first instability 0.0293)
+SHAPE_TUBE = PAPER_TUBE.replace(lambda_i=SHAPE_STRETCH, voltage=SHAPE_VOLTAGE)
+ORDERS = (0, 1, 2, 3, 4)  # circumferential orders of the stability map and of the first instability
+CRITICAL_STRETCH = 1.0 / math.sqrt(float(PAPER_TUBE.lambda_z))  # λ_i = λ_z^{-1/2} of Figs. 4 and 7
+MAP_STRETCH_RANGE = (0.9, 1.4)  # below λ_i ≈ 0.9 the tube is unstable at V̂ = 0 (m = 2, n = 1: growth rate
+# s = 0.35 at λ_i = 0.875, 0.96 at 0.8), where V̂_cr, the first zero of Ω² from V̂ = 0, means nothing
+SHAPE_ORDERS = (1, 2, 3)
+CURVE_ORDERS = (0, 1, 2)
+CURVE_ROOTS = 3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -53,11 +73,17 @@ class Resolution:
     max_mode: int
     fluid_points: int
     static_points: int
+    map_stretches: int  # λ_i of the stability map
+    curve_steps: int  # α̂ steps of the order-m dispersion curves per mode spacing α̂_1
+    outline_points: int  # angles θ of the cross-section outlines
 
     @classmethod
     def pick(cls, quick: bool) -> Resolution:
-        return cls(voltages=5, max_mode=4, fluid_points=3, static_points=60) if quick else \
-            cls(16, 15, 10, 240)
+        if quick:
+            return cls(voltages=5, max_mode=4, fluid_points=3, static_points=60, map_stretches=5,
+                       curve_steps=1, outline_points=73)
+        return cls(voltages=16, max_mode=15, fluid_points=10, static_points=240, map_stretches=11,
+                   curve_steps=4, outline_points=361)
 
 
 class Table:
@@ -115,6 +141,73 @@ def critical_voltage_grid(tube: Tube, n_layers: int, **axes) -> np.ndarray:
     return np.concatenate([np.asarray(c) for c in chunks])[:size].reshape(grids[0].shape)
 
 
+ORDER_M_BATCH = 8  # order-m critical voltages solved side by side (vmapped) inside the one program
+
+
+@cached_jit(static_argnames=("n_layers",))
+def _order_m_critical_voltages(tube: Tube, stretches, orders, modes, n_layers):
+    """V̂_cr of order m at α̂_n = 2nπη/(L/R_o·λ_z) and λ_i for each case (λ_i, m, n) of a flat batch.
+
+    The search of :func:`jaxdea.first_instability`: :func:`critical_voltage_unchecked` of the family
+    ``"order_m"`` (m traced, the longitudinal family at m = 0) in (0, V̂_lim], V̂_lim the pull-in limit
+    of :func:`voltage_limit`; one compiled program for every λ_i, m and n; NaN where none."""
+    def one(case):
+        stretch, order, mode = case
+        ok, base, _, _ = guard(tube.replace(lambda_i=stretch, voltage=0.0), 1.0, None)
+        voltage, _ = critical_voltage_unchecked(base, mode_wavenumber(base, mode), None, n_layers, 0,
+                                                v_end=voltage_limit(base), m=order, family=ORDER_M)
+        return jnp.where(ok, voltage, jnp.nan)
+
+    return jax.lax.map(one, (stretches, orders, modes), batch_size=ORDER_M_BATCH)
+
+
+@dataclasses.dataclass(frozen=True)
+class Stability:
+    """Critical voltages of the orders m = 0 … 4 (:data:`ORDERS`) of the paper's tube.
+
+    Attributes:
+        map_stretches: λ_i of the stability map, shape (L,).
+        map_voltages: V̂_cr of (m, n = 1) at each of them, shape (L, len(ORDERS)).
+        grids: {λ_i: V̂_cr of every (m, n), shape (len(ORDERS), max_mode)} at the λ_i of the figures.
+    """
+
+    map_stretches: np.ndarray
+    map_voltages: np.ndarray
+    grids: dict
+
+    def first(self, lambda_i) -> tuple[float, int, int]:
+        """(V̂, m, n) of the first instability at λ_i (:func:`lowest_critical` of its grid, as
+        :func:`jaxdea.first_instability` with m_max = 4, n_max = max_mode)."""
+        return lowest_critical(self.grids[float(lambda_i)])
+
+
+def lowest_critical(grid) -> tuple[float, int, int]:
+    """(V̂, m, n) of the smallest V̂_cr of a grid over (m = 0, 1, …) × (n = 1, 2, …), ties to the lowest
+    m, then n; (NaN, −1, 0) if all are NaN."""
+    flat = np.where(np.isnan(grid), np.inf, grid).ravel()
+    first = int(np.argmin(flat))
+    if not np.isfinite(flat[first]):
+        return math.nan, -1, 0
+    return float(flat[first]), first // grid.shape[1], first % grid.shape[1] + 1
+
+
+def stability_of_paper_tube(n_layers: int, map_stretches, stretches, max_mode: int) -> Stability:
+    """:class:`Stability`: V̂_cr of (λ_i, m, n = 1) over ``map_stretches`` and of (m, n ≤ max_mode) at
+    each of ``stretches``, all in one call of one compiled program."""
+    orders = np.asarray(ORDERS, float)
+    modes = np.arange(1.0, max_mode + 1.0)
+    blocks = [np.meshgrid(np.asarray(map_stretches, float), orders, [1.0], indexing="ij")]
+    blocks += [np.meshgrid([li], orders, modes, indexing="ij") for li in stretches]
+    cases = [np.concatenate([b[k].ravel() for b in blocks]) for k in range(3)]
+    voltages = np.asarray(_order_m_critical_voltages(PAPER_TUBE, *(jnp.asarray(c) for c in cases),
+                                                     n_layers))
+    size = len(map_stretches) * len(orders)
+    grids = np.split(voltages[size:], len(stretches)) if stretches else []
+    return Stability(np.asarray(map_stretches, float), voltages[:size].reshape(len(map_stretches), -1),
+                     {float(li): g.reshape(len(orders), max_mode) for li, g in zip(stretches, grids,
+                                                                                  strict=True)})
+
+
 @dataclasses.dataclass
 class Context:
     out: Path
@@ -123,6 +216,9 @@ class Context:
     progress: bool
     written: list
     critical: dict = dataclasses.field(default_factory=dict)
+    stability_of_tube: Stability | None = None
+    curves: dict = dataclasses.field(default_factory=dict)
+    since: float = dataclasses.field(default_factory=time.perf_counter)  # when the last figure was saved
 
     def log(self, message: str) -> None:
         if self.progress:
@@ -135,6 +231,15 @@ class Context:
         if key not in self.critical:
             self.critical[key] = critical_voltage_grid(PAPER_TUBE, self.n_layers, **axes)
         return self.critical[key]
+
+    def stability(self) -> Stability:
+        """:func:`stability_of_paper_tube` for the stability map (λ_i over :data:`MAP_STRETCH_RANGE`)
+        and the λ_i of Figs. 2–7, solved once."""
+        if self.stability_of_tube is None:
+            stretches = np.round(np.linspace(*MAP_STRETCH_RANGE, self.res.map_stretches), 12)
+            self.stability_of_tube = stability_of_paper_tube(
+                self.n_layers, stretches, STRETCHES + (CRITICAL_STRETCH,), self.res.max_mode)
+        return self.stability_of_tube
 
     def solve(self, fluid: Fluid | None, *, voltage, lambda_i, n, eta=0.85,
               density_ratio=PAPER_FLUID["density_ratio"], speed_ratio=PAPER_FLUID["speed_ratio"]):
@@ -160,7 +265,9 @@ class Context:
         plt.close(fig)
         table.write(csv_path)
         self.written += [png, csv_path]
-        self.log(f"  wrote {png} and {csv_path.name}")
+        now = time.perf_counter()
+        self.log(f"  wrote {png} and {csv_path.name} ({now - self.since:.1f} s)")
+        self.since = now
 
 
 def _fluids():
@@ -206,6 +313,39 @@ def _finish(ax, xlabel, ylabel, legend=True):
         ax.legend(fontsize=7)
 
 
+def _first_columns(stability: Stability, lambda_i) -> dict:
+    """The CSV columns of the first instability at λ_i: ``v_first``, ``m_first``, ``n_first``."""
+    v, m, n = stability.first(lambda_i)
+    return dict(v_first=v, m_first=m, n_first=n)
+
+
+def _shade_unstable(ax, stability: Stability, stretches) -> None:
+    """Shade V̂ ≥ V̂_first of each λ_i (the tube has buckled in the order m, mode n that fails first),
+    labelled "(m, n) unstable"."""
+    right = ax.get_xlim()[1]
+    for k, li in enumerate(stretches):
+        v, m, n = stability.first(li)
+        if not np.isfinite(v) or v >= right:
+            continue
+        ax.axvspan(v, right, color="0.5", alpha=0.12, lw=0, hatch="///" if k else None)
+        ax.axvline(v, color="0.3", ls=":", lw=1)
+        ax.annotate(f"λi={li}: ({m}, {n}) unstable", (v, 0.5), xycoords=("data", "axes fraction"),
+                    xytext=(2, 0), textcoords="offset points", rotation=90, va="center", fontsize=7,
+                    color="0.2", bbox=dict(fc="white", ec="none", alpha=0.7, pad=1))
+    ax.set_xlim(right=right)
+
+
+def _note_unstable(ax, stability: Stability, stretches) -> None:
+    """State the first instability of each λ_i below the figure of ``ax`` (the curves at V̂ ≥ V̂_first
+    are faded)."""
+    lines = []
+    for li in stretches:
+        v, m, n = stability.first(li)
+        lines.append(f"λi={li:.3g}: ({m}, {n}) unstable for V̂ ≥ {v:.4f}")
+    ax.figure.text(0.5, -0.03, "first instability (curves past it faded): " + ";  ".join(lines),
+                   ha="center", va="top", fontsize=8, color="0.2")
+
+
 # ----------------------------------------------------------------------------- Figs. 2 and 5
 
 
@@ -217,19 +357,21 @@ def figure_voltage(ctx: Context, fluid_filled: bool) -> None:
     v_top = float(np.nanmax(v_cr))
     voltages = v_top * np.linspace(0.0, 1.0, ctx.res.voltages, endpoint=False)
     cases = _fluids() if fluid_filled else {None: None}
+    stability = ctx.stability()
     fig, (ax_w, ax_c) = _figure(title=("Fluid-filled" if fluid_filled else "Fluid-free")
                                 + " tube: lowest frequency of modes n = 1, 2, 3 (λ_z = 1.2)")
     table = Table(name)
     for coupling, fluid in cases.items():
         omegas, statuses, alphas = ctx.solve(fluid, voltage=voltages, lambda_i=STRETCHES, n=MODES)
         for i, li in enumerate(STRETCHES):
+            first = _first_columns(stability, li)
             for j, n in enumerate(MODES):
                 omega, past = _mask_past(omegas[:, i, 0, 0, 0, j], voltages, v_cr[i, j])
                 alpha = alphas[0, i, 0, 0, 0, j]
                 for v, w, s, p in zip(voltages, omega, statuses[:, i, 0, 0, 0, j], past, strict=True):
                     table.add(lambda_i=li, n=n, voltage=v, coupling=coupling or "none", alpha_hat=alpha,
                               omega=w, phase_velocity=w / alpha, v_critical=v_cr[i, j],
-                              status=_status_name(s, p))
+                              status=_status_name(s, p), **first)
                 x = np.append(voltages[~past], v_cr[i, j])
                 y = np.append(omega[~past], 0.0)
                 label = f"n={n}, λi={li}" + (f" ({coupling})" if coupling else "")
@@ -237,6 +379,8 @@ def figure_voltage(ctx: Context, fluid_filled: bool) -> None:
                           marker="o" if li == 0.9 else "s", ms=2.5)
                 ax_w.plot(x, y, label=label, **kw)
                 ax_c.plot(x, y / alpha, **kw)
+    for ax in (ax_w, ax_c):
+        _shade_unstable(ax, stability, STRETCHES)
     _finish(ax_w, "voltage V̂", "frequency Ω")
     _finish(ax_c, "voltage V̂", "phase velocity ĉ_p = Ω/α̂", legend=False)
     ctx.save(name, fig, table)
@@ -250,7 +394,7 @@ def figure_modes(ctx: Context, fluid_filled: bool, critical_stretch: bool) -> No
     Figs. 4/7: λ_i = λ_z^{-1/2} and V̂ = 0, 0.1, 0.15, 0.2)."""
     if critical_stretch:
         name = "fig7_modes_critical_fluid" if fluid_filled else "fig4_modes_critical_empty"
-        stretches, voltages = (1.0 / math.sqrt(float(PAPER_TUBE.lambda_z)),), (0.0, 0.1, 0.15, 0.2)
+        stretches, voltages = (CRITICAL_STRETCH,), (0.0, 0.1, 0.15, 0.2)
     else:
         name = "fig6_modes_fluid" if fluid_filled else "fig3_modes_empty"
         stretches, voltages = STRETCHES, (0.0, 0.2)
@@ -261,24 +405,30 @@ def figure_modes(ctx: Context, fluid_filled: bool, critical_stretch: bool) -> No
     title = ("Fluid-filled" if fluid_filled else "Fluid-free") + " tube against the mode number"
     if critical_stretch:
         title += f" at λ_i = λ_z^-1/2 ≈ {stretches[0]:.3f}"
+    stability = ctx.stability()
     fig, (ax_w, ax_c) = _figure(title=title)
     table = Table(name)
     for coupling, fluid in cases.items():
         omegas, statuses, alphas = ctx.solve(fluid, voltage=voltages, lambda_i=stretches, n=modes)
         for i, li in enumerate(stretches):
+            first = _first_columns(stability, li)
             for j, v in enumerate(voltages):
                 omega, past = _mask_past(omegas[j, i, 0, 0, 0], v, v_cr[i])
                 alpha = alphas[j, i, 0, 0, 0]
                 for n, a, w, s, p, vc in zip(modes, alpha, omega, statuses[j, i, 0, 0, 0], past, v_cr[i],
                                              strict=True):
                     table.add(lambda_i=li, voltage=v, n=n, coupling=coupling or "none", alpha_hat=a,
-                              omega=w, phase_velocity=w / a, v_critical=vc, status=_status_name(s, p))
+                              omega=w, phase_velocity=w / a, v_critical=vc, status=_status_name(s, p),
+                              **first)
+                unstable = v >= first["v_first"]
                 color = COLORS[j if critical_stretch else 2 * i + j]
                 label = f"V̂={v}" + ("" if critical_stretch else f", λi={li}") + (
-                    f" ({coupling})" if coupling else "")
-                kw = dict(color=color, ls=_style(coupling), marker="o", ms=2.5)
+                    f" ({coupling})" if coupling else "") + (" unstable" if unstable else "")
+                kw = dict(color=color, ls=_style(coupling), marker="o", ms=2.5,
+                          alpha=0.45 if unstable else 1.0)
                 ax_w.plot(modes, omega, label=label, **kw)
                 ax_c.plot(modes, omega / alpha, **kw)
+    _note_unstable(ax_c, stability, stretches)
     _finish(ax_w, "axial mode number n", "frequency Ω")
     _finish(ax_c, "axial mode number n", "phase velocity ĉ_p = Ω/α̂", legend=False)
     ctx.save(name, fig, table)
@@ -340,6 +490,156 @@ def figure_fluid_parameter(ctx: Context, axis: str) -> Table:
         _finish(panels[iv], xlabel, "frequency Ω", legend=iv == 0)
     ctx.save(name, fig, table)
     return table
+
+
+# ----------------------------------------------------------------------------- order m
+
+
+def figure_stability_map(ctx: Context) -> None:
+    """V̂_cr of the orders m = 0 … 4 (a) against λ_i at n = 1, the first instability (lower envelope,
+    min over m) drawn bold, and (b) against the axial mode n at λ_i = 0.9 and 1.1.
+
+    λ_i starts at 0.9: at λ_i = 0.875 and below the ring mode (2, 1) is unstable at V̂ = 0 already
+    (:func:`jaxdea.growth_rates`), and a V̂_cr found above zero there is no loss of stability."""
+    name = "stability_map"
+    ctx.log(f"[{name}] critical voltages of the orders m = 0 … 4")
+    stability = ctx.stability()
+    fig, (ax_l, ax_n) = _figure(title="Paper's tube (η = 0.85, λ_z = 1.2, G = 97.2): critical voltage "
+                                      "V̂_cr of order m")
+    table = Table(name)
+    envelope = np.array([lowest_critical(row[:, None])[:2] for row in stability.map_voltages])
+    for li, row, (v_env, m_env) in zip(stability.map_stretches, stability.map_voltages, envelope,
+                                       strict=True):
+        for m, v in zip(ORDERS, row, strict=True):
+            table.add(panel="lambda_i", lambda_i=li, m=m, n=1, v_critical=v, v_first=v_env,
+                      m_first=int(m_env), n_first=1 if m_env >= 0 else 0)
+    for k, m in enumerate(ORDERS):
+        ax_l.plot(stability.map_stretches, stability.map_voltages[:, k], color=COLORS[k], marker="o",
+                  ms=2.5, lw=1.2, label=f"m = {m}")
+    ax_l.plot(stability.map_stretches, envelope[:, 0], color="k", ls="--", lw=2, zorder=5,
+              label="first instability (min over m)")
+    ax_l.fill_between(stability.map_stretches, envelope[:, 0], np.nanmax(stability.map_voltages),
+                      color="0.5", alpha=0.1, lw=0)
+    ax_l.set_title("(a) axial mode n = 1 (shaded: unstable)", fontsize=9)
+    _finish(ax_l, "inner stretch λ_i", "critical voltage V̂_cr", legend=False)
+    ax_l.legend(fontsize=7, loc="upper right")
+    modes = np.arange(1, ctx.res.max_mode + 1)
+    for li, style in zip(STRETCHES, ("-", "--"), strict=True):
+        grid = stability.grids[float(li)]
+        first = _first_columns(stability, li)
+        for k, m in enumerate(ORDERS):
+            for n, v in zip(modes, grid[k], strict=True):
+                table.add(panel="n", lambda_i=li, m=m, n=n, v_critical=v, **first)
+            ax_n.plot(modes, grid[k], color=COLORS[k], ls=style, marker="o", ms=2.5,
+                      label=f"m = {m}, λi = {li}")
+        ax_n.plot([first["n_first"]], [first["v_first"]], "k*", ms=10)
+        ax_n.annotate(f"λi={li}: ({first['m_first']}, {first['n_first']}) first", (first["n_first"],
+                      first["v_first"]), xytext=(8, -4 if li == STRETCHES[0] else 4),
+                      textcoords="offset points", fontsize=7)
+    ax_n.set_title("(b) against the axial mode (* first instability)", fontsize=9)
+    _finish(ax_n, "axial mode number n", "critical voltage V̂_cr", legend=False)
+    ax_n.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    ctx.save(name, fig, table)
+
+
+def dispersion_grid(tube: Tube, max_mode: int, steps: int) -> np.ndarray:
+    """α̂ from α̂_1 to α̂_max_mode of the tube's axial modes, ``steps`` points per spacing α̂_1 (the
+    modes α̂_n among them)."""
+    alpha_1 = float(mode_wavenumber(tube, 1.0))
+    return alpha_1 * np.linspace(1.0, max_mode, (max_mode - 1) * steps + 1)
+
+
+@cached_jit(static_argnames=("n_roots", "n_layers"))
+def _order_m_curves(tube: Tube, alphas, fluid, orders, n_roots, n_layers):
+    """:func:`jaxdea.dispersion_curve` of each order m of ``orders`` (traced: one compiled program
+    for every m, the longitudinal family at m = 0); (Ω, status, scanned) stacked over the orders."""
+    def one(order):
+        curve = dispersion_curve(tube, alphas, fluid, n_roots, n_layers, m=order)
+        return curve.omega, curve.status, curve.scanned
+
+    return jax.lax.map(one, orders)
+
+
+def order_m_curves(ctx: Context, fluid: Fluid | None, orders) -> dict:
+    """{m: (Ω (M, K), status (M, K), scanned (M,))} along :func:`dispersion_grid` of the tube of
+    :func:`figure_dispersion_order_m`, solved once per fluid."""
+    key = (None if fluid is None else fluid.coupling, tuple(orders))
+    if key not in ctx.curves:
+        alphas = dispersion_grid(SHAPE_TUBE, ctx.res.max_mode, ctx.res.curve_steps)
+        out = _order_m_curves(SHAPE_TUBE, jnp.asarray(alphas), fluid, jnp.asarray(orders, float),
+                              CURVE_ROOTS, ctx.n_layers)
+        ctx.curves[key] = {m: tuple(np.asarray(x[k]) for x in out) for k, m in enumerate(orders)}
+    return ctx.curves[key]
+
+
+def figure_dispersion_order_m(ctx: Context) -> None:
+    """Ω(α̂) of the lowest roots of m = 0, 1, 2, empty and filled with the acoustic fluid
+    (:func:`jaxdea.dispersion_curve`; the paper's coupling exists only at m = 0 and is not drawn)."""
+    name = "dispersion_order_m"
+    ctx.log(f"[{name}] Ω(α̂) of the orders m = 0, 1, 2")
+    alphas = dispersion_grid(SHAPE_TUBE, ctx.res.max_mode, ctx.res.curve_steps)
+    alpha_1 = alphas[0]
+    fig, panels = _figure(title=f"Lowest {CURVE_ROOTS} roots of order m (λ_i = {SHAPE_STRETCH}, "
+                                f"V̂ = {SHAPE_VOLTAGE}, η = 0.85, λ_z = 1.2): * the tube's modes α̂_n")
+    table = Table(name)
+    orders = sorted(set(CURVE_ORDERS) | set(SHAPE_ORDERS))
+    for ax, (label, fluid) in zip(panels, (("none", None), ("acoustic", Fluid(**PAPER_FLUID))),
+                                  strict=True):
+        curves = order_m_curves(ctx, fluid, orders if fluid is None else CURVE_ORDERS)
+        for k, m in enumerate(CURVE_ORDERS):
+            omega, status, scanned = curves[m]
+            for i, a in enumerate(alphas):
+                for b in range(CURVE_ROOTS):
+                    table.add(coupling=label, lambda_i=SHAPE_STRETCH, voltage=SHAPE_VOLTAGE, m=m,
+                              branch=b + 1, alpha_hat=a, n=a / alpha_1, omega=omega[i, b],
+                              phase_velocity=omega[i, b] / a, scanned=bool(scanned[i]),
+                              status=Status(int(status[i, b])).name.lower())
+            for b in range(CURVE_ROOTS):
+                ax.plot(alphas, omega[:, b], color=COLORS[k], lw=1.4 - 0.3 * b,
+                        label=f"m = {m}" if b == 0 else None)
+            on_mode = np.isclose(alphas / alpha_1, np.round(alphas / alpha_1))
+            ax.plot(alphas[on_mode], omega[on_mode, 0], "*", color=COLORS[k], ms=5)
+        ax.set_ylim(0.0, 1.1 * max(np.nanmax(curves[m][0][:, 1]) for m in CURVE_ORDERS))
+        ax.set_title("(a) empty tube" if fluid is None else
+                     f"(b) filled, acoustic fluid ρ̂_f = {PAPER_FLUID['density_ratio']}, "
+                     f"ĉ_f = {PAPER_FLUID['speed_ratio']}", fontsize=9)
+        _finish(ax, "axial wavenumber α̂ = α R_i", "frequency Ω")
+    ctx.save(name, fig, table)
+
+
+def figure_cross_sections(ctx: Context) -> None:
+    """Cross-sections of the lowest mode of m = 1, 2, 3 at n = 1, V̂ = 0.01: the base state's inner
+    and outer circles r̂_i, r̂_o and the outlines r̂(θ) = r̂ + ε ū(r̂) cos mθ of both faces, to first
+    order in ε (u_r = R_i ū cos mθ, :func:`jaxdea.mode_shape`; ε makes max |ε ū| of the faces 0.15)."""
+    name = "cross_sections"
+    ctx.log(f"[{name}] cross-sections of the modes m = 1, 2, 3")
+    curves = order_m_curves(ctx, None, sorted(set(CURVE_ORDERS) | set(SHAPE_ORDERS)))
+    alpha = float(mode_wavenumber(SHAPE_TUBE, 1.0))
+    theta = np.linspace(0.0, 2.0 * np.pi, ctx.res.outline_points)
+    fig, panels = _figure(ncols=len(SHAPE_ORDERS),
+                          title=f"Lowest modes of order m at n = 1 (α̂ = {alpha:.4f}), λ_i = "
+                                f"{SHAPE_STRETCH}, V̂ = {SHAPE_VOLTAGE}: cross-section, exaggerated")
+    table = Table(name)
+    for ax, m in zip(panels, SHAPE_ORDERS, strict=True):
+        omega = float(curves[m][0][0, 0])  # the curve's first α̂ is α̂_1
+        r, fields = mode_shape(SHAPE_TUBE, alpha, omega, n_layers=ctx.n_layers, m=m)
+        faces, u = np.asarray(r)[[0, -1]], np.asarray(fields[0])[[0, -1]]
+        epsilon = 0.15 / np.max(np.abs(u))
+        for face, r_face, u_face, color in zip(("inner", "outer"), faces, u, ("tab:blue", "tab:red"),
+                                               strict=True):
+            outline = r_face + epsilon * u_face * np.cos(m * theta)
+            for t, rd in zip(theta, outline, strict=True):
+                table.add(m=m, n=1, lambda_i=SHAPE_STRETCH, voltage=SHAPE_VOLTAGE, alpha_hat=alpha,
+                          omega=omega, face=face, radius=r_face, u_bar=u_face, epsilon=epsilon, theta=t,
+                          radius_deformed=rd)
+            ax.plot(r_face * np.cos(theta), r_face * np.sin(theta), color="0.6", ls="--", lw=1,
+                    label="base state" if face == "inner" else None)
+            ax.plot(outline * np.cos(theta), outline * np.sin(theta), color=color, lw=1.6,
+                    label=f"{face} face, ε ū = {epsilon * u_face:+.3f}")
+        ax.set_aspect("equal")
+        ax.set_title(f"m = {m}: Ω = {omega:.4f}", fontsize=9)
+        _finish(ax, "x / R_i", "y / R_i")
+    ctx.save(name, fig, table)
 
 
 # ----------------------------------------------------------------------------- model comparison
@@ -460,5 +760,8 @@ def make_figures(out="figures", *, quick: bool = False, progress: bool = True,
     figure_fluid_parameter(ctx, "density_ratio")
     figure_fluid_parameter(ctx, "thickness_ratio")
     figure_comparison(ctx, {"modes": modes, "speed": speed})
+    figure_stability_map(ctx)
+    figure_cross_sections(ctx)
+    figure_dispersion_order_m(ctx)
     ctx.log(f"{len(ctx.written)} files in {out} ({time.perf_counter() - start:.0f} s)")
     return ctx.written

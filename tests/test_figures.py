@@ -17,13 +17,29 @@ from jaxdea.params import gent_limit_excess
 
 EXPECTED = ["static_response", "fig2_voltage_empty", "fig3_modes_empty", "fig4_modes_critical_empty",
             "fig5_voltage_fluid", "fig6_modes_fluid", "fig7_modes_critical_fluid", "fig8_speed_ratio",
-            "fig9_density_ratio", "fig10_thickness_ratio", "comparison_couplings"]
+            "fig9_density_ratio", "fig10_thickness_ratio", "comparison_couplings", "stability_map",
+            "cross_sections", "dispersion_order_m"]
 
 
 def test_locking_stretch_is_where_i1_reaches_gent():
     lock = figures.locking_stretch(figures.PAPER_TUBE)
     excess = gent_limit_excess(lock, 1.2, 1.0)  # inner face: λ = λ_i (η = 1 makes r_o = r_i)
     assert float(excess) == pytest.approx(97.2, rel=1e-12)
+
+
+def test_lowest_critical_takes_the_smallest_finite_voltage_lowest_order_first():
+    grid = np.array([[0.3, np.nan, 0.2], [0.1, 0.4, 0.1], [np.nan, 0.1, 0.5]])
+    assert figures.lowest_critical(grid) == (0.1, 1, 1)  # ties: lowest m, then lowest n
+    assert figures.lowest_critical(grid[[0]]) == (0.2, 0, 3)
+    v, m, n = figures.lowest_critical(np.full((2, 3), np.nan))
+    assert math.isnan(v) and (m, n) == (-1, 0)
+
+
+def test_dispersion_grid_holds_the_axial_modes_of_the_tube():
+    grid = figures.dispersion_grid(figures.SHAPE_TUBE, 5, 4)
+    modes = [float(jd.axial_wavenumber(figures.SHAPE_TUBE, n)) for n in range(1, 6)]
+    assert grid.size == 17 and np.all(np.diff(grid) > 0)
+    np.testing.assert_allclose(grid[::4], modes, rtol=1e-14)
 
 
 @pytest.fixture(scope="module")
@@ -87,3 +103,106 @@ def test_static_response_ends_at_gent_locking(written):
         volt = volt[np.isfinite(volt)]
         assert np.all(np.diff(volt) > 0)  # monotonic: no pull-in maximum at fixed λ_z
         assert all(math.isnan(float(r["pull_in_voltage"])) for r in table)
+
+
+def floats(table, key):
+    return np.array([float(r[key]) for r in table])
+
+
+@pytest.mark.slow
+def test_stability_map_envelope_is_the_first_instability(written):
+    out, _ = written
+    table = rows(out, "stability_map")
+    along = [r for r in table if r["panel"] == "lambda_i"]
+    stretches = sorted({float(r["lambda_i"]) for r in along})
+    assert stretches[0] == pytest.approx(0.9) and stretches[-1] == pytest.approx(1.4)
+    # V̂_cr is a loss of stability only where the tube is stable at V̂ = 0: no growth rate at the map's
+    # smallest λ_i (at λ_i = 0.875 the ring mode m = 2 grows already)
+    low = figures.PAPER_TUBE.replace(lambda_i=stretches[0], voltage=0.0)
+    for m in figures.ORDERS:
+        assert np.all(np.isnan(np.asarray(jd.growth_rates(low, jd.axial_wavenumber(low, 1), m=m))))
+    for li in (stretches[1], stretches[-1]):
+        at = [r for r in along if float(r["lambda_i"]) == li]
+        assert [int(r["m"]) for r in at] == list(figures.ORDERS)
+        first = jd.first_instability(figures.PAPER_TUBE.replace(lambda_i=li), n_max=1, m_max=4)
+        np.testing.assert_allclose(floats(at, "v_critical"), np.asarray(first.critical)[:, 0], rtol=1e-10)
+        for r in at:  # the envelope: min over m
+            assert float(r["v_first"]) == pytest.approx(float(first.voltage), rel=1e-10)
+            assert (int(r["m_first"]), int(r["n_first"])) == (int(first.m), int(first.n))
+        assert float(at[0]["v_first"]) == pytest.approx(np.min(floats(at, "v_critical")), rel=1e-15)
+
+
+@pytest.mark.slow
+def test_shaded_voltage_is_the_first_instability(written):
+    out, _ = written
+    max_mode = figures.Resolution.pick(True).max_mode
+    stability = [r for r in rows(out, "stability_map") if r["panel"] == "n"]
+    for name, li in (("fig2_voltage_empty", 0.9), ("fig5_voltage_fluid", 1.1),
+                     ("fig4_modes_critical_empty", figures.CRITICAL_STRETCH)):
+        first = jd.first_instability(figures.PAPER_TUBE.replace(lambda_i=li), n_max=max_mode, m_max=4)
+        table = [r for r in rows(out, name) if float(r["lambda_i"]) == pytest.approx(li, rel=1e-11)]
+        assert table
+        for r in table:
+            assert float(r["v_first"]) == pytest.approx(float(first.voltage), rel=1e-10)
+            assert (int(r["m_first"]), int(r["n_first"])) == (int(first.m), int(first.n))
+        if li in figures.STRETCHES:  # the map's panel (b) holds the whole (m, n) grid
+            grid = [r for r in stability if float(r["lambda_i"]) == li]
+            np.testing.assert_allclose(floats(grid, "v_critical").reshape(len(figures.ORDERS), max_mode),
+                                       np.asarray(first.critical), rtol=1e-10)
+
+
+@pytest.mark.slow
+def test_cross_section_outline_is_the_radial_displacement_of_the_mode(written):
+    out, _ = written
+    table = rows(out, "cross_sections")
+    tube = figures.SHAPE_TUBE
+    alpha = jd.axial_wavenumber(tube, 1)
+    # base state: r_i = λ_i R_i, and r_o² − r_i² = (R_o² − R_i²)/λ_z (incompressibility)
+    r_outer = math.sqrt(0.9**2 + (1.0 / 0.85**2 - 1.0) / 1.2)
+    for m in figures.SHAPE_ORDERS:
+        omega = float(jd.frequencies(tube, alpha, n_roots=1, m=m)[0])
+        r, fields = jd.mode_shape(tube, alpha, omega, m=m)
+        u = np.asarray(fields[0])[[0, -1]]
+        at = [x for x in table if int(x["m"]) == m]
+        assert float(at[0]["omega"]) == pytest.approx(omega, rel=1e-10)
+        for face, radius, u_face, exact in zip(("inner", "outer"), np.asarray(r)[[0, -1]], u, (0.9, r_outer),
+                                               strict=True):
+            outline = [x for x in at if x["face"] == face]
+            eps = float(outline[0]["epsilon"])
+            theta = floats(outline, "theta")
+            assert float(outline[0]["radius"]) == pytest.approx(exact, rel=1e-12)
+            assert radius == pytest.approx(exact, rel=1e-12)
+            assert float(outline[0]["u_bar"]) == pytest.approx(u_face, rel=1e-7, abs=1e-9)
+            assert theta[0] == 0.0
+            assert float(outline[0]["radius_deformed"]) == pytest.approx(radius + eps * u_face, rel=1e-7)
+            half = np.argmin(np.abs(theta - np.pi / m))  # cos mθ = −1 (θ = π/m is on the grid)
+            assert theta[half] == pytest.approx(np.pi / m, rel=1e-11)  # 12 digits in the CSV
+            assert float(outline[half]["radius_deformed"]) == pytest.approx(radius - eps * u_face, rel=1e-7)
+        assert max(abs(eps * float(x["u_bar"])) for x in at) == pytest.approx(0.15, rel=1e-12)
+
+
+@pytest.mark.slow
+def test_order_m_dispersion_points_are_roots(written):
+    out, _ = written
+    table = rows(out, "dispersion_order_m")
+    tube = figures.SHAPE_TUBE
+    assert {int(r["m"]) for r in table} == set(figures.CURVE_ORDERS)
+    assert {r["coupling"] for r in table} == {"none", "acoustic"}  # the paper's coupling: m = 0 only
+    m1 = [r for r in table if r["m"] == "1"]
+    assert all(r["status"] == "converged" for r in m1)
+    for coupling in ("none", "acoustic"):
+        fluid = None if coupling == "none" else jd.Fluid(**figures.PAPER_FLUID)
+        points = [r for r in m1 if r["coupling"] == coupling]
+        alphas = sorted({float(r["alpha_hat"]) for r in points})
+        for a in (alphas[0], alphas[-1]):
+            for r in (r for r in points if float(r["alpha_hat"]) == a):
+                omega = float(r["omega"])
+                f = [float(jd.characteristic(tube, omega * (1.0 + d), a, fluid, m=1))
+                     for d in (-1e-6, 0.0, 1e-6)]
+                assert f[0] * f[2] < 0  # a sign change across the root …
+                assert abs(f[1]) < 1e-4 * min(abs(f[0]), abs(f[2]))  # … and f ≈ 0 at it
+    lowest = [r for r in m1 if r["coupling"] == "none" and r["branch"] == "1"]
+    alpha_1 = float(lowest[0]["alpha_hat"])
+    assert alpha_1 == pytest.approx(float(jd.axial_wavenumber(tube, 1)), rel=1e-14)
+    assert float(lowest[0]["omega"]) == pytest.approx(float(jd.frequencies(tube, alpha_1, n_roots=1, m=1)[0]),
+                                                      rel=1e-10)
