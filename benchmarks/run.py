@@ -1,6 +1,6 @@
 """Benchmarks of jaxdea against a naive JAX variant and the SciPy baseline, side by side in one run.
 
-    python3 benchmarks/run.py [--quick] [--out benchmarks/results.md]
+    python3 benchmarks/run.py [--quick] [--out benchmarks/results.md] [--only order_m]
 
 Every workload runs in its own subprocess (``--worker NAME``) so that its peak memory (ru_maxrss)
 is its own; all of them use single-threaded BLAS (OPENBLAS_NUM_THREADS=1: 6×6 products gain nothing
@@ -35,6 +35,8 @@ CURVE = dict(alpha_min=0.025, alpha_max=5.0, points=200, n_roots=4, rtol=1e-8)
 FIG3_REFERENCE = 60  # Fig. 3 at the baseline's accuracy: against magnus6 at N = 60 (error ~1e-12)
 REFERENCE_LAYERS = 240  # the reference curve: Richardson of N = 240 and 480 (on every 10th α̂)
 FIRST_CALLS = ("characteristic", "frequencies", "critical_voltage")  # (d): first calls timed
+ORDER_M = dict(orders=[0, 1, 2], batch=4096, n_layers=30, n_max=3, m_max=8)  # (g)
+PAPER_TUBE = dict(lambda_i=0.9, lambda_z=1.2, eta=0.85)  # (g): first_instability
 
 
 def settings(quick: bool) -> dict:
@@ -157,6 +159,49 @@ def work_characteristic(impl: str, layers: list, batches: list, cfg: dict) -> di
             out.append(dict(n_layers=n_layers, batch=batch, evaluated=batch, evals_per_s=batch / sec,
                             first_call_s=first))
     return dict(rows=out)
+
+
+def work_order_m(cfg: dict) -> dict:
+    """(g) Characteristic evaluations per second at each order m (batch 4096, N = 30; the public
+    ``characteristic``: m = 0 the 6×6 longitudinal path, m ≥ 1 the 8×8 one) timed side by side
+    (round-robin, best per order), the same with m traced (one program for every order), and
+    ``first_instability`` (n ≤ 3, m ≤ 8) on the paper's tube, warm."""
+    jax, jaxdea = _jax()
+    tube = jaxdea.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
+    alpha = jaxdea.axial_wavenumber(tube, 2)
+    batch, n_layers = ORDER_M["batch"], ORDER_M["n_layers"]
+    oms = jax.numpy.asarray(_omegas(batch))
+    fns = {}
+    for m in ORDER_M["orders"]:
+        fns[f"m{m}"] = (jax.jit(jax.vmap(lambda om, m=m: jaxdea.characteristic(
+            tube, om, alpha, n_layers=n_layers, m=m))), (oms,))
+    traced = jax.jit(jax.vmap(lambda om, m: jaxdea.characteristic(tube, om, alpha, n_layers=n_layers,
+                                                                  m=m), (0, None)))
+    for m in ORDER_M["orders"][1:]:
+        fns[f"m{m}_traced"] = (traced, (oms, jax.numpy.float64(m)))
+    first = {}
+    for key, (fn, args) in fns.items():
+        start = time.perf_counter()
+        jax.block_until_ready(fn(*args))
+        first[key] = time.perf_counter() - start
+    best = {key: math.inf for key in fns}
+    cpu = {key: math.inf for key in fns}
+    for _ in range(cfg["repeats"] * 4):  # round-robin: every order sees the same machine load
+        for key, (fn, args) in fns.items():
+            start, start_cpu = time.perf_counter(), time.process_time()
+            jax.block_until_ready(fn(*args))
+            best[key] = min(best[key], time.perf_counter() - start)
+            cpu[key] = min(cpu[key], time.process_time() - start_cpu)
+    rows = [dict(key=key, evals_per_s=batch / best[key], first_call_s=first[key],
+                 ratio_to_m0=best[key] / best["m0"], cpu_ratio_to_m0=cpu[key] / cpu["m0"])
+            for key in fns]
+    paper = jaxdea.Tube(**PAPER_TUBE)
+    sec, first_s, inst = best_time(lambda: jaxdea.first_instability(
+        paper, n_max=ORDER_M["n_max"], m_max=ORDER_M["m_max"], n_layers=n_layers),
+        cfg["solve_repeats"], 0.0)
+    return dict(batch=batch, n_layers=n_layers, rows=rows, instability_seconds=sec,
+                instability_first_call_s=first_s, instability_voltage=float(inst.voltage),
+                instability_m=int(inst.m), instability_n=int(inst.n))
 
 
 def _fig3_points():
@@ -420,6 +465,8 @@ def worker(name: str, params: dict) -> None:
         result = work_curve_scipy(cfg, params["n_layers"])
     elif name == "compile":
         result = work_compile(params["what"], params.get("cache", False))
+    elif name == "order_m":
+        result = work_order_m(cfg)
     else:
         raise ValueError(f"unknown worker {name!r}")
     result.update(rss_start_mb=rss0, rss_peak_mb=peak_rss_mb())
@@ -512,6 +559,8 @@ def run_all(cfg: dict, partial: str, reuse: bool) -> dict:
     print("200 x 4 curve at 1e-8 (b, c) ...", flush=True)
     chosen = spawn("curve_jaxdea", "curve_jaxdea", dict(cfg=cfg)).get("chosen") or cfg["curve_levels"][-1]
     spawn("curve_scipy", "curve_scipy", dict(cfg=cfg, n_layers=chosen))
+    print("order m (g) ...", flush=True)
+    spawn("order_m", "order_m", dict(cfg=cfg))
     print("first-call compile, no persistent cache (d) ...", flush=True)
     for what in FIRST_CALLS:
         spawn(f"compile_{what}", "compile", dict(what=what, cfg=cfg),
@@ -698,6 +747,8 @@ def render(res: dict, provisional: bool) -> str:
             fill, warm = res[f"cache_fill_{what}"], res[f"cache_warm_{what}"]
             lines.append(f"| `{what}` | {fmt(fill['first_call_s'])} | {fmt(warm['first_call_s'])} "
                          f"| {fmt(warm['second_call_s'])} |")
+    if "order_m" in res:
+        lines += render_order_m(res["order_m"])
     lines += ["", "## (e) Peak memory (ru_maxrss of the worker process)", "",
               "| workload | after imports (MiB) | peak (MiB) |", "|---|---:|---:|"]
     names = [("char_jaxdea", f"jaxdea characteristic, N = 30, batches {cfg['batches']}"),
@@ -711,6 +762,45 @@ def render(res: dict, provisional: bool) -> str:
         lines.append(f"| {label} | {fmt(res[key]['rss_start_mb'])} | {fmt(res[key]['rss_peak_mb'])} |")
     lines.append("")
     return "\n".join(lines)
+
+
+def render_order_m(r: dict) -> list:
+    """Section (g): order-m characteristic rates against m = 0, and first_instability."""
+    lines = ["", f"## (g) Circumferential order m: characteristic evaluations per second "
+             f"(batch {r['batch']}, N = {r['n_layers']}, timed side by side)", "",
+             "| order | evaluations per s | time / time at m = 0 | CPU time / CPU time at m = 0 "
+             "| first call (s) |", "|---|---:|---:|---:|---:|"]
+    for row in r["rows"]:
+        m, traced = row["key"][1:].split("_")[0], row["key"].endswith("_traced")
+        label = f"m = {m}" + (" (traced m: one program for every order)" if traced else "")
+        if m == "0":
+            label += " (6×6 longitudinal path)"
+        lines.append(f"| {label} | {fmt(row['evals_per_s'])} | {row['ratio_to_m0']:.2f} | "
+                     f"{row['cpu_ratio_to_m0']:.2f} | {fmt(row['first_call_s'])} |")
+    lines += ["", f"`first_instability` of the paper's tube (η = {PAPER_TUBE['eta']}, λ_i = "
+              f"{PAPER_TUBE['lambda_i']}, λ_z = {PAPER_TUBE['lambda_z']}; n ≤ {ORDER_M['n_max']}, "
+              f"m ≤ {ORDER_M['m_max']}, N = {r['n_layers']}): {fmt(r['instability_seconds'])} s warm "
+              f"(first call {fmt(r['instability_first_call_s'])} s); V̂_cr = "
+              f"{r['instability_voltage']:.5f} at m = {r['instability_m']}, n = {r['instability_n']}."]
+    return lines
+
+
+def run_only(what: str, cfg: dict, out: str, provisional: bool) -> dict:
+    """Run one workload (``--only``) and merge it into the results.json next to ``out``; the
+    markdown is rewritten from the merged results."""
+    path = os.path.splitext(out)[0] + ".json"
+    with open(path) as f:
+        res = json.load(f)
+    if what == "order_m":
+        res["order_m"] = spawn_worker("order_m", dict(cfg=cfg))
+        res["order_m"]["settings"] = cfg
+    else:
+        raise ValueError(f"--only supports 'order_m', got {what!r}")
+    with open(path, "w") as f:
+        json.dump(res, f, indent=1)
+    with open(out, "w") as f:
+        f.write(render(res, provisional))
+    return res
 
 
 def layers_label(cfg):
@@ -727,6 +817,8 @@ def main(argv=None):
                              "run with the same settings")
     parser.add_argument("--render", metavar="JSON",
                         help="only rewrite the markdown from the results.json of an earlier run")
+    parser.add_argument("--only", choices=["order_m"],
+                        help="run only this workload, merge it into OUT's .json and rewrite OUT")
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     parser.add_argument("--params", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -738,6 +830,10 @@ def main(argv=None):
             res = json.load(f)
         with open(args.out, "w") as f:
             f.write(render(res, args.provisional))
+        return
+    if args.only:
+        run_only(args.only, settings(args.quick), args.out, args.provisional)
+        print(f"written {args.out} and its .json ({args.only} only)")
         return
     start = time.perf_counter()
     res = run_all(settings(args.quick), os.path.splitext(args.out)[0] + ".partial.json", args.reuse)

@@ -200,12 +200,15 @@ def characteristic_at_omega_squared(tube: Tube, omega_squared, alpha, fluid: Flu
 @cached_jit(static_argnames=("n_layers", "order", "family"))
 def _characteristic_m(tube, omega_squared, alpha, fluid, m, n_layers, order, family):
     """f(w) of the families ``"order_m"`` (traced m) and ``"torsional"``; NaN where traced inputs
-    are inadmissible (:func:`~jaxdea.params.guard`, :func:`order_m_admissible`) or w not finite."""
+    are inadmissible (:func:`~jaxdea.params.guard`, :func:`order_m_admissible`) or w not finite.
+
+    The safe m depends on the case only, not on w: under ``vmap`` over w the sublayer generators
+    (:func:`jaxdea.transfer.wall_generators`) are then formed once for the whole batch."""
     ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
-    omega_squared = as_float(omega_squared)
-    ok &= jnp.isfinite(omega_squared)
     ok &= order_m_admissible(m, fluid, family)
     m = jnp.where(ok, m, 0.0) if family == ORDER_M else 0
+    omega_squared = as_float(omega_squared)
+    ok &= jnp.isfinite(omega_squared)
     wall = discretize(tube, n_layers)
     f = characteristic_of_w(wall, jnp.where(ok, omega_squared, 1.0), alpha, fluid, order, "taylor",
                             m, family)

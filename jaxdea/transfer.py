@@ -33,6 +33,12 @@ above, the default: its code path and values are those of the axisymmetric libra
 basis). Everything here is written for any matrix size. Every propagator also exists as a function
 of w = Ω² (``…_of_w``), which may be negative (unstable states, theory_m.md §6): the generator is a
 polynomial in w with real coefficients, so no complex arithmetic is needed there.
+
+The order-m family propagates the balanced state D⁻¹Y, D = diag(I, cI) on [displacements |
+tractions] (:func:`propagate_balanced_of_w`): the inertia −wE no longer dominates ‖G‖ and the
+exponentials need no squaring on the benchmark batch; with G of degree 1 in w its powers G², G³, G⁴
+are polynomials in w formed once per wall (:func:`generator_powers`), so each Ω costs 2 products
+of 8×8 matrices per sublayer instead of 5 + s.
 """
 
 import math
@@ -44,7 +50,14 @@ import jax.numpy as jnp
 from .base_state import base_state, geometry, pressure_difference_unchecked
 from .moduli import Coefficients, closed_form_coefficients, coefficients, push_forward_moduli
 from .params import Tube, as_float
-from .state_matrix import LONGITUDINAL, family_inertia, family_matrix, inertia_matrix, state_matrix
+from .state_matrix import (
+    LONGITUDINAL,
+    ORDER_M,
+    family_inertia,
+    family_matrix,
+    inertia_matrix,
+    state_matrix,
+)
 
 SCHEMES = {"midpoint": (0.5,),
            "magnus4": (0.5 - math.sqrt(3.0) / 6.0, 0.5 + math.sqrt(3.0) / 6.0),
@@ -201,16 +214,28 @@ def _product(a, b):
     return jax.lax.optimization_barrier(matmul_small(a, b))
 
 
+def _squarings(a):
+    """s = ⌈log2(‖a‖_∞/θ)⌉ clipped to [0, MAX_SQUARINGS + 1]: ‖a/2^s‖_∞ ≤ θ."""
+    norm = jnp.max(jnp.sum(jnp.abs(a), axis=-1))
+    return jnp.clip(jnp.ceil(jnp.log2(jnp.maximum(norm, 1e-300) / TAYLOR_THETA)), 0, MAX_SQUARINGS + 1)
+
+
 def _scaled_taylor(a):
     """(P(a/2^s), s): the degree-12 Taylor polynomial of exp at a/2^s, s = ⌈log2(‖a‖_∞/θ)⌉ ≥ 0,
     by Paterson–Stockmeyer: P = B_0 + x⁴(B_1 + x⁴(B_2 + c_12 x⁴)), B_j = Σ_{i<4} c_{4j+i} x^i."""
-    norm = jnp.max(jnp.sum(jnp.abs(a), axis=-1))
-    s = jnp.clip(jnp.ceil(jnp.log2(jnp.maximum(norm, 1e-300) / TAYLOR_THETA)), 0, MAX_SQUARINGS + 1)
+    s = _squarings(a)
     x = a * jnp.exp2(-s)
     eye = jnp.eye(a.shape[-1], dtype=a.dtype)
     powers = [eye, x]
     for _ in range(TAYLOR_BLOCK - 1):
         powers.append(_product(powers[-1], x))
+    return _paterson_stockmeyer(powers), s
+
+
+def _paterson_stockmeyer(powers):
+    """The degree-12 Taylor polynomial of exp at x from ``powers`` = [I, x, x², x³, x⁴]:
+    B_0 + x⁴(B_1 + x⁴(B_2 + c_12 x⁴)), B_j = Σ_{i<4} c_{4j+i} x^i (2 more products)."""
+    powers = list(powers)
     top = powers.pop()  # x^TAYLOR_BLOCK
     coef = _TAYLOR_COEF
     blocks = [sum(coef[j * TAYLOR_BLOCK + i] * powers[i] for i in range(TAYLOR_BLOCK))
@@ -218,7 +243,7 @@ def _scaled_taylor(a):
     e = blocks[-1] + coef[TAYLOR_DEGREE] * top
     for j in range(len(blocks) - 2, -1, -1):
         e = jax.lax.optimization_barrier(blocks[j] + matmul_small(e, top))
-    return e, s
+    return e
 
 
 def _expm_fixed(a):
@@ -268,6 +293,55 @@ def _expm_taylor_jvp(primals, tangents):
 
 EXPONENTIALS = {"taylor": expm_taylor, "adaptive": expm_taylor_adaptive,
                 "expm": jax.scipy.linalg.expm}
+
+
+def _poly_product(p, q):
+    """p(w) q(w) of matrix polynomials in w, stacked coefficients (lowest degree first)."""
+    pq = jnp.einsum("iab,jbc->ijac", p, q)
+    return jnp.stack([sum(pq[i, k - i] for i in range(p.shape[0]) if 0 <= k - i < q.shape[0])
+                      for k in range(p.shape[0] + q.shape[0] - 1)])
+
+
+def generator_powers(coefficients):
+    """(G, G², …, G⁴) as polynomials in w (stacked coefficients, lowest degree first) for the
+    generator G = Σ_j G_j w^j of :func:`generator_coefficients`: the powers of Paterson–Stockmeyer
+    (:func:`expm_taylor`), formed once per (wall, α̂, m) instead of by 3 products per Ω."""
+    powers = [coefficients]
+    for _ in range(TAYLOR_BLOCK - 1):
+        powers.append(_poly_product(coefficients, powers[-1]))
+    return tuple(powers)
+
+
+def _exp_of_power_polys(power_polys, omega_squared, scale, adaptive=True):
+    """exp(a), a = scale ⊙ G(w), from the polynomials of :func:`generator_powers`, as
+    :func:`expm_taylor` (the same s, polynomial and squarings, ``adaptive``: a ``while_loop`` over
+    the s squarings, else the fixed masked graph) with its powers a^k = 2^{ks} x^k = scale ⊙ G^k(w)
+    summed by Horner's rule (``scale`` a diagonal similarity d_j/d_i, which commutes with powers)."""
+    raw = [scale * generator_of_w(p, omega_squared) for p in power_polys]
+    s = _squarings(raw[0])
+    eye = jnp.eye(raw[0].shape[-1], dtype=raw[0].dtype)
+    e = _paterson_stockmeyer([eye] + [a * jnp.exp2(-k * s) for k, a in enumerate(raw, 1)])
+    if adaptive:
+        e = jax.lax.while_loop(lambda c: c[0] < s, lambda c: (c[0] + 1.0, _product(c[1], c[1])),
+                               (jnp.zeros_like(s), e))[1]
+    else:
+        e = jax.lax.fori_loop(0, MAX_SQUARINGS, lambda i, e: jnp.where(i < s, _product(e, e), e), e)
+    return jnp.where(s <= MAX_SQUARINGS, e, jnp.nan)
+
+
+@jax.custom_jvp
+def expm_of_power_polys(power_polys, omega_squared, scale):
+    """exp(scale ⊙ G(w)) from (G, G², G³, G⁴) as polynomials in w (:func:`generator_powers`).
+
+    Equal to :func:`expm_taylor` of scale ⊙ G(w) to rounding, with 2 matrix products before the
+    squarings instead of 5. Values take only the squarings they need; derivatives (any mode and
+    order) are those of the fixed graph, as for :func:`expm_taylor`."""
+    return _exp_of_power_polys(power_polys, omega_squared, scale)
+
+
+@expm_of_power_polys.defjvp
+def _expm_of_power_polys_jvp(primals, tangents):
+    return jax.jvp(lambda p, w, c: _exp_of_power_polys(p, w, c, adaptive=False), primals, tangents)
 
 
 INERTIA = inertia_matrix(LONGITUDINAL)
@@ -448,35 +522,113 @@ def propagate_basis(wall: Wall, omega, alpha, basis, method: str = "taylor", m=0
     return propagate_basis_of_w(wall, omega * omega, alpha, basis, method, m, family)
 
 
+def _advance(carry, t):
+    """One sublayer of :func:`propagate_basis_of_w`: (Q, log_scale) → (Q', log_scale + log det R)
+    with T Q = Q' R."""
+    q, log_scale = carry
+    q_new, log_r = orthonormalize(matmul_small(t, q))
+    return (q_new, log_scale + log_r), None
+
+
 def propagate_basis_of_w(wall: Wall, omega_squared, alpha, basis, method: str = "taylor", m=0,
                          family=LONGITUDINAL):
-    """:func:`propagate_basis` at w = Ω² (either sign; real arithmetic for real w)."""
+    """:func:`propagate_basis` at w = Ω² (either sign; real arithmetic for real w).
+
+    ``"order_m"`` values (``method`` ``"taylor"`` or ``"expm"``) propagate the balanced state D⁻¹Y
+    (:func:`propagate_balanced_of_w`). The solvers' ``"adaptive"`` value-and-slope evaluations keep
+    the plain propagation: balanced, the programs of :func:`jaxdea.first_instability` took 36 s
+    instead of 23–30 s to compile (measured), for nothing at its Ω = 0."""
     w = omega_squared
     if jnp.iscomplexobj(w) and not jnp.iscomplexobj(basis):
         basis = basis.astype(jnp.result_type(basis.dtype, w))
+    if family == ORDER_M and method != "adaptive":
+        return propagate_balanced_of_w(wall, w, alpha, basis, method, m, family)
     q0, log0 = orthonormalize(basis)
-
-    def advance(carry, t):
-        q, log_scale = carry
-        q_new, log_r = orthonormalize(matmul_small(t, q))
-        return (q_new, log_scale + log_r), None
-
     if method == "adaptive":
         # the solvers' value-and-slope evaluations (small batches: lanes, 32-point grid chunks): all
         # N exponentials at once, then the scan (fewer sequential steps; 1.2–1.5× faster there)
         (q, log_scale), _ = jax.lax.scan(
-            advance, (q0, log0), layer_exponentials_of_w(wall, w, alpha, method, m, family))
+            _advance, (q0, log0), layer_exponentials_of_w(wall, w, alpha, method, m, family))
         return q, log_scale
     exponential = EXPONENTIALS[method]
 
     def step(carry, coefficients):
-        return advance(carry, exponential(generator_of_w(coefficients, w)))
+        return _advance(carry, exponential(generator_of_w(coefficients, w)))
 
     # values: T_k formed inside the scan, so that a batch of one sublayer at a time stays in cache
     # (1.2–1.5× faster at batch 4096 than all N exponentials first; the same T_k, fused differently
     # by XLA: f equal to rounding, ≤ 4 ulp of 1, tested)
     (q, log_scale), _ = jax.lax.scan(step, (q0, log0), wall_generators(wall, alpha, m, family))
     return q, log_scale
+
+
+BALANCE_LIMIT = 60
+"""Largest |log2 c| of the balancing factor c (:func:`balance_diagonal`)."""
+
+
+def balance_diagonal(coefficients, omega_squared):
+    """d = [1, …, 1, c, …, c] (n,): the diagonal D = diag(I, cI) that balances the generators.
+
+    The state is [displacements | tractions] (U, V, W, Φ | T, Q, S, D for order m): the inertia
+    −wE lies in the lower-left block of G and grows like |w|, the compliances (δ3, 1/ε) of the
+    upper-right block do not. D⁻¹GD multiplies the lower-left block by 1/c and the upper-right one
+    by c; c = 2^round(log2 √(‖G_LL‖/‖G_UR‖)) (∞-norms, largest over the sublayers, bounded by
+    Σ_j |w|^j ‖G_j‖ from the coefficients of :func:`wall_generators`) makes both bounds
+    ≈ √(‖G_LL‖‖G_UR‖), within √2 and never above the larger one. A power of 2, so D⁻¹GD is exact;
+    independent of the inputs' tangents (``stop_gradient``: the propagated subspace does not depend
+    on c).
+    """
+    coefficients, omega_squared = jax.lax.stop_gradient((coefficients, omega_squared))
+    half = coefficients.shape[-1] // 2
+
+    def block_norm(block):  # (P,): per power of w, the largest ∞-norm over the sublayers
+        return jnp.max(jnp.sum(jnp.abs(block), axis=-1), axis=(0, 2))
+
+    powers = jnp.abs(omega_squared) ** jnp.arange(coefficients.shape[1])
+    lower = jnp.sum(powers * block_norm(coefficients[:, :, half:, :half]))
+    upper = jnp.sum(powers * block_norm(coefficients[:, :, :half, half:]))
+    exponent = jnp.round(0.5 * jnp.log2(lower / upper))
+    exponent = jnp.clip(jnp.where(jnp.isnan(exponent), 0.0, exponent), -BALANCE_LIMIT,
+                        BALANCE_LIMIT)
+    c = jnp.ldexp(1.0, exponent.astype(jnp.int32))  # exactly 2^exponent (exp2 is not, under XLA)
+    return jnp.concatenate([jnp.ones(half), jnp.full(half, c)])
+
+
+def propagate_balanced_of_w(wall: Wall, omega_squared, alpha, basis, method: str = "taylor", m=0,
+                            family=ORDER_M):
+    """:func:`propagate_basis_of_w` through the balanced generators D⁻¹G_kD (:func:`balance_diagonal`).
+
+    exp(D⁻¹GD) = D⁻¹ exp(G) D, so D⁻¹ A Y_0 = ∏_k exp(D⁻¹G_kD) · D⁻¹Y_0: the balanced basis D⁻¹Y_0
+    is carried across the sublayers and D Q̃_N = Q_N R̃ re-orthonormalised at the end, which gives
+    the Q_N of the plain propagation (the orthonormal factor of A Y_0 with R_jj > 0 is unique) and
+    log det R = Σ_k log det R̃_k + log det R̃. ‖D⁻¹GD‖∞ is 15–25× below ‖G‖∞ (the inertia term
+    dominates: 2.3 → 0.15 at N = 30, Ω ≤ 20, order 1–2), so the exponentials need no squaring
+    where they needed up to 3. ``"taylor"`` with G of degree 1 in w (midpoint, magnus4) takes the
+    powers G², G³, G⁴ as polynomials in w (:func:`generator_powers`, :func:`expm_of_power_polys`):
+    2 products of 8×8 matrices per sublayer and Ω instead of 5 + s. An order-m evaluation then
+    costs 1.8× a longitudinal one (batch 4096, N = 30, benchmarks/README.md, section g).
+    """
+    w = omega_squared
+    generators = wall_generators(wall, alpha, m, family)
+    d = balance_diagonal(generators, w)
+    scale = d[None, :] / d[:, None]  # (D⁻¹GD)_ij = G_ij d_j / d_i
+    exponential = EXPONENTIALS[method]
+
+    def balanced_exponential(coefficients):
+        return exponential(scale * generator_of_w(coefficients, w))
+
+    start = orthonormalize(basis / d[:, None])
+    if method == "taylor" and generators.shape[1] == 2:
+        # G of degree 1 in w (midpoint, magnus4): its powers as polynomials in w, once per wall
+        (q, log_scale), _ = jax.lax.scan(
+            lambda carry, polys: _advance(carry, expm_of_power_polys(polys, w, scale)),
+            start, jax.vmap(generator_powers)(generators))
+    else:
+        (q, log_scale), _ = jax.lax.scan(
+            lambda carry, coefficients: _advance(carry, balanced_exponential(coefficients)),
+            start, generators)
+    q, log_r = orthonormalize(q * d[:, None])
+    return q, log_scale + log_r
 
 
 def propagate_basis_history(wall: Wall, omega, alpha, basis, method: str = "taylor", m=0,
