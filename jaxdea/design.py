@@ -317,12 +317,13 @@ class _Bound:
         self.candidates, self.first, self.mode = None, math.nan, (-1, 0)
 
     def refresh(self, x):
-        """Candidates from the full grid at x; False if no (m, n) has a critical voltage."""
+        """Candidates from the full grid at x; False if no (m, n) has a critical voltage, or if the
+        tube is unstable already at V̂ = 0 (no admissible voltage)."""
         tube = _point(jnp.asarray(x, jnp.float64), self.setting, self.kind)[0]
         self.first, self.mode, grid = _first_instability(tube, self.m_max, self.n_max,
                                                          self.n_layers, self.scheme)
         self.candidates = _candidates(grid)
-        return self.candidates is not None
+        return self.candidates is not None and self.first > 0.0
 
     def confirmed(self, x, aux):
         """True if the full grid at x finds the bound of ``aux`` (to 1e-9); else refreshes."""
@@ -465,6 +466,9 @@ def _seed(x0, setting, kind, fraction, n_layers, scheme, m_max, n_max, what):
     """The candidate modes at the start and the lowest root there (the first Newton guess)."""
     bound = _Bound(setting, kind, n_layers, scheme, m_max, n_max)
     if not bound.refresh(x0):
+        if bound.first == 0.0:
+            raise ValueError(f"the tube is unstable already at V̂ = 0 at the starting {what} "
+                             f"((m, n) = {bound.mode} grows): no voltage is admissible")
         raise ValueError(f"the tube has no critical voltage at the starting {what} (no order "
                          f"m <= {m_max} and axial mode n <= {n_max} loses "
                          "stability below pull-in): the constraint V̂ <= voltage_margin * V̂_first "

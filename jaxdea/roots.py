@@ -18,6 +18,17 @@ Guarantee: a root is missed only if an interval contains more than one extremum 
 at least twice within one step Δ) or three or more roots. Pairs of roots closer than any step are
 found (tested down to relative gaps of 1e-9). The limits are stated in the README.
 
+The function scanned and refined is the characteristic determinant itself, det(B A S) times a
+constant (:func:`scanned_function`), not its normalised value f = det(B Q_N) of
+:mod:`jaxdea.dispersion`: the normalisation divides by the volume of A S, which nearly vanishes
+where A S is nearly rank-deficient, and f then turns sign in a near-jump (at the inner-face waves
+of a wall with large α̂ĥ, whose solution decays across it; next to the poles of the paper's
+coupling). A jump next to a second root within one step hides the pair from the classification;
+det(B A S) is entire and has an ordinary pair there. With the paper's coupling the grid is also
+uniform in the phase of the coupling near each pole Ω_k of B̂_ν (closed form,
+:func:`coupling_poles`), where the roots crowd within a few widths w_k ≪ Δ, and holds Ω_k itself,
+which splits a pair straddling it into two sign changes (:func:`pole_steps`).
+
 Derivatives. Every returned root carries implicit-function derivatives dΩ/dθ = −(∂f/∂θ)/(∂f/∂Ω)
 (a ``jax.custom_jvp`` around the values of the solver), never derivatives of the iterations: the
 solver is compiled once for values, and differentiating compiles only f and its derivatives.
@@ -31,8 +42,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base_state import voltage_limit
+from .bessel import NODES
 from .compiled import cached_jit, jit, serializable
 from .dispersion import (
+    characteristic_and_scale,
+    characteristic_and_scale_of_w,
     characteristic_of_w,
     characteristic_on_wall,
     check_inputs,
@@ -72,6 +86,8 @@ GEOMETRIC_POINTS = 10  # Δ·64^-9 ≈ 6e-17 Δ … Δ: roots near Ω = 0 (no fi
 STEPS_PER_OSCILLATION = 16
 HERMITE_FINAL = 1e-6  # _first_root: a sign change ≤ 1e-6 Δ wide …
 HERMITE_FINAL_SLOPES = 1e-3  # … with end slopes equal to 1e-3 is solved by its Hermite cubic
+SCALE_EXPONENT_MAX = 600.0  # |log_scale − its value at Ω = 0| is clipped here (e^600 < 1e261)
+BESSEL_GRID = 0.25  # bracketing grid of the zeros of J'_ν (consecutive zeros are > 2 apart)
 
 
 @serializable
@@ -131,6 +147,142 @@ def cutoff_steps(wall: Wall, alpha, fluid: Fluid | None, step, family: str = LON
         return x + jnp.minimum(step, jnp.min(ahead - x))
 
     return next_point
+
+
+@functools.lru_cache(maxsize=None)
+def bessel_derivative_zeros(order: int) -> np.ndarray:
+    """The zeros j'_{ν,k} of J'_ν in [0, NODES − 40 − ν), ascending (NumPy, computed once per ν).
+
+    Where :func:`jaxdea.bessel.coupling_pair` is finite (x + ν < NODES − 40). J'_ν(x) =
+    (1/2π)∫₀^{2π} sin(νt − x sin t) sin t dt by the trapezoidal rule on 2·NODES points (exact to
+    rounding there), sign changes on a grid of ``BESSEL_GRID``, then bisection to rounding. For
+    ν = 0 the list starts with x = 0: D_0 = −s/2 + O(s²) vanishes at s = 0.
+    """
+    theta = 2.0 * np.pi * np.arange(2 * NODES) / (2 * NODES)
+    sin_theta = np.sin(theta)
+
+    def derivative(x):
+        return np.mean(np.sin(order * theta - x[:, None] * sin_theta) * sin_theta, axis=1)
+
+    grid = np.arange(BESSEL_GRID, NODES - 40 - order, BESSEL_GRID)
+    values = derivative(grid)
+    change = np.flatnonzero(values[:-1] * values[1:] < 0)
+    lo, hi, f_lo = grid[change], grid[change + 1], values[change]
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        same = derivative(mid) * f_lo > 0
+        lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
+    zeros = 0.5 * (lo + hi)
+    return np.concatenate([[0.0], zeros]) if order == 0 else zeros
+
+
+TRACED_ORDERS = 32
+"""A traced Bessel order ν (a sweep over the axial mode n with ``bessel_order=None``) takes its
+poles from a table of ν = 0 … TRACED_ORDERS; above it the scan has no pole points (the plain grid)."""
+
+
+@functools.lru_cache(maxsize=None)
+def _zeros_table() -> np.ndarray:
+    """j'_{ν,k} for ν = 0 … TRACED_ORDERS, padded with inf, shape (TRACED_ORDERS + 1, K)."""
+    rows = [bessel_derivative_zeros(nu) for nu in range(TRACED_ORDERS + 1)]
+    table = np.full((len(rows), max(len(r) for r in rows)), np.inf)
+    for nu, r in enumerate(rows):
+        table[nu, : len(r)] = r
+    return table
+
+
+def coupling_poles(wall: Wall, alpha, fluid: Fluid, order):
+    """(Ω_k, w_k): the poles Ω_k = ĉ_f sqrt(α̂² + (j'_{ν,k}/r̂_i)²) of the paper's coupling B̂_ν, where
+    D_ν(s) = 0 at s = χ̂²r̂_i² = j'²_{ν,k} (:func:`jaxdea.bessel.coupling_pair`), and their widths
+    w_k = |L/(dD_ν/dΩ)| = ρ̂_f ĉ_f² Ω_k x_k²/(r̂_i (x_k² − ν²)) (x_k = j'_{ν,k}; the factor x²/(x² − ν²)
+    is 1 for ν = 0), with L = Ω²ρ̂_f r̂_i N_ν: by Bessel's equation J''_ν = −(1 − ν²/x²)J_ν where
+    J'_ν = 0, and dx/dΩ = r̂_i²Ω/(ĉ_f² x). ``order``: an int, or a traced ν (:data:`TRACED_ORDERS`;
+    absent poles are at +inf with width 1, which no grid point reaches)."""
+    if isinstance(order, jax.core.Tracer):
+        nu = jnp.asarray(order, jnp.float64)
+        inside = (nu >= 0) & (nu <= TRACED_ORDERS)
+        row = jnp.clip(jnp.round(nu), 0, TRACED_ORDERS).astype(jnp.int32)
+        x = jnp.where(inside, jnp.asarray(_zeros_table())[row], jnp.inf)
+    else:
+        nu = float(order)
+        x = jnp.asarray(bessel_derivative_zeros(int(order)))
+    c_f = as_float(fluid.speed_ratio)
+    present = jnp.isfinite(x)
+    x_safe = jnp.where(present, x, 1.0 + nu)
+    poles = jnp.where(present, c_f * jnp.sqrt(alpha**2 + (x_safe / wall.r_inner) ** 2), jnp.inf)
+    shape = jnp.where(nu == 0, 1.0, x_safe**2 / jnp.where(nu == 0, 1.0, x_safe**2 - nu**2))
+    widths = jnp.where(present, as_float(fluid.density_ratio) * c_f**2 * poles * shape / wall.r_inner,
+                       1.0)
+    return poles, widths
+
+
+def pole_steps(next_point, poles, widths):
+    """next(x) of ``next_point``, also uniform in the coupling's phase θ near every pole Ω_k.
+
+    Columns 1 and 2 of the paper's basis are D_ν c_j + L v_j (theory.md §4(b)), so its
+    characteristic function is a quadratic form in (D_ν, L), f = aD_ν² + bD_νL + cL², with a, b, c
+    minors of the wall's transfer (varying on the scale of the step Δ). Near Ω_k the direction θ
+    of (D_ν, L) turns by π within a few widths w_k (D_ν ≈ D'_ν(Ω − Ω_k), L nearly constant):
+    θ = π/2 − atan((Ω − Ω_k)/w_k). In θ, f/(D_ν² + L²) = A + B cos 2θ + C sin 2θ has period π,
+    so, as the grid takes 16 steps per oscillation in Ω, it takes steps of π/16 in θ: the points
+    Ω_k + w_k tan(jπ/16), j = −7 … 7 (θ turns by π/16 beyond the outermost). The pole itself
+    (j = 0) is one of them: there f = cL², so a pair straddling the pole (ac < 0: roots of
+    a t² + b t + c of opposite signs in t = D_ν/L) leaves one sign change on either side of it.
+    f is entire: a sign change of f is always a root, never a pole.
+    """
+    dphi = np.pi / STEPS_PER_OSCILLATION
+
+    def next_phase_or_point(x):
+        phase = jnp.arctan((x - poles) / widths)
+        lattice = jnp.floor(phase / dphi)
+        ahead = []
+        for j in (1, 2):  # the next lattice phase, or the one after where x sits on the next
+            target = (lattice + j) * dphi
+            ahead.append(jnp.where(target < 0.5 * np.pi - 0.5 * dphi,
+                                   poles + widths * jnp.tan(target), jnp.inf))
+        ahead = jnp.where(ahead[0] > x, ahead[0], jnp.where(ahead[1] > x, ahead[1], jnp.inf))
+        return jnp.minimum(next_point(x), jnp.min(ahead))
+
+    return next_phase_or_point
+
+
+def scanned_function(wall: Wall, alpha, fluid: Fluid | None, order: int, m=0.0,
+                     family: str = LONGITUDINAL, variable: str = "omega"):
+    """g = det(B A S)·e^{−ℓ₀}: the characteristic determinant, unnormalised, that the scan classifies.
+
+    det(B A S) = f e^ℓ with f = det(B Q_N) and ℓ the log-volume of the propagated basis
+    (:func:`jaxdea.dispersion.characteristic_and_scale`); ℓ₀ is ℓ at Ω = 0, a constant that
+    keeps g in floating-point range (ℓ − ℓ₀ is clipped to ±``SCALE_EXPONENT_MAX``). g has the
+    zeros and the sign of f, and it is entire in Ω. f is not: where A S is nearly rank-deficient
+    (at the inner-face waves of a wall with large α̂ĥ, whose solution decays across it, and next to
+    the poles of the paper's coupling) e^ℓ dips to almost zero, and f turns sign there in a
+    near-jump (measured at α̂ĥ ≈ 86: e^ℓ ∝ |Ω − Ω₀| down to |Ω − Ω₀| ≈ 1e-8 Ω₀, f ≈ ±1.2e-3 on either
+    side). Between grid points such a jump next to another root leaves
+    f without a sign change and with two extrema (f' changes sign at the jump), which the scan's
+    classification misses; g has the ordinary simple root there. ``variable``: ``"omega"`` (g(Ω))
+    or ``"omega_squared"`` (g(w), w = Ω² of either sign; order m and torsional families only).
+    """
+    if family == LONGITUDINAL and variable == "omega":
+        def scaled(x):
+            return characteristic_and_scale(wall, x, alpha, fluid, order, "adaptive")
+    else:
+        ok = order_m_admissible(m, fluid, family)
+        m_safe = jnp.where(ok, as_float(m), 0.0) if family == ORDER_M else 0
+
+        def scaled(x):
+            w = x if variable == "omega_squared" else x * x
+            f, log_scale = characteristic_and_scale_of_w(wall, w, alpha, fluid, order, "adaptive",
+                                                         m_safe, family)
+            return jnp.where(ok, f, jnp.nan), log_scale
+
+    reference = scaled(jnp.zeros_like(wall.r_inner))[1]
+    reference = jnp.where(jnp.isfinite(reference), reference, 0.0)
+
+    def g(x):
+        f, log_scale = scaled(x)
+        return f * jnp.exp(jnp.clip(log_scale - reference, -SCALE_EXPONENT_MAX, SCALE_EXPONENT_MAX))
+
+    return g
 
 
 def default_omega_max(wall: Wall, alpha, n_roots: int, m=0.0):
@@ -406,14 +558,20 @@ def invalid_where(ok, roots: Roots) -> Roots:
 
 
 def scan_roots(wall: Wall, fun, alpha, fluid, omega_max, n_roots: int, m=0.0,
-               family=LONGITUDINAL) -> Roots:
+               family=LONGITUDINAL, order=None) -> Roots:
     """The ``n_roots`` lowest roots of ``fun`` in (0, omega_max] (None: :func:`default_omega_max`)
-    by the guaranteed scan on ``wall``; INVALID where the search limit is not finite and > 0."""
+    by the guaranteed scan on ``wall``; INVALID where the search limit is not finite and > 0.
+
+    ``order`` (the paper's coupling only; an int or traced): the Bessel order ν; the grid is uniform in the
+    coupling's phase near its poles, which are grid points (:func:`coupling_poles`,
+    :func:`pole_steps`)."""
     end = default_omega_max(wall, alpha, n_roots, m) if omega_max is None else as_float(omega_max)
     ok = jnp.isfinite(end) & (end > 0)
     step = jnp.minimum(scan_step(wall, fluid, family), end / CHUNK)
-    return invalid_where(ok, _scan_for_roots(fun, step, end, n_roots,
-                                             cutoff_steps(wall, alpha, fluid, step, family)))
+    next_point = cutoff_steps(wall, alpha, fluid, step, family)
+    if order is not None and fluid is not None and fluid.coupling == "paper":
+        next_point = pole_steps(next_point, *coupling_poles(wall, alpha, fluid, order))
+    return invalid_where(ok, _scan_for_roots(fun, step, end, n_roots, next_point))
 
 
 def _guard_order(tube, alpha, fluid, m, family):
@@ -426,8 +584,10 @@ def frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, orde
                           family=LONGITUDINAL) -> Roots:
     """The ``n_roots`` lowest roots for one case (traceable; ``order`` static, ``m`` traced)."""
     ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
-    wall, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
-    return invalid_where(ok, scan_roots(wall, fun, alpha, fluid, omega_max, n_roots, m, family))
+    wall = discretize(tube, n_layers)
+    fun = scanned_function(wall, alpha, fluid, order, m, family)
+    return invalid_where(ok, scan_roots(wall, fun, alpha, fluid, omega_max, n_roots, m, family,
+                                        order))
 
 
 _solve_frequencies = cached_jit(frequencies_unchecked,
@@ -441,7 +601,8 @@ def growth_rates_unchecked(tube, alpha, fluid, s_max, n_roots, n_layers, order, 
     theory_m.md §6), reversed; NaN-padded at the end. ``family``: ``ORDER_M`` (at m = 0 the
     longitudinal modes) or ``TORSIONAL`` (:func:`_growth_family`)."""
     ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
-    wall, of_w = problem_function(tube, alpha, fluid, n_layers, order, m, family, "omega_squared")
+    wall = discretize(tube, n_layers)
+    of_w = scanned_function(wall, alpha, fluid, order, m, family, "omega_squared")
 
     def fun(s):
         return of_w(-s * s)
@@ -787,7 +948,8 @@ class Instability(NamedTuple):
         m: its circumferential order (−1 where none).
         n: its axial mode number (0 where none).
         status: CONVERGED, or NO_ROOT where no (m, n) loses stability below the pull-in limit.
-        critical: V̂_cr of every (m, n), shape (m_max + 1, n_max) (values only; NaN: none).
+        critical: V̂_cr of every (m, n), shape (m_max + 1, n_max) (values only; NaN: none below
+            pull-in; 0: unstable already at V̂ = 0).
     """
 
     voltage: jax.Array
@@ -799,9 +961,11 @@ class Instability(NamedTuple):
 
 @cached_jit(static_argnames=("n_max", "m_max", "n_layers"))
 def _instability_grid(tube, n_max, m_max, n_layers):
-    """(V̂_cr, status) of every (m, n), m = 0 … m_max, n = 1 … n_max, shape (m_max + 1, n_max):
+    """(V̂_cr, status, s₀) of every (m, n), m = 0 … m_max, n = 1 … n_max, shape (m_max + 1, n_max):
     one compiled search over the traced m (the 8×8 path, longitudinal at m = 0, theory_m.md §3),
-    the pull-in limit formed once."""
+    the pull-in limit formed once. The growth rate s₀ at V̂ = 0 (the guaranteed scan of
+    :func:`growth_rates`) marks a mode unstable already at V̂ = 0: its V̂_cr is 0 (a root of
+    f(Ω = 0; V̂) above 0 is then where it re-stabilises or another branch crosses)."""
     ok, tube, _, _ = guard(tube.replace(voltage=0.0), 1.0, None)
     v_end = voltage_limit(tube)
     m, n = jnp.meshgrid(jnp.arange(m_max + 1.0), jnp.arange(1.0, n_max + 1.0), indexing="ij")
@@ -809,13 +973,21 @@ def _instability_grid(tube, n_max, m_max, n_layers):
 
     def one(args):
         order_m, alpha = args
-        return critical_voltage_unchecked(tube, alpha, None, n_layers, 0, v_end=v_end, m=order_m,
-                                          family=ORDER_M)
+        voltage, status = critical_voltage_unchecked(tube, alpha, None, n_layers, 0, v_end=v_end,
+                                                     m=order_m, family=ORDER_M)
 
-    voltage, status = jax.lax.map(one, (m.ravel(), alphas))
+        # unstable already at V̂ = 0? (its Ω² may still reach 0 later, from the other side)
+        growth = growth_rates_unchecked(tube, alpha, None, None, 1, n_layers, 0, order_m,
+                                        ORDER_M).omega[0]
+        unstable = jnp.isfinite(growth)
+        return (jnp.where(unstable, 0.0, voltage), jnp.where(unstable, Status.CONVERGED, status),
+                growth)
+
+    voltage, status, growth = jax.lax.map(one, (m.ravel(), alphas))
     shape = (m_max + 1, n_max)
     return (jnp.where(ok, voltage, jnp.nan).reshape(shape),
-            jnp.where(ok, status, Status.INVALID).reshape(shape))
+            jnp.where(ok, status, Status.INVALID).reshape(shape),
+            jnp.where(ok, growth, jnp.nan).reshape(shape))
 
 
 def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = None,
@@ -825,7 +997,9 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
 
     Each V̂_cr is :func:`critical_voltage` of order m at α̂_n (:func:`jaxdea.axial_wavenumber`):
     the smallest V̂ at which the lowest Ω² of that (m, n) reaches 0 (λ_i, λ_z held; the tube's
-    ``voltage`` is ignored). m = 0 is the axisymmetric family the paper studies; m = 1 is Euler
+    ``voltage`` is ignored; a mode unstable already at V̂ = 0, e.g. ring buckling of a tube
+    squeezed to λ_i = 0.8, has V̂_cr = 0, and the fastest-growing such mode is first, with a
+    zero derivative). m = 0 is the axisymmetric family the paper studies; m = 1 is Euler
     column buckling, m ≥ 2 ring (ovalisation) buckling under the pressure that holds λ_i, which
     for the paper's tube sets in about ten times below the axisymmetric value. A fluid does not
     change V̂_cr (its terms vanish like Ω²), so ``fluid`` is only validated. A state with
@@ -852,18 +1026,20 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
     m_max = _validate_max("m_max", m_max, 0)
     tube = canonical(tube)
     layers = laminate(n_layers, scheme)
-    voltage, status = _instability_grid(jax.lax.stop_gradient(tube), n_max, m_max, layers)
-    flat = jnp.where(jnp.isnan(voltage), jnp.inf, voltage).ravel()
-    first = jnp.argmin(flat)
-    found = jnp.isfinite(flat[first])
+    voltage, status, growth = _instability_grid(jax.lax.stop_gradient(tube), n_max, m_max, layers)
+    # the order: the modes unstable at V̂ = 0, fastest first (key −s₀ < 0), then the critical voltages
+    key = jnp.where(voltage == 0.0, -growth, jnp.where(jnp.isnan(voltage), jnp.inf, voltage)).ravel()
+    first = jnp.argmin(key)
+    found = jnp.isfinite(key[first])
+    at_zero = found & (key[first] < 0)
     m = jnp.where(found, first // n_max, -1)
     n = jnp.where(found, first % n_max + 1, 0)
     alpha = mode_wavenumber(tube, jnp.maximum(n, 1).astype(jnp.float64))
-    root = Roots(jnp.where(found, flat[first], jnp.nan),
+    root = Roots(jnp.where(found & ~at_zero, voltage.ravel()[first], jnp.nan),
                  jnp.where(found, Status.CONVERGED, Status.NO_ROOT).astype(jnp.int32))
     root = _with_derivatives(root, (tube, alpha, None, jnp.maximum(m, 0).astype(jnp.float64)),
-                             layers, 0, "voltage", ORDER_M)
-    return Instability(root.omega, m, n, root.status, voltage)
+                             layers, 0, "voltage", ORDER_M)  # NaN (at V̂ = 0): a zero tangent
+    return Instability(jnp.where(at_zero, 0.0, root.omega), m, n, root.status, voltage)
 
 
 def phase_velocity(omega, alpha):

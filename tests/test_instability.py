@@ -106,6 +106,26 @@ def test_first_instability_derivative_and_vmap():
     np.testing.assert_allclose(values, [float(voltage(0.9)), float(voltage(0.95))], rtol=1e-12)
 
 
+def test_a_tube_unstable_at_zero_voltage_has_its_first_instability_at_zero():
+    """λ_i = 0.8: ring modes already grow at V̂ = 0 (a search for f(Ω = 0; V̂) = 0 in V̂ > 0 does not
+    see that): their critical voltage is 0, the first instability is V̂ = 0 at the (m, n) that
+    stability() finds growing fastest, with a zero derivative; λ_i = 0.9 is stable at V̂ = 0."""
+    squeezed = PAPER.replace(lambda_i=0.8)
+    state = jd.stability(squeezed, n_max=1, m_max=3)
+    assert not bool(state.stable)
+    first = jd.first_instability(squeezed, n_max=1, m_max=3)
+    assert float(first.voltage) == 0.0 and int(first.status) == Status.CONVERGED
+    assert (int(first.m), int(first.n)) == (int(state.m), int(state.n))
+    growing = np.isfinite(np.asarray(state.growth))
+    assert growing[2, 0] and growing[3, 0]  # ring modes m = 2, 3 grow at V̂ = 0
+    np.testing.assert_array_equal(np.asarray(first.critical)[growing], 0.0)
+    grad = jax.grad(lambda li: jd.first_instability(PAPER.replace(lambda_i=li), n_max=1,
+                                                    m_max=3).voltage)(0.8)
+    assert float(grad) == 0.0
+    assert bool(jd.stability(PAPER, n_max=1, m_max=3).stable)
+    assert float(jd.first_instability(PAPER, n_max=1, m_max=3).voltage) > 0.02
+
+
 @pytest.mark.parametrize("kwargs, name", [
     (dict(m=-1), "m must be"), (dict(m=1.5), "m must be"), (dict(m="2"), "m must be"),
     (dict(m=1, torsional=True), "torsional"), (dict(m=1, fluid=jd.Fluid(coupling="paper")), "paper"),
