@@ -20,6 +20,7 @@ from .counting import CountStatus, RootCount, count_roots
 from .curves import Curve, dispersion_curve
 from .design import DesignResult, DesignStatus, design_for_frequency, maximise_tunability, tunability
 from .dispersion import characteristic
+from .fit import FitResult, FitStatus, IdentifiabilityWarning, fit
 from .modes import fluid_pressure, mode_shape
 from .params import Fluid, Tube, axial_wavenumber
 from .roots import (
@@ -51,7 +52,10 @@ __all__ = [
     "DesignResult",
     "DesignStatus",
     "Estimate",
+    "FitResult",
+    "FitStatus",
     "Fluid",
+    "IdentifiabilityWarning",
     "Instability",
     "RootCount",
     "Roots",
@@ -67,6 +71,7 @@ __all__ = [
     "design_for_frequency",
     "dispersion_curve",
     "first_instability",
+    "fit",
     "fluid_pressure",
     "frequencies",
     "frequencies_with_error",

@@ -12,7 +12,8 @@ nbclient = pytest.importorskip("nbclient")
 ROOT = Path(__file__).resolve().parent.parent
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.py"))
 SLOW = {"design",  # its optax loops compile the critical-voltage and Newton programs: minutes
-        "paper_reproduction"}  # 200 s of the default tier (every figure grid and V̂_cr grid)
+        "paper_reproduction",  # 200 s of the default tier (every figure grid and V̂_cr grid)
+        "characterisation"}  # its fits compile the root, Jacobian and scan programs: minutes
 
 
 def test_every_notebook_is_listed():
