@@ -66,7 +66,7 @@ import jax.numpy as jnp
 from .compiled import cached_jit, serializable
 from .dispersion import characteristic_on_wall, order_m_admissible
 from .params import ALPHA_MIN, Fluid, Tube, as_float, canonical, guard, validate_count, validate_range
-from .roots import Roots, _order_inputs, _with_derivatives, scan_roots
+from .roots import Roots, _order_inputs, _with_derivatives, scan_roots, scanned_function
 from .state_matrix import LONGITUDINAL, ORDER_M
 from .scalar import Status, iterate_lanes, lanes_from_slots
 from .transfer import discretize, laminate
@@ -225,10 +225,14 @@ def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order, m=0.0,
         hist_alpha, hist_omega, n_hist = carry[:3]
         scan = ok & ~accepted
         def scanned():
+            # the unnormalised determinant and, for the paper's coupling, points at its poles
+            # (:func:`jaxdea.roots.scanned_function`, :func:`jaxdea.roots.pole_steps`)
             if family == LONGITUDINAL:
-                found = scan_roots(wall, at(a), a, fluid, None, n_roots)
+                found = scan_roots(wall, scanned_function(wall, a, fluid, order), a, fluid, None,
+                                   n_roots, order=order)
             else:
-                found = scan_roots(wall, at(a), a, fluid, None, n_roots, m_safe, family)
+                found = scan_roots(wall, scanned_function(wall, a, fluid, order, m_safe, family), a,
+                                   fluid, None, n_roots, m_safe, family, order=order)
             return found, tangent(a, found.omega)
 
         roots, slope = jax.lax.cond(scan, scanned, lambda: (

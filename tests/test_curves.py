@@ -140,9 +140,9 @@ def test_a_prior_curvature_finishes_a_lane_at_its_first_evaluation():
 
 
 def test_paper_coupling_scans_every_alpha():
-    """The paper's coupling is not conservative: a pair of roots near Ω = 0.045 exists at α̂ = 0.175
-    but not at 0.15 or 0.2 (invisible to the sign checks), so every α̂ is scanned and the pair is
-    found."""
+    """The paper's coupling is not conservative: a pair of roots straddles its pole Ω = ĉ_f α̂
+    (j'_{0,1} = 0) at every α̂ (invisible to the sign checks of continuation), so every α̂ is
+    scanned and the pair is found."""
     tube = jd.Tube(lambda_i=1.1, lambda_z=1.2, eta=0.85)
     fluid = jd.Fluid(coupling="paper", bessel_order=0)
     alphas = np.linspace(0.05, 0.25, 9)
@@ -150,7 +150,9 @@ def test_paper_coupling_scans_every_alpha():
     assert np.all(np.asarray(curve.scanned))
     reference = per_alpha(tube, alphas, fluid, 3, 30)
     assert_same_roots(curve, reference, rtol=1e-11)
-    assert np.any(reference[:, 1] < 0.05) and np.any(reference[:, 1] > 0.2)  # the pair is there
+    pole = float(fluid.speed_ratio) * alphas
+    assert np.all(reference[:, 0] < pole) and np.all(pole < reference[:, 1])  # the pair is there
+    assert np.all(reference[:, 1] < 1.05 * pole)
     with pytest.raises(ValueError, match="bessel_order"):
         jd.dispersion_curve(tube, alphas, jd.Fluid(coupling="paper"))
 
