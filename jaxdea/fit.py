@@ -568,7 +568,9 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
     Example:
         >>> result = fit({"voltage_V": v, "frequency_Hz": f, "m": m, "n": n},
         ...              free={"shear_modulus": (5e4, 2e5), "lambda_i": (0.8, 1.2)},
-        ...              fixed={...})
+        ...              fixed={"density": 1000.0, "permittivity": 4.16e-11, "gent": 97.2,
+        ...                     "lambda_z": 1.2, "eta": 0.85, "inner_radius": 5e-3,
+        ...                     "length": 5e-2})
         >>> result.estimate["shear_modulus"], result.interval["shear_modulus"]
     """
     require_x64()
