@@ -959,6 +959,14 @@ class Instability(NamedTuple):
     critical: jax.Array
 
 
+def map_orders_and_modes(tube, n_max: int, m_max: int, one):
+    """``one(m, α̂_n)`` over every order m = 0 … m_max (traced) and axial mode n = 1 … n_max,
+    by ``lax.map``; its outputs reshaped to (m_max + 1, n_max)."""
+    m, n = jnp.meshgrid(jnp.arange(m_max + 1.0), jnp.arange(1.0, n_max + 1.0), indexing="ij")
+    out = jax.lax.map(lambda args: one(*args), (m.ravel(), mode_wavenumber(tube, n.ravel())))
+    return jax.tree_util.tree_map(lambda x: x.reshape(m_max + 1, n_max), out)
+
+
 @cached_jit(static_argnames=("n_max", "m_max", "n_layers"))
 def _instability_grid(tube, n_max, m_max, n_layers):
     """(V̂_cr, status, s₀) of every (m, n), m = 0 … m_max, n = 1 … n_max, shape (m_max + 1, n_max):
@@ -968,11 +976,8 @@ def _instability_grid(tube, n_max, m_max, n_layers):
     f(Ω = 0; V̂) above 0 is then where it re-stabilises or another branch crosses)."""
     ok, tube, _, _ = guard(tube.replace(voltage=0.0), 1.0, None)
     v_end = voltage_limit(tube)
-    m, n = jnp.meshgrid(jnp.arange(m_max + 1.0), jnp.arange(1.0, n_max + 1.0), indexing="ij")
-    alphas = mode_wavenumber(tube, n.ravel())
 
-    def one(args):
-        order_m, alpha = args
+    def one(order_m, alpha):
         voltage, status = critical_voltage_unchecked(tube, alpha, None, n_layers, 0, v_end=v_end,
                                                      m=order_m, family=ORDER_M)
 
@@ -983,11 +988,9 @@ def _instability_grid(tube, n_max, m_max, n_layers):
         return (jnp.where(unstable, 0.0, voltage), jnp.where(unstable, Status.CONVERGED, status),
                 growth)
 
-    voltage, status, growth = jax.lax.map(one, (m.ravel(), alphas))
-    shape = (m_max + 1, n_max)
-    return (jnp.where(ok, voltage, jnp.nan).reshape(shape),
-            jnp.where(ok, status, Status.INVALID).reshape(shape),
-            jnp.where(ok, growth, jnp.nan).reshape(shape))
+    voltage, status, growth = map_orders_and_modes(tube, n_max, m_max, one)
+    return (jnp.where(ok, voltage, jnp.nan), jnp.where(ok, status, Status.INVALID),
+            jnp.where(ok, growth, jnp.nan))
 
 
 def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = None,

@@ -18,7 +18,13 @@ import jax.numpy as jnp
 from .compiled import cached_jit, serializable
 from .dispersion import check_inputs
 from .params import Fluid, Tube, canonical, mode_wavenumber
-from .roots import Roots, _validate_max, _with_derivatives, growth_rates_unchecked
+from .roots import (
+    Roots,
+    _validate_max,
+    _with_derivatives,
+    growth_rates_unchecked,
+    map_orders_and_modes,
+)
 from .scalar import Status
 from .state_matrix import ORDER_M
 from .transfer import laminate
@@ -53,18 +59,12 @@ def _growth_grid(tube, fluid, n_max, m_max, n_layers, order):
     """(largest s, status) of every (m, n), m = 0 … m_max, n = 1 … n_max, shape (m_max + 1, n_max):
     ``lax.map`` over (m, α̂_n) of the growth-rate scan of order m (traced; at m = 0 the longitudinal
     modes through the 8×8 system, theory_m.md §3)."""
-    m, n = jnp.meshgrid(jnp.arange(m_max + 1.0), jnp.arange(1.0, n_max + 1.0), indexing="ij")
-    alphas = mode_wavenumber(tube, n.ravel())
-
-    def one(args):
-        order_m, alpha = args
+    def one(order_m, alpha):
         roots = growth_rates_unchecked(tube, alpha, fluid, None, 1, n_layers, order, order_m,
                                        ORDER_M)
         return roots.omega[0], roots.status[0]
 
-    growth, status = jax.lax.map(one, (m.ravel(), alphas))
-    shape = (m_max + 1, n_max)
-    return growth.reshape(shape), status.reshape(shape)
+    return map_orders_and_modes(tube, n_max, m_max, one)
 
 
 def stability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = None,

@@ -72,7 +72,7 @@ def _compute(with_fluid=False):
 
 def _in_fresh_process(with_fluid=False, cache=False):
     """The case in a new Python process: compiled from scratch (no persistent cache) unless
-    ``cache``, in which case the cache of this test session is used."""
+    ``cache``, in which case the cache of this test run is used."""
     env = dict(os.environ, JAXDEA_CACHE_DIR="off")
     cache_dir = jax.config.jax_compilation_cache_dir if cache else None
     script = "\n".join([
@@ -117,7 +117,7 @@ def test_same_call_twice_slow_solvers():
 
 
 def test_another_process_gives_the_same_bits():
-    """A new process (loading the compiled programs of this session from the persistent cache):
+    """A new process (loading the compiled programs of this test run from the persistent cache):
     the same bits as this process."""
     assert _in_fresh_process(cache=True) == _compute()
 
