@@ -37,6 +37,10 @@ REFERENCE_LAYERS = 240  # the reference curve: Richardson of N = 240 and 480 (on
 FIRST_CALLS = ("characteristic", "frequencies", "critical_voltage")  # (d): first calls timed
 ORDER_M = dict(orders=[0, 1, 2], batch=4096, n_layers=30, n_max=3, m_max=8)  # (g)
 PAPER_TUBE = dict(lambda_i=0.9, lambda_z=1.2, eta=0.85)  # (g): first_instability
+EXPLORE = dict(voltages=[0.02, 0.04], lambda_i=[0.9, 0.92])  # (i): the explorer's slider moves
+FIT = dict(voltages=[0.0, 2.5e3, 5e3], orders=[0, 1], modes=[1, 2, 3, 4, 5], n_layers=30,
+           start=dict(shear_modulus=1.1, lambda_i=0.95, lambda_z=1.05, eta=0.95),
+           noise=0.005)  # (h): 30 peaks; the free parameters and their start / truth
 
 
 def settings(quick: bool) -> dict:
@@ -202,6 +206,90 @@ def work_order_m(cfg: dict) -> dict:
     return dict(batch=batch, n_layers=n_layers, rows=rows, instability_seconds=sec,
                 instability_first_call_s=first_s, instability_voltage=float(inst.voltage),
                 instability_m=int(inst.m), instability_n=int(inst.n))
+
+
+def work_fit(cfg: dict) -> dict:
+    """(h) ``fit``: 4 free parameters to 30 labelled peaks (V = 0, 2.5, 5 kV × m = 0, 1 × n = 1…5
+    of a VHB-like tube, N = 30, 0.5 % noise, σ given) from ``initial`` 5–10 % off alone
+    (``n_starts=0``).
+    The first fit compiles; the rows are the best of the later fits (other noise draws), after
+    compilation."""
+    jax, jaxdea = _jax()
+    from jaxdea.units import VACUUM_PERMITTIVITY, Scales, tube_from_si
+
+    truth = dict(shear_modulus=1e5, density=1000.0, permittivity=4.7 * VACUUM_PERMITTIVITY,
+                 inner_radius=5e-3, length=50e-3, eta=0.85, lambda_i=1.0, lambda_z=1.2, gent=97.0)
+    scales = Scales(truth["shear_modulus"], truth["density"], truth["permittivity"],
+                    truth["inner_radius"])
+    rows = []
+    for voltage in FIT["voltages"]:
+        tube = tube_from_si(scales, outer_radius=truth["inner_radius"] / truth["eta"],
+                            length=truth["length"], voltage=voltage, lambda_i=truth["lambda_i"],
+                            lambda_z=truth["lambda_z"], gent=truth["gent"])
+        for m in FIT["orders"]:
+            for n in FIT["modes"]:
+                omega = jaxdea.frequencies(tube, jaxdea.axial_wavenumber(tube, n), n_roots=1, m=m,
+                                           n_layers=FIT["n_layers"])[0]
+                rows.append((voltage, float(scales.omega_to_hz(omega)), m, n))
+    table = np.array(rows)
+    free = {k: (0.5 * truth[k], 1.5 * truth[k]) for k in FIT["start"]}
+    free["eta"] = (0.6, 0.95)
+    fixed = {k: v for k, v in truth.items() if k not in free}
+    initial = {k: truth[k] * factor for k, factor in FIT["start"].items()}
+    sigma = FIT["noise"] * table[:, 1]
+    times, results = [], []
+    for seed in range(1 + cfg["repeats"]):
+        noise = np.random.default_rng(seed).standard_normal(len(rows))
+        data = dict(voltage_V=table[:, 0], frequency_Hz=table[:, 1] + sigma * noise,
+                    sigma_Hz=sigma, m=table[:, 2].astype(int), n=table[:, 3].astype(int))
+        start = time.perf_counter()
+        result = jaxdea.fit(data, free, fixed, initial=initial, n_layers=FIT["n_layers"],
+                            n_starts=0)
+        times.append(time.perf_counter() - start)
+        results.append(result)
+    best = int(np.argmin(times[1:])) + 1
+    return dict(peaks=len(rows), parameters=len(free), first_call_s=times[0],
+                seconds=times[best], iterations=int(results[best].iterations),
+                status=results[best].status.name,
+                max_rel_error=max(abs(results[best].estimate[k] / truth[k] - 1) for k in free))
+
+
+def work_explore(cfg: dict) -> dict:
+    """(i) One update of the ``jaxdea.explore`` app after a slider move, warm (the programs compiled
+    by a first move): recomputing the curves (``explorer_data``), the whole update (curves, the
+    stability status and rendering the figure) for V̂ on the empty tube at m = 0, the filled tube
+    (acoustic) and m = 2, and a λ_i move, which solves ``first_instability`` again (m ≤ 4, n ≤ 3).
+    Best of the repeats; the paper's tube, 45 α̂ × 3 branches, N = 30."""
+    jax, jaxdea = _jax()
+    from jaxdea.explore import explorer_data
+
+    tube = jaxdea.Tube(voltage=0.1, **PAPER_TUBE)
+    app = jaxdea.explore(tube)
+
+    def best_move(control, values):
+        app.controls[control].value = values[-1]  # compiles what this setting needs
+        best = math.inf
+        for i in range(cfg["repeats"] * len(values)):
+            start = time.perf_counter()
+            app.controls[control].value = values[i % len(values)]
+            best = min(best, time.perf_counter() - start)
+        assert app.error is None, app.error
+        return best
+
+    rows = []
+    cases = [("empty tube, m = 0", {}), ("filled tube (acoustic), m = 0", dict(filled="filled")),
+             ("empty tube, m = 2", dict(filled="empty", m=2))]
+    for label, settings in cases:
+        app.set(**settings)
+        parameters = app.parameters()
+        data_s, _, _ = best_time(lambda p=parameters: explorer_data(*p).omega, cfg["repeats"],
+                                 cfg["min_time"])
+        rows.append(dict(label=label, data_s=data_s,
+                         update_s=best_move("voltage", EXPLORE["voltages"])))
+    app.set(m=0)
+    geometry = best_move("lambda_i", EXPLORE["lambda_i"])
+    return dict(rows=rows, geometry_update_s=geometry, points=int(app.data.alpha.size),
+                load_average=list(os.getloadavg()))
 
 
 def _fig3_points():
@@ -467,6 +555,10 @@ def worker(name: str, params: dict) -> None:
         result = work_compile(params["what"], params.get("cache", False))
     elif name == "order_m":
         result = work_order_m(cfg)
+    elif name == "explore":
+        result = work_explore(cfg)
+    elif name == "fit":
+        result = work_fit(cfg)
     else:
         raise ValueError(f"unknown worker {name!r}")
     result.update(rss_start_mb=rss0, rss_peak_mb=peak_rss_mb())
@@ -561,6 +653,10 @@ def run_all(cfg: dict, partial: str, reuse: bool) -> dict:
     spawn("curve_scipy", "curve_scipy", dict(cfg=cfg, n_layers=chosen))
     print("order m (g) ...", flush=True)
     spawn("order_m", "order_m", dict(cfg=cfg))
+    print("interactive explorer (i) ...", flush=True)
+    spawn("explore", "explore", dict(cfg=cfg))
+    print("fit (h) ...", flush=True)
+    spawn("fit", "fit", dict(cfg=cfg))
     print("first-call compile, no persistent cache (d) ...", flush=True)
     for what in FIRST_CALLS:
         spawn(f"compile_{what}", "compile", dict(what=what, cfg=cfg),
@@ -749,6 +845,10 @@ def render(res: dict, provisional: bool) -> str:
                          f"| {fmt(warm['second_call_s'])} |")
     if "order_m" in res:
         lines += render_order_m(res["order_m"])
+    if "fit" in res:
+        lines += render_fit(res["fit"])
+    if "explore" in res:
+        lines += render_explore(res["explore"])
     lines += ["", "## (e) Peak memory (ru_maxrss of the worker process)", "",
               "| workload | after imports (MiB) | peak (MiB) |", "|---|---:|---:|"]
     names = [("char_jaxdea", f"jaxdea characteristic, N = 30, batches {cfg['batches']}"),
@@ -785,17 +885,46 @@ def render_order_m(r: dict) -> list:
     return lines
 
 
+def render_fit(r: dict) -> list:
+    """Section (h): the inverse characterisation."""
+    free = ", ".join(FIT["start"])
+    return ["", "## (h) Inverse characterisation (`fit`)", "",
+            "| workload | seconds |", "|---|---:|",
+            f"| fit: {r['parameters']} parameters to {r['peaks']} peaks, after compilation "
+            f"({free}; N = {FIT['n_layers']}, 0.5 % noise, {r['iterations']} iterations, "
+            f"{r['status'].lower()}, max rel. error of the estimates {r['max_rel_error']:.1e}) | "
+            f"{fmt(r['seconds'])} |",
+            f"| fit: the same, first call in the process (compilation, or loading it from the "
+            f"persistent cache) | {fmt(r['first_call_s'])} |"]
+
+
+def render_explore(r: dict) -> list:
+    """Section (i): one update of the interactive explorer."""
+    lines = ["", f"## (i) Interactive explorer (`jaxdea.explore`): one update after a slider move, "
+             f"warm ({r['points']} α̂ × 3 branches, N = 30)", "",
+             "| setting | curves (`explorer_data`), s | whole update of V̂ (curves, status, figure), s |",
+             "|---|---:|---:|"]
+    for row in r["rows"]:
+        lines.append(f"| {row['label']} | {fmt(row['data_s'])} | {fmt(row['update_s'])} |")
+    lines += ["", f"A λ_i move (empty tube, m = 0) also solves `first_instability` again (m ≤ 4, "
+              f"n ≤ 3): {fmt(r['geometry_update_s'])} s."]
+    if "load_average" in r:
+        lines[-1] += (" Load average at the end of this workload: "
+                      + ", ".join(f"{x:.1f}" for x in r["load_average"]) + ".")
+    return lines
+
+
 def run_only(what: str, cfg: dict, out: str, provisional: bool) -> dict:
     """Run one workload (``--only``) and merge it into the results.json next to ``out``; the
     markdown is rewritten from the merged results."""
     path = os.path.splitext(out)[0] + ".json"
     with open(path) as f:
         res = json.load(f)
-    if what == "order_m":
-        res["order_m"] = spawn_worker("order_m", dict(cfg=cfg))
-        res["order_m"]["settings"] = cfg
+    if what in ("order_m", "fit", "explore"):
+        res[what] = spawn_worker(what, dict(cfg=cfg))
+        res[what]["settings"] = cfg
     else:
-        raise ValueError(f"--only supports 'order_m', got {what!r}")
+        raise ValueError(f"--only supports 'order_m', 'fit' and 'explore', got {what!r}")
     with open(path, "w") as f:
         json.dump(res, f, indent=1)
     with open(out, "w") as f:
@@ -817,7 +946,7 @@ def main(argv=None):
                              "run with the same settings")
     parser.add_argument("--render", metavar="JSON",
                         help="only rewrite the markdown from the results.json of an earlier run")
-    parser.add_argument("--only", choices=["order_m"],
+    parser.add_argument("--only", choices=["order_m", "fit", "explore"],
                         help="run only this workload, merge it into OUT's .json and rewrite OUT")
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     parser.add_argument("--params", help=argparse.SUPPRESS)

@@ -24,6 +24,9 @@ SECTION_TITLES = {
     "modes": "Mode shapes",
     "base_state": "Static state",
     "design": "Design",
+    "explore": "Interactive explorer",
+    "fit": "Inverse characterisation",
+    "fit_io": "Inverse characterisation: files, plots, command line",
     "scalar": "Status codes",
     "units": "Units",
 }

@@ -20,7 +20,9 @@ from .counting import CountStatus, RootCount, count_roots
 from .curves import Curve, dispersion_curve
 from .design import DesignResult, DesignStatus, design_for_frequency, maximise_tunability, tunability
 from .dispersion import characteristic
-from .fit import FitResult, FitStatus, IdentifiabilityWarning, fit
+from .explore import explore  # ipywidgets is imported on the first call only
+from .fit import FitResult, FitStatus, IdentifiabilityWarning, fit, fitted_frequencies
+from .fit_io import plot_fit, read_peaks, write_fit, write_peaks
 from .modes import fluid_pressure, mode_shape
 from .params import Fluid, Tube, axial_wavenumber
 from .roots import (
@@ -70,8 +72,10 @@ __all__ = [
     "critical_voltages",
     "design_for_frequency",
     "dispersion_curve",
+    "explore",
     "first_instability",
     "fit",
+    "fitted_frequencies",
     "fluid_pressure",
     "frequencies",
     "frequencies_with_error",
@@ -82,8 +86,10 @@ __all__ = [
     "maximise_tunability",
     "mode_shape",
     "phase_velocity",
+    "plot_fit",
     "pressure_difference",
     "pull_in",
+    "read_peaks",
     "solve_critical_voltage",
     "solve_critical_voltages",
     "solve_frequencies",
@@ -95,6 +101,8 @@ __all__ = [
     "tunability",
     "units",
     "with_thickness_ratio",
+    "write_fit",
+    "write_peaks",
 ]
 __version__ = "0.1.0"
 del jnp

@@ -1,13 +1,17 @@
 """Command line: ``jaxdea sweep CONFIG`` (user-defined sweeps to CSV/NPZ and a plot), ``jaxdea figures``
-(the paper's figures) and ``jaxdea table`` (the lowest frequencies of the paper's tube).
+(the paper's figures), ``jaxdea table`` (the lowest frequencies of the paper's tube) and ``jaxdea fit
+DATA.csv --config fit.toml`` (material and geometry from measured resonances: a summary, JSON and a
+plot; :mod:`jaxdea.fit_io`).
 
 :func:`main` takes the arguments as a list and returns the exit status (0: done, 2: bad usage or a
 bad configuration, reported in one line on stderr without a traceback).
 """
 
 import argparse
+import importlib.util
 import itertools
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -121,10 +125,29 @@ def plot_sweep(result, x_name, path, title=None):
     if x_name in INTEGER_AXES:
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_ylabel(OMEGA_LABEL)
+    _si_axes(ax, result, x_name)
     ax.set_title(title or _auto_title(result, others), fontsize="medium")
     ax.grid(alpha=0.3)
     fig.savefig(path, dpi=120)
     return fig
+
+
+def _si_axes(ax, result, x_name):
+    """With units (``result.scales``): f in Hz on the right and, for an axis with a linear SI
+    counterpart (V, m, kg/m³, m/s), its SI values on top."""
+    from .sweeps import SI_QUANTITIES
+
+    scales = result.scales
+    if scales is None:
+        return
+    hz = float(scales.omega_to_hz(1.0))
+    right = ax.secondary_yaxis("right", functions=(lambda w: w * hz, lambda f: f / hz))
+    right.set_ylabel("frequency $f$ (Hz)")
+    if x_name in SI_QUANTITIES and x_name != "alpha":  # α̂ ↔ wavelength is no linear map
+        si_name, unit, to_si, _ = SI_QUANTITIES[x_name]
+        factor = float(to_si(scales, 1.0))
+        top = ax.secondary_xaxis("top", functions=(lambda x: x * factor, lambda x: x / factor))
+        top.set_xlabel(f"{si_name} ({unit})")
 
 
 def _auto_title(result, others):
@@ -142,19 +165,41 @@ def _auto_title(result, others):
 
 
 def _error(command, message):
-    print(f"jaxdea {command}: error: {message}", file=sys.stderr)
+    """Report an error in one line on stderr; the exit status 2."""
+    print(f"jaxdea {command}: error: {' '.join(str(message).split())}", file=sys.stderr)
     return 2
+
+
+def _writable_folder(out):
+    """Create the folder ``out`` (with its parents) and check that a file can be written there;
+    None, or what is wrong."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        return f"{out} is a file, not a folder"
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as exc:
+        return f"cannot write into {out}: {exc.strerror or exc}"
+    return None
 
 
 def _sweep(args):
     from . import Fluid, Status, Tube, sweep
-    from .config import load_config
+    from .config import SUFFIXES, load_config
 
     try:
         cfg = load_config(args.config)
     except ValueError as exc:
         return _error("sweep", exc)
+    if "netcdf" in cfg.formats and not all(importlib.util.find_spec(m) for m in ("xarray", "netCDF4")):
+        return _error("sweep", "output format netcdf needs xarray and netCDF4: "
+                      "pip install 'jaxdea[xarray]'")
     out = Path(args.out) if args.out is not None else Path(args.config).parent / (cfg.out_dir or "")
+    problem = _writable_folder(out)
+    if problem:
+        return _error("sweep", problem)
     t0 = time.perf_counter()
     try:
         tube = Tube(**cfg.tube)
@@ -162,15 +207,18 @@ def _sweep(args):
         result = sweep(tube, fluid, progress=False if args.quiet else None, **cfg.sweep_arguments())
     except ValueError as exc:
         return _error("sweep", exc)
+    if cfg.scales is not None:
+        result = result.with_units(cfg.scales)
     seconds = time.perf_counter() - t0
-    paths = [out / f"{cfg.name}.{ext}" for ext in (*cfg.formats, *(("png",) if cfg.plot else ()))]
+    writers = {"csv": result.to_csv, "npz": result.to_npz, "netcdf": result.to_netcdf}
+    files = [(out / f"{cfg.name}.{SUFFIXES[f]}", writers[f]) for f in cfg.formats]
+    if cfg.plot:
+        files.append((out / f"{cfg.name}.png",
+                      lambda path: plot_sweep(result, cfg.plot_axis, path, cfg.title)))
+    paths = [path for path, _ in files]
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        for path in paths:
-            if path.suffix == ".png":
-                plot_sweep(result, cfg.plot_axis, path, cfg.title)
-            else:
-                getattr(result, f"to_{path.suffix[1:]}")(path)
+        for path, write in files:
+            write(path)
     except OSError as exc:
         return _error("sweep", f"cannot write into {out}: {exc.strerror or exc}")
     if not args.quiet:
@@ -185,9 +233,26 @@ def _sweep(args):
     return 0
 
 
+def _fit(args):
+    from .fit_io import run_fit
+
+    try:
+        _, report, paths = run_fit(args.data, args.config, args.out)
+    except ValueError as exc:
+        return _error("fit", " ".join(str(exc).split()))
+    if not args.quiet:
+        print(report)
+    for path in paths:
+        print(path)
+    return 0
+
+
 def _figures(args):
     from jaxdea.figures import make_figures
 
+    problem = _writable_folder(args.out)
+    if problem:
+        return _error("figures", problem)
     for path in make_figures(out=Path(args.out), quick=args.quick, progress=not args.quiet):
         print(path)
     return 0
@@ -203,8 +268,10 @@ EXAMPLES = """examples:
   jaxdea COMMAND --help                       the options of a command"""
 SWEEP_HELP = """Solve the lowest frequencies Ω over a grid of parameters described by CONFIG, a TOML or
 JSON file, and write NAME.csv (one row per grid point: axes, α̂, Ω_k, status_k and, with the
-jacobian, dΩ_k/dα̂ and dΩ_k/dθ), NAME.npz (jaxdea.SweepResult.from_npz reads it back) and NAME.png (Ω
-against the first axis that has more than one value). An error in CONFIG is reported with the
+jacobian, dΩ_k/dα̂ and dΩ_k/dθ), NAME.npz (jaxdea.SweepResult.from_npz reads it back), NAME.nc
+(netCDF, with output.formats = [..., "netcdf"]) and NAME.png (Ω against the first axis that has more
+than one value). With a [units] table parameters may be given in SI units and the outputs add f in
+Hz, the wavelength in m and the SI value of each axis. An error in CONFIG is reported with the
 offending key and what is allowed there (exit status 2)."""
 FIGURES_HELP = """Regenerate the analogues of the paper's Figs. 2-10 (dispersion against V̂, the axial mode
 number, ĉ_f, ρ̂_f and h/R_i, empty and fluid-filled, consistent acoustic model beside the paper's
@@ -235,9 +302,16 @@ def _cache(args):
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line on stderr (exit status 2)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see {self.prog} --help)\n")
+
+
 def build_parser():
     formatter = argparse.RawDescriptionHelpFormatter
-    parser = argparse.ArgumentParser(prog="jaxdea", description=DESCRIPTION, epilog=EXAMPLES,
+    parser = _Parser(prog="jaxdea", description=DESCRIPTION, epilog=EXAMPLES,
                                      formatter_class=formatter)
     parser.add_argument("--quiet", action="store_true",
                         help="no progress bars or status lines (written paths are still printed)")
@@ -285,6 +359,24 @@ def build_parser():
     cache.add_argument("action", choices=("info", "clear"),
                        help="info: where the cache is and its size; clear: delete it")
     cache.set_defaults(run=_cache)
+
+    from .fit_io import FORMAT as FIT_FORMAT
+
+    fit = sub.add_parser(
+        "fit", parents=[quiet], formatter_class=formatter,
+        help="material and geometry parameters from measured resonances (CSV + TOML)",
+        description="Fit the free parameters of CONFIG to the peaks of DATA (CSV: voltage_V, "
+        "frequency_Hz, optional sigma_Hz and labels m, n, branch), print the estimates with 95 % "
+        "intervals and the mode of every peak, and write DATA_fit.json and DATA_fit.png. An error "
+        "is reported in one line naming the file, column or key (exit status 2).",
+        epilog=f"config format (TOML):\n{FIT_FORMAT}\nexample:\n"
+        "  jaxdea fit peaks.csv --config fit.toml --out results")
+    fit.add_argument("data", metavar="DATA", help="the measured peaks (.csv)")
+    fit.add_argument("--config", metavar="CONFIG", required=True,
+                     help="free parameters, fixed values, fluid and options (.toml)")
+    fit.add_argument("--out", metavar="DIR", default=None,
+                     help="output folder (default: DATA's folder)")
+    fit.set_defaults(run=_fit)
     return parser
 
 
@@ -295,7 +387,13 @@ def main(argv=None):
     except SystemExit as exc:  # --help (0) or a usage error (2, message already printed)
         return 0 if exc.code is None else int(exc.code)
     jax.config.update("jax_enable_x64", True)
-    return args.run(args)
+    try:
+        return args.run(args)
+    except OSError as exc:  # one line, never a traceback
+        where = f"{exc.filename}: " if exc.filename else ""
+        return _error(args.command, f"{where}{exc.strerror or exc}")
+    except (ValueError, ImportError) as exc:
+        return _error(args.command, exc)
 
 
 if __name__ == "__main__":

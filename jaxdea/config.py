@@ -2,7 +2,10 @@
 
 :func:`parse_config` is pure (a dict in, a :class:`SweepConfig` out) and checks every key and value
 before anything is computed; an error is a ValueError that names the offending key (``tube.eta``,
-``axes.voltage.num``, ``fluid.coupling``, …) and what is allowed there. :func:`load_config` reads the
+``axes.voltage.num``, ``fluid.coupling``, ``units.density``, …) and what is allowed there. With a
+``[units]`` table (the scales of :class:`jaxdea.units.Scales`) parameters may also be given in SI
+units under the names of :data:`jaxdea.sweeps.SI_QUANTITIES` (``voltage_V``, ``wavelength_m``, …),
+converted by :mod:`jaxdea.units`, and the outputs carry SI values. :func:`load_config` reads the
 file (by its suffix: ``.toml`` with :mod:`tomllib`, ``.json`` with :mod:`json`). :data:`FORMAT` lists
 the keys (it is the reference printed by ``jaxdea sweep --help``); ``examples/sweep.toml`` is an
 example.
@@ -20,17 +23,26 @@ import numpy as np
 
 from .leaves import FLUID_LEAVES, NAMES, TUBE_LEAVES
 from .params import COUPLINGS, MATERIALS
+from .sweeps import SI_QUANTITIES
 from .transfer import SCHEMES
+from .units import VACUUM_PERMITTIVITY, Scales
 
-TOP_KEYS = ("tube", "fluid", "axes", "solver", "output")
+TOP_KEYS = ("tube", "fluid", "axes", "solver", "output", "units")
 TUBE_KEYS = (*TUBE_LEAVES, "thickness_ratio", "material")
 FLUID_KEYS = (*FLUID_LEAVES, "coupling", "bessel_order")
+SI_NAMES = {si_name: name for name, (si_name, *_) in SI_QUANTITIES.items()}  # SI key -> parameter
+TUBE_SI_KEYS = tuple(k for k, name in SI_NAMES.items() if name in TUBE_KEYS)
+FLUID_SI_KEYS = tuple(k for k, name in SI_NAMES.items() if name in FLUID_KEYS)
+UNITS_KEYS = {"shear_modulus": "Pa", "density": "kg/m^3", "permittivity": "F/m",
+              "relative_permittivity": "ε/ε_0", "inner_radius": "m"}
 SOLVER_KEYS = ("n_roots", "n_layers", "scheme", "jacobian", "omega_max", "m", "torsional",
                "n_growth")
 AXIS_NAMES = (*NAMES, "m")
 OUTPUT_KEYS = ("dir", "name", "formats", "plot", "title")
 LINSPACE_KEYS = ("start", "stop", "num")
-FORMATS = ("csv", "npz")
+FORMATS = ("csv", "npz", "netcdf")
+DEFAULT_FORMATS = ("csv", "npz")
+SUFFIXES = {"csv": "csv", "npz": "npz", "netcdf": "nc"}  # output format -> file suffix
 
 FORMAT = f"""\
 [tube]    fixed parameters (numbers; defaults: those of jaxdea.Tube): voltage V̂, lambda_i λ_i,
@@ -51,8 +63,15 @@ FORMAT = f"""\
           (default: automatic), m = 0 (circumferential order, integer >= 0; or axes.m),
           torsional = false (the torsional family, m = 0 only), n_growth = 0 (growth rates
           s = sqrt(-Ω²) of the unstable modes per point, largest first; 0: none)
-[output]  name = the config file's stem, formats = {json.dumps(list(FORMATS))}, plot = true (NAME.png),
-          dir = the config file's folder (relative to it; --out overrides), title = a plot title
+[output]  name = the config file's stem, formats = {json.dumps(list(DEFAULT_FORMATS))} (any of
+          {', '.join(FORMATS)}: NAME.csv, NAME.npz, NAME.nc; netcdf needs pip install 'jaxdea[xarray]'),
+          plot = true (NAME.png), dir = the config file's folder (relative to it; --out overrides),
+          title = a plot title
+[units]   optional SI scales (numbers > 0): shear_modulus μ (Pa), density ρ_s (kg/m³),
+          permittivity ε (F/m) or relative_permittivity ε/ε_0, inner_radius R_i (m). With them,
+          {', '.join(TUBE_SI_KEYS)} in [tube]/[axes], {', '.join(FLUID_SI_KEYS)} in
+          [fluid]/[axes] and wavelength_m (2π R_i/α̂) in [axes] replace the dimensionless names,
+          and the outputs add frequency_Hz, wavelength_m and the SI value of each such axis
 """
 
 # allowed values of each parameter: (description, test on a float64 array); +inf only for gent
@@ -70,6 +89,11 @@ RANGES = {
     "n": ("integers >= 1 (axial mode numbers)", lambda v: np.isfinite(v) & (v >= 1) & (v == np.round(v))),
     "m": ("integers >= 0 (circumferential orders)",
           lambda v: np.isfinite(v) & (v >= 0) & (v == np.round(v))),
+    "voltage_V": ("a finite number (V)", lambda v: np.isfinite(v)),
+    "thickness_m": ("a finite number > 0 (m)", lambda v: np.isfinite(v) & (v > 0)),
+    "fluid_density_kg_m3": ("a finite number > 0 (kg/m^3)", lambda v: np.isfinite(v) & (v > 0)),
+    "sound_speed_m_s": ("a finite number > 0 (m/s)", lambda v: np.isfinite(v) & (v > 0)),
+    "wavelength_m": ("a finite number > 0 (m)", lambda v: np.isfinite(v) & (v > 0)),
 }
 
 
@@ -91,9 +115,11 @@ class SweepConfig:
             ``axes``).
         torsional: the torsional family (m = 0 only).
         n_growth: growth rates per point (``jaxdea.sweep``'s ``n_growth``; 0: none).
+        units: the SI scales ``{shear_modulus, density, permittivity, inner_radius}`` of the
+            ``[units]`` table, or None.
         out_dir: output folder as written in the config (relative to the config file), or None.
         name: file stem of the outputs.
-        formats: a subset of ("csv", "npz").
+        formats: a subset of ("csv", "npz", "netcdf").
         plot: write ``name.png``.
         title: plot title, or None.
     """
@@ -109,9 +135,10 @@ class SweepConfig:
     m: int = 0
     torsional: bool = False
     n_growth: int = 0
+    units: dict | None = None
     out_dir: str | None = None
     name: str = "sweep"
-    formats: tuple = FORMATS
+    formats: tuple = DEFAULT_FORMATS
     plot: bool = True
     title: str | None = None
 
@@ -119,6 +146,11 @@ class SweepConfig:
     def plot_axis(self) -> str:
         """The plot's abscissa: the first axis with more than one value (else the first axis)."""
         return next((k for k, v in self.axes.items() if v.size > 1), next(iter(self.axes)))
+
+    @property
+    def scales(self) -> Scales | None:
+        """The :class:`jaxdea.units.Scales` of ``[units]``, or None."""
+        return None if self.units is None else Scales(**self.units)
 
     def sweep_arguments(self) -> dict:
         """Keyword arguments of :func:`jaxdea.sweep` besides ``tube`` and ``fluid``."""
@@ -189,54 +221,110 @@ def _values(key: str, name: str, spec) -> np.ndarray:
     else:
         _fail(f"{key!r} must be a number, a list of numbers or a table {{start, stop, num}}, "
               f"got {spec!r}")
+    return _in_range(key, name, values)
+
+
+def _in_range(key: str, name: str, values: np.ndarray, converted: bool = False) -> np.ndarray:
     allowed, ok = RANGES[name]
     bad = ~ok(values)
     if np.any(bad):
-        _fail(f"{key!r} must be {allowed}, got {float(values[bad][0])!r}")
+        value = float(values[bad][0])
+        if converted:
+            _fail(f"{key!r} gives {name} = {value!r}, which must be {allowed}")
+        _fail(f"{key!r} must be {allowed}, got {value!r}")
     return values
 
 
-def _fixed(key: str, name: str, x) -> float:
+def _si_values(key: str, si_key: str, spec, units: dict | None) -> np.ndarray:
+    """An axis or fixed value given in SI units (``si_key``), converted by jaxdea.units."""
+    name = SI_NAMES[si_key]
+    if units is None:
+        _fail(f"{key!r} is in SI units ({SI_QUANTITIES[name][1]}): add a [units] table "
+              "(shear_modulus, density, permittivity, inner_radius) or give "
+              f"'{key.rsplit('.', 1)[0]}.{name}' (dimensionless)")
+    values = _values(key, si_key, spec)
+    converted = np.asarray(SI_QUANTITIES[name][3](Scales(**units), values), dtype=np.float64)
+    return _in_range(key, name, converted, converted=True)
+
+
+def _fixed(key: str, name: str, x, units: dict | None = None) -> float:
     if not _is_number(x):
         _fail(f"{key!r} must be a number, got {x!r}")
+    if name in SI_NAMES:
+        return float(_si_values(key, name, x, units)[0])
     return float(_values(key, name, x)[0])
 
 
-def _parse_tube(data) -> dict:
-    tube = {}
-    for k, v in _table(data, "tube", TUBE_KEYS).items():
-        tube[k] = _choice("tube.material", v, MATERIALS) if k == "material" else _fixed(f"tube.{k}", k, v)
+def _parameter(table: str, key: str, seen: dict) -> str:
+    """The parameter that ``table.key`` sets (an SI key sets its dimensionless parameter); each
+    parameter once per table."""
+    name = SI_NAMES.get(key, key)
+    if name in seen:
+        _fail(f"'{table}.{seen[name]}' and '{table}.{key}' set the same parameter ({name}); "
+              "give one of them")
+    seen[name] = key
+    return name
+
+
+def _parse_units(data) -> dict | None:
+    """The [units] table as the fields of :class:`jaxdea.units.Scales` (SI), or None."""
+    if "units" not in data:
+        return None
+    table = _table(data["units"], "units", tuple(UNITS_KEYS))
+    for k, v in table.items():
+        if not _is_number(v) or not (math.isfinite(v) and v > 0):
+            _fail(f"'units.{k}' must be a finite number > 0 ({UNITS_KEYS[k]}), got {v!r}")
+    if "permittivity" in table and "relative_permittivity" in table:
+        _fail("give either 'units.permittivity' (F/m) or 'units.relative_permittivity', not both")
+    if "relative_permittivity" in table:
+        table = {**table, "permittivity": table["relative_permittivity"] * VACUUM_PERMITTIVITY}
+    for k in ("shear_modulus", "density", "permittivity", "inner_radius"):
+        if k not in table:
+            _fail(f"'units.{k}' is missing ({UNITS_KEYS[k]}); [units] needs shear_modulus, density, "
+                  "permittivity (or relative_permittivity) and inner_radius")
+    return {k: float(table[k]) for k in ("shear_modulus", "density", "permittivity", "inner_radius")}
+
+
+def _parse_tube(data, units: dict | None = None) -> dict:
+    tube, seen = {}, {}
+    for k, v in _table(data, "tube", (*TUBE_KEYS, *TUBE_SI_KEYS)).items():
+        name = _parameter("tube", k, seen)
+        tube[name] = (_choice("tube.material", v, MATERIALS) if k == "material"
+                      else _fixed(f"tube.{k}", k, v, units))
     if "eta" in tube and "thickness_ratio" in tube:
         _fail("give either 'tube.eta' or 'tube.thickness_ratio' (both set the wall thickness)")
     return tube
 
 
-def _parse_fluid(data) -> dict:
-    fluid = {}
-    for k, v in _table(data, "fluid", FLUID_KEYS).items():
+def _parse_fluid(data, units: dict | None = None) -> dict:
+    fluid, seen = {}, {}
+    for k, v in _table(data, "fluid", (*FLUID_KEYS, *FLUID_SI_KEYS)).items():
+        name = _parameter("fluid", k, seen)
         if k == "coupling":
             fluid[k] = _choice("fluid.coupling", v, COUPLINGS)
         elif k == "bessel_order":
             fluid[k] = None if v is None else _integer("fluid.bessel_order", v, 0)
         else:
-            fluid[k] = _fixed(f"fluid.{k}", k, v)
+            fluid[name] = _fixed(f"fluid.{k}", k, v, units)
     return fluid
 
 
-def _parse_axes(data, tube: dict, fluid: dict | None) -> dict:
+def _parse_axes(data, tube: dict, fluid: dict | None, units: dict | None = None) -> dict:
     if "axes" not in data:
         _fail("missing table 'axes' (the sweep grid, e.g. n = [1, 2, 3])")
-    table = _table(data["axes"], "axes", AXIS_NAMES)
+    table = _table(data["axes"], "axes", (*AXIS_NAMES, *SI_NAMES))
     if not table:
         _fail("'axes' is empty: give the wavenumber axis 'alpha' (α̂) or 'n' (axial mode numbers)")
-    axes = {}
-    for name, spec in table.items():
+    axes, seen = {}, {}
+    for key, spec in table.items():
+        name = _parameter("axes", key, seen)
         if name in FLUID_LEAVES and fluid is None:
-            _fail(f"'axes.{name}' is a fluid parameter: add a [fluid] table")
+            _fail(f"'axes.{key}' is a fluid parameter: add a [fluid] table")
         given = f"'tube.{name}'" if name in tube else (f"'fluid.{name}'" if name in (fluid or {}) else "")
         if given:
-            _fail(f"{given} is also a sweep axis ('axes.{name}'); give it in one place")
-        axes[name] = _values(f"axes.{name}", name, spec)
+            _fail(f"{given} is also a sweep axis ('axes.{key}'); give it in one place")
+        axes[name] = (_si_values(f"axes.{key}", key, spec, units) if key in SI_NAMES
+                      else _values(f"axes.{key}", key, spec))
     if ("alpha" in axes) == ("n" in axes):
         _fail("'axes' needs exactly one wavenumber axis: 'alpha' (α̂) or 'n' (axial mode numbers)"
               + (", not both" if "alpha" in axes else ""))
@@ -309,7 +397,7 @@ def _parse_output(data, default_name: str) -> dict:
         if not isinstance(table["plot"], bool):
             _fail(f"'output.plot' must be true or false, got {table['plot']!r}")
         out["plot"] = table["plot"]
-    if not out.get("formats", FORMATS) and not out.get("plot", True):
+    if not out.get("formats", DEFAULT_FORMATS) and not out.get("plot", True):
         _fail("'output.formats' is empty and 'output.plot' is false: nothing would be written")
     return out
 
@@ -319,7 +407,7 @@ def parse_config(data, default_name: str = "sweep") -> SweepConfig:
 
     Args:
         data: the document as a dict (tables ``tube``, ``fluid``, ``axes``, ``solver``,
-            ``output``; the module docstring shows them all).
+            ``output``, ``units``; :data:`FORMAT` shows them all).
         default_name: file stem of the outputs when ``output.name`` is absent.
 
     Returns:
@@ -329,9 +417,10 @@ def parse_config(data, default_name: str = "sweep") -> SweepConfig:
         ValueError: "sweep config: …" naming the offending key and what is allowed there.
     """
     _table(data, "", TOP_KEYS)
-    tube = _parse_tube(data.get("tube", {}))
-    fluid = _parse_fluid(data["fluid"]) if "fluid" in data else None
-    axes = _parse_axes(data, tube, fluid)
+    units = _parse_units(data)
+    tube = _parse_tube(data.get("tube", {}), units)
+    fluid = _parse_fluid(data["fluid"], units) if "fluid" in data else None
+    axes = _parse_axes(data, tube, fluid, units)
     solver = _parse_solver(data, fluid)
     if "m" in axes and "m" in solver:
         _fail("'solver.m' is also a sweep axis ('axes.m'); give it in one place")
@@ -343,7 +432,7 @@ def parse_config(data, default_name: str = "sweep") -> SweepConfig:
     if (fluid is not None and fluid.get("coupling") == "paper" and fluid.get("bessel_order") is None
             and "n" not in axes):
         _fail("the paper coupling needs 'fluid.bessel_order' (ν), or a sweep over 'axes.n' (ν = n)")
-    return SweepConfig(tube=tube, fluid=fluid, axes=axes, **solver,
+    return SweepConfig(tube=tube, fluid=fluid, axes=axes, **solver, units=units,
                        **_parse_output(data, default_name))
 
 

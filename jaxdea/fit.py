@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import enum
 import math
+import os
 import warnings
 from collections.abc import Mapping
 from functools import partial
@@ -57,6 +58,8 @@ UNITS = dict(shear_modulus="Pa", density="kg/m^3", permittivity="F/m", inner_rad
              fluid_speed="m/s")
 RANK_TOLERANCE = 1e-8
 """Relative singular value of the log-scaled Jacobian below which it counts as rank-deficient."""
+CURVE_CHUNK = 8
+"""Points per compiled batch of :func:`fitted_frequencies` (the smallest batch of :func:`fit`)."""
 
 
 class FitStatus(enum.IntEnum):
@@ -87,6 +90,9 @@ class FitResult(NamedTuple):
         iterations: Levenberg–Marquardt iterations of the chosen start (all its rounds of
             branch re-checks and re-assignments).
         names: the free parameter names, in the order of ``covariance``.
+        parameters: {name: value} of every parameter of the model, free (the estimates) and fixed.
+        settings: the model's discretisation and fluid: {"n_layers", "coupling" (None: empty
+            tube), "bessel_order"} (:func:`fitted_frequencies` evaluates the fitted model with it).
     """
 
     estimate: dict
@@ -98,6 +104,8 @@ class FitResult(NamedTuple):
     status: FitStatus
     iterations: int
     names: tuple
+    parameters: dict
+    settings: dict
 
 
 # ---------------------------------------------------------------------------------------------
@@ -276,19 +284,25 @@ def assign_modes(problem: _Problem, theta, m_max: int, n_max: int, n_branches: i
 
 
 def _to_free(problem, u):
-    s = 1.0 / (1.0 + np.exp(-u))
+    s = 0.5 + 0.5 * np.tanh(0.5 * u)  # sigmoid(u), without overflow for large |u|
     span = problem.upper - problem.lower
     return problem.lower + span * s, span * s * (1.0 - s)
 
 
 def _to_unconstrained(problem, theta):
-    s = (theta - problem.lower) / (problem.upper - problem.lower)
-    return np.log(s) - np.log1p(-s)
+    s = np.clip((theta - problem.lower) / (problem.upper - problem.lower), 1e-15, 1.0 - 1e-15)
+    return np.log(s) - np.log1p(-s)  # a θ on its bound (sigmoid saturated) gives |u| ≈ 34.5
 
 
-def levenberg_marquardt(problem: _Problem, theta0, labels, max_iterations=100, xtol=1e-13):
+def levenberg_marquardt(problem: _Problem, theta0, labels, max_iterations=100, xtol=1e-13,
+                        ftol=1e-12):
     """Minimise ½‖r‖² from θ0 for fixed labels: LM on u (θ = lo + (hi − lo) sigmoid(u)), the exact
     J = ∂r/∂θ · dθ/du, step (JᵀJ + λ diag JᵀJ) δ = −Jᵀr, roots re-seeded from each accepted iterate.
+
+    Converged when a step changes no θ by more than ``xtol`` relatively, when the predicted
+    decrease −Jᵀr·δ − ½ δᵀJᵀJδ of a step is below ``ftol`` times the cost (the estimate is then
+    within sqrt(2 ftol · cost) standard deviations of the minimum, 5e-6 for a cost of 15), or when
+    no damping decreases the cost (its rounding floor).
 
     Returns:
         (θ, Ω, residuals, ∂r/∂θ, iterations, status).
@@ -315,6 +329,8 @@ def levenberg_marquardt(problem: _Problem, theta0, labels, max_iterations=100, x
         accepted = False
         while damping < 1e20:
             step = np.linalg.solve(a + damping * np.diag(diag), -g)
+            if -(g @ step) - 0.5 * step @ a @ step <= ftol * cost:
+                break  # nothing left to gain that the rounding of the cost could show
             trial_theta, trial_dtheta = _to_free(problem, u + step)
             trial = _evaluate(problem, trial_theta, labels, omega)
             r_trial = residual(trial[1])
@@ -323,7 +339,7 @@ def levenberg_marquardt(problem: _Problem, theta0, labels, max_iterations=100, x
                 accepted = True
                 break
             damping *= 4.0
-        if not accepted:  # no decrease at any damping: the rounding floor of the cost
+        if not accepted:  # no decrease worth a step, or none at any damping: converged
             status = FitStatus.CONVERGED
             break
         small = np.all(np.abs(trial_theta - theta) <= xtol * np.maximum(np.abs(theta), 1e-300))
@@ -534,7 +550,8 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
     mode, c_s = sqrt(μ/ρ_s), V̂ = V sqrt(ε/μ)/R_i, α̂_n = 2nπ R_i/(λ_z L) (module docstring).
 
     Args:
-        data: mapping (dict of arrays, DataFrame) with columns ``voltage_V``, ``frequency_Hz``,
+        data: the path of a CSV file of peaks (:func:`jaxdea.read_peaks`), or a mapping (dict of
+            arrays, DataFrame) with columns ``voltage_V``, ``frequency_Hz``,
             optional ``sigma_Hz`` (> 0) and optional integer labels ``m`` (≥ 0), ``n`` (≥ 1) and
             ``branch`` (≥ 0, default 0: the lowest root of that (m, n)). Without labels each peak is
             assigned to a mode (m ≤ m_max, n ≤ n_max, branch < n_branches) and the assignment is
@@ -549,7 +566,8 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
         m_max, n_max, n_branches: the modes unlabelled peaks may be assigned to.
         threshold: a peak whose |log f_model − log f_data| exceeds this after the first fit
             matches no mode (assignment (−1, −1, −1), left out of the fit).
-        n_starts: the number of grid starts (the lowest initial cost) that are fitted.
+        n_starts: the number of grid starts (the lowest initial cost) that are fitted; 0 (with
+            ``initial``): ``initial`` only.
         grid_points: grid starts per free parameter (at fractions (k + ½)/grid_points of each
             bound interval, in the logit-scaled coordinates).
         max_iterations: Levenberg–Marquardt iterations per fit.
@@ -560,7 +578,9 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
 
     Raises:
         ValueError: naming the parameter or column: unknown names, a name both free and fixed or
-            neither, bounds not finite with lower < upper, missing or non-finite columns.
+            neither, bounds not finite with lower < upper, missing or non-finite columns,
+            frequencies or σ ≤ 0, no more data rows than free parameters, an ``initial`` value
+            outside its bounds.
 
     Warns:
         IdentifiabilityWarning: when the Jacobian is rank-deficient, naming the combination.
@@ -574,11 +594,16 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
         >>> result.estimate["shear_modulus"], result.interval["shear_modulus"]
     """
     require_x64()
+    if isinstance(data, (str, os.PathLike)):
+        from .fit_io import read_peaks  # the CSV reader imports this module
+
+        data = read_peaks(data)
     problem, labels = _validate(data, free, fixed, fluid)
     if not isinstance(n_layers, (int, np.integer)) or n_layers < 1:
         raise ValueError(f"n_layers must be an integer >= 1, got {n_layers!r}")
     for name, value, low in (("m_max", m_max, 0), ("n_max", n_max, 1), ("n_branches", n_branches, 1),
-                             ("n_starts", n_starts, 1), ("grid_points", grid_points, 1),
+                             ("n_starts", n_starts, 0 if initial is not None else 1),
+                             ("grid_points", grid_points, 1),
                              ("max_iterations", max_iterations, 1),
                              ("max_reassignments", max_reassignments, 1)):
         if not isinstance(value, (int, np.integer)) or value < low:
@@ -622,27 +647,44 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
     residuals = np.full(problem.voltage.size, np.nan)
     residuals[active] = r if r.size == active.sum() else np.nan
     p = theta.size
+    known = NAMES if problem.coupling is not None else NAMES[:-2]
+    parameters = {k: float(v) for k, v in zip(NAMES, _values(problem, theta), strict=True)
+                  if k in known}
+    settings = dict(n_layers=problem.n_layers, coupling=problem.coupling,
+                    bessel_order=problem.bessel_order)
     if status == FitStatus.NOT_FINITE or not np.all(np.isfinite(jac)):
         nan = np.full((p, p), np.nan)
         return FitResult(dict(zip(problem.free, theta.tolist(), strict=True)),
                          {k: (np.nan, np.nan) for k in problem.free}, nan, nan, residuals,
-                         final_labels, FitStatus.NOT_FINITE, iterations, problem.free)
+                         final_labels, FitStatus.NOT_FINITE, iterations, problem.free, parameters,
+                         settings)
     covariance, correlation, intervals, null = uncertainty(problem, theta, r, jac)
     if null is not None:
         _warn_null(problem.free, null)
     return FitResult(dict(zip(problem.free, theta.tolist(), strict=True)), intervals, covariance,
-                     correlation, residuals, final_labels, status, iterations, problem.free)
+                     correlation, residuals, final_labels, status, iterations, problem.free,
+                     parameters, settings)
 
 
 def _starts(problem: _Problem, initial, grid_points):
     """Candidate starts: ``initial`` (validated inside the bounds) and a grid in u."""
     starts = []
     if initial is not None:
+        if not isinstance(initial, Mapping):
+            raise ValueError(f"initial must be a mapping {{name: value}}, got {initial!r}")
+        for name in initial:
+            if name not in problem.free:
+                raise ValueError(f"initial names {name!r}, which is not a free parameter "
+                                 f"(free: {', '.join(problem.free)})")
         theta = []
         for i, name in enumerate(problem.free):
             if name not in initial:
                 raise ValueError(f"initial is missing the free parameter {name!r}")
-            value = float(initial[name])
+            try:
+                value = float(initial[name])
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"initial[{name!r}] must be a real number, got "
+                                 f"{initial[name]!r}") from exc
             if not (problem.lower[i] < value < problem.upper[i]):
                 raise ValueError(f"initial[{name!r}] = {value!r} must lie strictly inside "
                                  f"({problem.lower[i]!r}, {problem.upper[i]!r})")
@@ -659,6 +701,8 @@ def _best_starts(problem, starts, labels, n_starts, m_max, n_max, n_branches):
     """``initial`` (first, if given) and the ``n_starts`` grid starts of lowest initial cost
     (assignment cost for unlabelled peaks, Σ r² of the seeded branches otherwise)."""
     initial, starts = starts
+    if n_starts == 0:
+        return initial
     costs = []
     for theta in starts:
         if labels is None:
@@ -673,3 +717,42 @@ def _best_starts(problem, starts, labels, n_starts, m_max, n_max, n_branches):
     order = np.argsort(costs, kind="stable")
     chosen = [starts[i] for i in order[:n_starts] if np.isfinite(costs[i])]
     return initial + (chosen if chosen or initial else [starts[order[0]]])
+
+
+def fitted_frequencies(result: FitResult, voltage_V, m, n, branch=0) -> np.ndarray:
+    """Frequencies in Hz of the fitted model: f = Ω_k(m; V̂, α̂_n) c_s/(2π R_i) at the parameters
+    of ``result`` (``result.parameters``, ``result.settings``), per point.
+
+    Ω_k is the k-th lowest positive root (k = ``branch``) of the global root scan (the definition
+    of a branch in :func:`fit`); NaN where that root does not exist. The arguments broadcast.
+
+    Example:
+        >>> voltage = np.linspace(0.0, 5e3, 21)
+        >>> f_01 = fitted_frequencies(result, voltage, m=0, n=1)        # (21,) Hz
+        >>> f_11 = fitted_frequencies(result, voltage, m=1, n=1, branch=1)
+    """
+    require_x64()
+    voltage, m, n, branch = np.broadcast_arrays(np.asarray(voltage_V, dtype=np.float64),
+                                                np.asarray(m), np.asarray(n), np.asarray(branch))
+    shape = voltage.shape
+    voltage, m, n, branch = (x.ravel() for x in (voltage, m, n, branch))
+    if not np.all(np.isfinite(voltage)):
+        raise ValueError("voltage_V must be finite")
+    for name, values, low in (("m", m, 0), ("n", n, 1), ("branch", branch, 0)):
+        if np.any(values != np.round(values)) or np.any(values < low):
+            raise ValueError(f"{name} must hold integers >= {low}")
+    m, n, branch = m.astype(int), n.astype(int), branch.astype(int)
+    settings = result.settings
+    base = np.array([result.parameters.get(k, 1.0) for k in NAMES], dtype=np.float64)
+    problem = _Problem(voltage, np.ones_like(voltage), np.ones_like(voltage), False, (),
+                       np.zeros(0), np.zeros(0), base, np.zeros(0, int), settings["n_layers"],
+                       settings["coupling"], settings["bessel_order"])
+    out = np.full(voltage.size, np.nan)
+    if voltage.size:
+        n_roots = int(branch.max()) + 1
+        scale = float(np.asarray(dimensionless(base, 0.0, 1.0)[3]))
+        for start in range(0, voltage.size, CURVE_CHUNK):  # one compiled batch size
+            part = slice(start, start + CURVE_CHUNK)
+            roots = _roots(problem, np.zeros(0), voltage[part], n[part], m[part], n_roots)
+            out[part] = roots[np.arange(roots.shape[0]), branch[part]] * scale
+    return out.reshape(shape)

@@ -840,15 +840,17 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
     return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "voltage", family)
 
 
-def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=128, v_end=None, m=0.0,
+def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=32, v_end=None, m=0.0,
                                family=LONGITUDINAL):
     """(V̂_cr, status) for one case (traceable); see :func:`critical_voltage`.
 
     :func:`_first_root` over (0, V̂_lim] with step V̂_lim/``n_grid``: the chunked scan with Hermite
     classification, the first candidate refined by zooming with the same chunk of f and f' (after a
     hidden pair that holds no roots it scans on). One compiled copy of f and f' instead of the
-    scan's and the lanes' (:func:`_scan_for_roots`): tracing and compilation 4.9 → 2.7–3.3 s, a
-    warm call 7.4 → 10.9 ms (four chunks of 32 instead of a few 2-lane Newton steps; measured).
+    scan's and the lanes' (:func:`_scan_for_roots`): tracing and compilation 4.9 → 2.7–3.3 s.
+    f(Ω = 0; V̂) is a static problem: it has no thickness oscillation in V̂, so one chunk of 32
+    points spans the range (n_grid 32, 128 and 512 give the same roots over every m ≤ 8, n ≤ 3 of
+    random tubes, ``tests/test_missed_roots.py``); the zooms reach rounding in one to three chunks.
     ``v_end`` (optional) searches (0, v_end] instead of (0, V̂_lim] with the pull-in limit V̂_lim of
     :func:`voltage_limit` (values only: about 0.25 s of the first call's compilation, measured); a
     root above ``v_end`` is reported as NO_ROOT.

@@ -18,11 +18,16 @@ dΩ/dθ = −(∂f/∂θ)/(∂f/∂Ω), with ∂f by forward-mode autodiff of th
 partial derivatives are taken in the coordinates named (e.g. (V̂, λ_i, λ_z, ρ̂_f, ĉ_f, h/R_i, G):
 dΩ/dλ_i at fixed h/R_i, with η following). On a grid over ``n`` the wavenumber α̂ of mode n follows
 λ_z and η; on a grid over ``alpha`` α̂ is held. The group velocity dΩ/dα̂ = −f_α̂/f_Ω comes with them.
+
+A result is written as CSV, NPZ or netCDF (:meth:`SweepResult.to_xarray`, extra ``jaxdea[xarray]``);
+with scales (:meth:`SweepResult.with_units`) the outputs also carry SI values: f in Hz, V in volts,
+lengths in m (:data:`SI_QUANTITIES`, converted by :mod:`jaxdea.units`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import json
 import math
 
@@ -49,10 +54,28 @@ from .roots import _growth_family, frequencies_unchecked, growth_rates_unchecked
 from .scalar import Status
 from .state_matrix import LONGITUDINAL, ORDER_M
 from .transfer import discretize, laminate, validate_scheme
+from .units import Scales, fluid_from_si, fluid_to_si
 
 SENSITIVITY = ("voltage", "lambda_i", "lambda_z", "density_ratio", "speed_ratio", "thickness_ratio",
                "gent")
 CHUNK_SIZE = 32
+
+SI_QUANTITIES = {
+    "voltage": ("voltage_V", "V", lambda s, x: s.voltage_to_si(x), lambda s, x: s.voltage_from_si(x)),
+    "thickness_ratio": ("thickness_m", "m", lambda s, x: s.length_to_si(x),
+                        lambda s, x: s.length_from_si(x)),
+    "density_ratio": ("fluid_density_kg_m3", "kg/m^3",
+                      lambda s, x: fluid_to_si(s, Fluid(density_ratio=x, speed_ratio=1.0)).fluid_density,
+                      lambda s, x: fluid_from_si(s, x, s.shear_speed).density_ratio),
+    "speed_ratio": ("sound_speed_m_s", "m/s", lambda s, x: s.speed_to_si(x),
+                    lambda s, x: s.speed_from_si(x)),
+    "alpha": ("wavelength_m", "m", lambda s, x: s.wavelength_to_si(x),
+              lambda s, x: s.wavelength_from_si(x)),
+}
+"""The parameters with an SI counterpart: ``{name: (SI name, unit, to_si(scales, x), from_si(scales, x))}``
+(α̂ ↔ the axial wavelength 2π R_i/α̂). The SI name is the config key and the output column."""
+SCALE_FIELDS = ("shear_modulus", "density", "permittivity", "inner_radius")
+XARRAY_EXTRA = "pip install 'jaxdea[xarray]'"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -112,11 +135,22 @@ class SweepResult:
         """One flat column per quantity, one row per grid point (the CSV layout)."""
         grids = np.meshgrid(*self.axes.values(), indexing="ij")
         cols = {name: g.ravel() for name, g in zip(self.axes, grids, strict=True)}
+        si_axes = self._si_axes()
+        if si_axes:  # the SI value of each such axis, after the axes
+            si_values = [si_axes[k][1] if k in si_axes else v for k, v in self.axes.items()]
+            for name, g in zip(self.axes, np.meshgrid(*si_values, indexing="ij"), strict=True):
+                if name in si_axes:
+                    cols[si_axes[name][0]] = g.ravel()
         cols["alpha_hat"] = self.alpha.ravel()
+        if self.scales is not None:
+            cols["wavelength_m"] = self.wavelength_m.ravel()
         k = self.omega.shape[-1]
         flat = lambda a: a.reshape(-1, k)  # noqa: E731
         for j in range(k):
             cols[f"omega_{j + 1}"] = flat(self.omega)[:, j]
+        if self.scales is not None:
+            for j in range(k):
+                cols[f"frequency_Hz_{j + 1}"] = flat(self.frequency_hz)[:, j]
         for j in range(k):
             cols[f"status_{j + 1}"] = flat(self.status)[:, j]
         if self.group_velocity is not None:
@@ -129,7 +163,65 @@ class SweepResult:
             growth = self.growth_rate.reshape(-1, self.growth_rate.shape[-1])
             for j in range(growth.shape[1]):
                 cols[f"growth_rate_{j + 1}"] = growth[:, j]
+            if self.scales is not None:
+                growth = self.growth_rate_per_s.reshape(growth.shape)
+                for j in range(growth.shape[1]):
+                    cols[f"growth_rate_per_s_{j + 1}"] = growth[:, j]
         return cols
+
+    @property
+    def scales(self) -> Scales | None:
+        """The :class:`jaxdea.units.Scales` of the SI outputs (:meth:`with_units`), or None."""
+        units = self.settings.get("units")
+        return None if units is None else Scales(**units)
+
+    def with_units(self, scales: Scales) -> SweepResult:
+        """A copy whose outputs also carry SI values with these scales: f in Hz
+        (:attr:`frequency_hz`), the wavelength in m, growth rates in 1/s and the SI value of every
+        axis in :data:`SI_QUANTITIES` (``voltage_V``, ``thickness_m``, ...).
+
+        Raises:
+            ValueError: ``scales`` is no :class:`jaxdea.units.Scales` or has a value that is not
+                finite and > 0 (naming it).
+        """
+        if not isinstance(scales, Scales):
+            raise ValueError(f"scales must be a jaxdea.units.Scales, got {type(scales).__name__}")
+        units = {}
+        for name in SCALE_FIELDS:
+            value = real_value(name, getattr(scales, name))
+            if value is None or not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {getattr(scales, name)!r}")
+            units[name] = float(value)
+        return dataclasses.replace(self, settings={**self.settings, "units": units})
+
+    def _si(self, values, to_si):
+        return np.asarray(to_si(self.scales, values))
+
+    def _si_axes(self) -> dict:
+        """``{axis: (SI name, SI values, unit)}`` of the axes with an SI counterpart (α̂ aside: its
+        wavelength is :attr:`wavelength_m`); empty without units."""
+        if self.scales is None:
+            return {}
+        return {name: (SI_QUANTITIES[name][0], self._si(values, SI_QUANTITIES[name][2]),
+                       SI_QUANTITIES[name][1])
+                for name, values in self.axes.items() if name in SI_QUANTITIES and name != "alpha"}
+
+    @property
+    def frequency_hz(self) -> np.ndarray | None:
+        """f = Ω c_s/(2π R_i) in Hz per root (:meth:`with_units`), or None without units."""
+        return None if self.scales is None else self._si(self.omega, Scales.omega_to_hz)
+
+    @property
+    def wavelength_m(self) -> np.ndarray | None:
+        """The axial wavelength 2π R_i/α̂ in m at each point, or None without units."""
+        return None if self.scales is None else self._si(self.alpha, SI_QUANTITIES["alpha"][2])
+
+    @property
+    def growth_rate_per_s(self) -> np.ndarray | None:
+        """Growth rates s c_s/R_i in 1/s, or None (no growth rates or no units)."""
+        if self.scales is None or self.growth_rate is None:
+            return None
+        return self._si(self.growth_rate, Scales.omega_to_si)
 
     def to_csv(self, path) -> None:
         """Write one row per grid point (axes, α̂, Ω_k, status_k, derivatives, growth rates); header
@@ -150,7 +242,95 @@ class SweepResult:
             arrays.update(jacobian=self.jacobian, group_velocity=self.group_velocity)
         if self.growth_rate is not None:
             arrays.update(growth_rate=self.growth_rate)
+        if self.scales is not None:  # SI values beside (recomputed by from_npz's result)
+            arrays.update(frequency_Hz=self.frequency_hz, wavelength_m=self.wavelength_m)
+            arrays.update({si_name: values for si_name, values, _ in self._si_axes().values()})
+            if self.growth_rate is not None:
+                arrays.update(growth_rate_per_s=self.growth_rate_per_s)
         np.savez(path, **arrays)
+
+    def to_xarray(self):
+        """The result as an :class:`xarray.Dataset` (extra ``jaxdea[xarray]``).
+
+        Dimensions: the axes in grid order (coordinates: their values; with units also the SI
+        values, e.g. ``voltage_V`` along ``voltage``), ``root`` (1…K) and, with growth rates,
+        ``growth`` (1…n_growth). Variables: ``omega``, ``status`` (CF ``flag_values`` /
+        ``flag_meanings``), ``alpha_hat``, with the jacobian ``group_velocity`` and
+        ``d_omega_d_NAME`` per parameter, with growth rates ``growth_rate`` and ``unstable``, with
+        units ``frequency_Hz``, ``wavelength_m`` (and ``growth_rate_per_s``). Attributes: the
+        settings (``n_layers``, ``scheme``, ``coupling``, the fixed ``tube_*`` / ``fluid_*`` values,
+        ``units_*``, …) and all of them as JSON in ``settings_json``.
+
+        Raises:
+            ImportError: xarray is not installed (naming the extra).
+        """
+        try:
+            import xarray as xr
+        except ImportError as err:
+            raise ImportError(f"SweepResult.to_xarray needs xarray: {XARRAY_EXTRA}") from err
+        dims = tuple(self.axes)
+        roots = (*dims, "root")
+        k = self.omega.shape[-1]
+        coords = {name: (name, np.asarray(values)) for name, values in self.axes.items()}
+        coords["root"] = ("root", np.arange(1, k + 1))
+        for name, (si_name, values, unit) in self._si_axes().items():
+            coords[si_name] = (name, values, {"units": unit})
+        dimensionless = {"units": "1"}
+        data = {
+            "omega": (roots, self.omega, {"long_name": "frequency Omega = omega R_i/c_s", **dimensionless}),
+            "status": (roots, self.status, {
+                "long_name": "status of each root",
+                "flag_values": np.array([s.value for s in Status], dtype=np.int32),
+                "flag_meanings": " ".join(s.name.lower() for s in Status)}),
+            "alpha_hat": (dims, self.alpha, {"long_name": "axial wavenumber alpha R_i", **dimensionless}),
+        }
+        if self.group_velocity is not None:
+            data["group_velocity"] = (roots, self.group_velocity,
+                                      {"long_name": "dOmega/dalpha_hat", **dimensionless})
+            for name in self.jacobian_names:
+                data[f"d_omega_d_{name}"] = (roots, self.derivative(name),
+                                             {"long_name": f"dOmega/d{name}", **dimensionless})
+        if self.growth_rate is not None:
+            coords["growth"] = ("growth", np.arange(1, self.growth_rate.shape[-1] + 1))
+            data["growth_rate"] = ((*dims, "growth"), self.growth_rate, {
+                "long_name": "growth rate s = sqrt(-Omega^2), largest first (NaN: none)",
+                **dimensionless})
+            data["unstable"] = (dims, self.unstable, {"long_name": "an unstable mode at the point"})
+        if self.scales is not None:
+            data["frequency_Hz"] = (roots, self.frequency_hz,
+                                    {"long_name": "frequency f = Omega c_s/(2 pi R_i)", "units": "Hz"})
+            data["wavelength_m"] = (dims, self.wavelength_m,
+                                    {"long_name": "axial wavelength 2 pi R_i/alpha_hat", "units": "m"})
+            if self.growth_rate is not None:
+                data["growth_rate_per_s"] = ((*dims, "growth"), self.growth_rate_per_s,
+                                             {"long_name": "growth rate s c_s/R_i", "units": "1/s"})
+        return xr.Dataset(data, coords=coords, attrs=self._attributes())
+
+    def to_netcdf(self, path) -> None:
+        """Write :meth:`to_xarray` as a netCDF-4 file (extra ``jaxdea[xarray]``; read it back with
+        ``xarray.open_dataset``).
+
+        Raises:
+            ImportError: xarray or netCDF4 is not installed (naming the extra).
+        """
+        if importlib.util.find_spec("netCDF4") is None:
+            raise ImportError(f"SweepResult.to_netcdf needs netCDF4: {XARRAY_EXTRA}")
+        self.to_xarray().to_netcdf(path, engine="netcdf4")
+
+    def _attributes(self) -> dict:
+        """The settings as netCDF attributes (numbers and strings; None left out, booleans as
+        0/1), the fixed tube and fluid values as ``tube_*`` / ``fluid_*`` (swept ones left out)."""
+        swept = {*self.axes, *(("eta",) if "thickness_ratio" in self.axes else ())}
+        attrs = {}
+        for key, value in self.settings.items():
+            if isinstance(value, dict):
+                attrs.update({f"{key}_{k}": v for k, v in value.items()
+                              if v is not None and not (key in ("tube", "fluid") and k in swept)})
+            elif value is not None:
+                attrs[key] = int(value) if isinstance(value, bool) else value
+        attrs["status_meaning"] = ", ".join(f"{s.value}: {s.name.lower()}" for s in Status)
+        attrs["settings_json"] = json.dumps(self.settings)
+        return attrs
 
     @classmethod
     def from_npz(cls, path) -> SweepResult:

@@ -3,6 +3,8 @@ and the validation of sweep configurations (jaxdea.config)."""
 
 import argparse
 import json
+import math
+import os
 import subprocess
 import sys
 import types
@@ -99,6 +101,85 @@ def test_sweep_from_toml_and_json_matches_the_library(cli_runs, library_result):
         np.testing.assert_array_equal(table, np.column_stack(list(cols.values())))
 
 
+# the same sweep with the voltage axis in volts for a VHB 4910-like tube (μ = 20 kPa,
+# ρ_s = 960 kg/m³, ε = 4.7 ε_0, R_i = 5 mm), written as CSV, NPZ and netCDF
+MU, RHO, EPS_R, RI = 20e3, 960.0, 4.7, 5e-3
+VOLTAGE_UNIT = RI * math.sqrt(MU / (EPS_R * 8.8541878188e-12))  # R_i sqrt(μ/ε) = 109.61 kV
+UNITS_TOML = SWEEP_TOML.replace("voltage = { start = 0.0, stop = 0.15, num = 2 }",
+                                f"voltage_V = [0.0, {0.15 * VOLTAGE_UNIT!r}]").replace(
+    'formats = ["csv", "npz"]', 'formats = ["csv", "npz", "netcdf"]') + f"""
+[units]
+shear_modulus = {MU}
+density = {RHO}
+relative_permittivity = {EPS_R}
+inner_radius = {RI}
+"""
+
+
+@pytest.fixture(scope="module")
+def units_run(tmp_path_factory):
+    pytest.importorskip("xarray")
+    pytest.importorskip("netCDF4")
+    base = tmp_path_factory.mktemp("units")
+    (base / "vhb.toml").write_text(UNITS_TOML, encoding="utf-8")
+    return cli.main(["--quiet", "sweep", str(base / "vhb.toml")]), base / "grid"
+
+
+def test_sweep_with_units_gives_hertz_and_volts(units_run, library_result):
+    """The worked VHB example: f = Ω c_s/(2π R_i) with c_s = sqrt(μ/ρ_s), V = V̂ R_i sqrt(μ/ε), by
+    hand; the frequencies equal the dimensionless sweep's."""
+    code, stem = units_run
+    assert code == 0
+    assert VOLTAGE_UNIT == pytest.approx(109.61e3, rel=1e-4)
+    hertz_per_omega = math.sqrt(MU / RHO) / (2 * math.pi * RI)
+    assert hertz_per_omega == pytest.approx(145.29, abs=0.005)
+    got = jd.SweepResult.from_npz(stem.with_suffix(".npz"))
+    np.testing.assert_allclose(got.axes["voltage"], [0.0, 0.15], rtol=1e-15)
+    np.testing.assert_allclose(got.omega, library_result.omega, rtol=1e-12)
+    header = stem.with_suffix(".csv").read_text().splitlines()[0].split(",")
+    table = np.loadtxt(stem.with_suffix(".csv"), delimiter=",", skiprows=1)
+    column = lambda name: table[:, header.index(name)]  # noqa: E731
+    np.testing.assert_allclose(column("voltage_V"), [0.0, 0.0, 0.15 * VOLTAGE_UNIT, 0.15 * VOLTAGE_UNIT],
+                               rtol=1e-14)
+    for k in (1, 2):
+        np.testing.assert_allclose(column(f"frequency_Hz_{k}"), column(f"omega_{k}") * hertz_per_omega,
+                                   rtol=1e-14)
+    # the lowest root at V̂ = 0, n = 1 is a few Hz: Ω ~ 0.1 of the fluid-loaded tube
+    assert 1.0 < column("frequency_Hz_1")[0] < 145.29
+    np.testing.assert_allclose(column("wavelength_m"), 2 * math.pi * RI / column("alpha_hat"), rtol=1e-14)
+
+
+def test_sweep_writes_netcdf(units_run, library_result):
+    import xarray as xr
+
+    code, stem = units_run
+    assert code == 0
+    with xr.open_dataset(stem.with_suffix(".nc")) as ds:
+        ds.load()
+    assert tuple(ds["omega"].dims) == ("voltage", "n", "root")
+    np.testing.assert_allclose(ds["omega"], library_result.omega, rtol=1e-12)
+    np.testing.assert_array_equal(ds["status"], library_result.status)
+    np.testing.assert_array_equal(ds["n"], [1.0, 3.0])
+    np.testing.assert_allclose(ds["voltage_V"], [0.0, 0.15 * VOLTAGE_UNIT], rtol=1e-14)
+    np.testing.assert_allclose(ds["d_omega_d_density_ratio"], library_result.derivative("density_ratio"),
+                               rtol=1e-9)
+    np.testing.assert_allclose(ds["frequency_Hz"],
+                               library_result.omega * math.sqrt(MU / RHO) / (2 * math.pi * RI), rtol=1e-12)
+    assert (ds.attrs["n_layers"], ds.attrs["coupling"], ds.attrs["tube_eta"]) == (8, "acoustic", 0.8)
+    assert ds.attrs["units_density"] == RHO and ds.attrs["units_inner_radius"] == RI
+
+
+def test_plot_with_units_has_hertz_and_volt_axes(library_result, tmp_path):
+    from jaxdea.units import VACUUM_PERMITTIVITY, Scales
+
+    scales = Scales(MU, RHO, EPS_R * VACUUM_PERMITTIVITY, RI)
+    fig = cli.plot_sweep(library_result.with_units(scales), "voltage", tmp_path / "si.png")
+    labels = {child.get_ylabel() or child.get_xlabel() for child in fig.axes[0].child_axes}
+    assert labels == {"frequency $f$ (Hz)", "voltage_V (V)"}
+    plain = cli.plot_sweep(library_result, "voltage", tmp_path / "plain.png")
+    assert plain.axes[0].child_axes == []
+
+
 def test_sweep_writes_a_png_plot(cli_runs):
     from matplotlib.image import imread
 
@@ -156,7 +237,20 @@ BAD_CONFIGS = [
     ({"axes": {"n": [1]}, "solver": {"omega_max": -1}}, "'solver.omega_max' must be a finite number > 0"),
     ({"axes": {"n": [1]}, "solver": {"scheme": "rk4"}},
      "'solver.scheme' must be one of midpoint, magnus4, magnus6, got 'rk4'"),
-    ({"axes": {"n": [1]}, "output": {"formats": ["png"]}}, "'output.formats[0]' must be one of csv, npz"),
+    ({"axes": {"n": [1]}, "output": {"formats": ["png"]}},
+     "'output.formats[0]' must be one of csv, npz, netcdf"),
+    ({"units": {"shear": 1.0}, "axes": {"n": [1]}}, "unknown key 'units.shear'; allowed: shear_modulus"),
+    ({"units": {"density": -960.0}, "axes": {"n": [1]}},
+     "'units.density' must be a finite number > 0 (kg/m^3), got -960.0"),
+    ({"units": {"inner_radius": "5 mm"}, "axes": {"n": [1]}}, "'units.inner_radius' must be a finite number"),
+    ({"units": {"shear_modulus": 2e4, "density": 960.0, "inner_radius": 5e-3}, "axes": {"n": [1]}},
+     "'units.permittivity' is missing"),
+    ({"axes": {"voltage_V": [0.0, 1e3], "n": [1]}}, "'axes.voltage_V' is in SI units (V): add a [units] table"),
+    ({"units": {"shear_modulus": 2e4, "density": 960.0, "permittivity": 4e-11, "inner_radius": 5e-3},
+      "axes": {"voltage": [0.0], "voltage_V": [1e3], "n": [1]}},
+     "'axes.voltage' and 'axes.voltage_V' set the same parameter (voltage)"),
+    ({"units": {"shear_modulus": 2e4, "density": 960.0, "permittivity": 4e-11, "inner_radius": 5e-3},
+      "axes": {"wavelength_m": [0.0]}}, "'axes.wavelength_m' must be a finite number > 0 (m), got 0.0"),
     ({"axes": {"n": [1]}, "output": {"name": "a/b"}}, "'output.name' must be a file stem without folders"),
     ({"axes": {"n": [1]}, "output": {"formats": [], "plot": False}}, "nothing would be written"),
     ([1, 2], "the document must be a table"),
@@ -205,6 +299,39 @@ def test_parse_config_defaults_and_derived_axes():
     assert magnus.sweep_arguments()["scheme"] == "magnus6"
     gent_inf = config.parse_config({"tube": {"gent": float("inf")}, "axes": {"alpha": [1.0]}})
     assert gent_inf.tube["gent"] == np.inf
+
+
+def test_si_values_in_the_config_are_converted_by_hand():
+    """[units] with fixed SI values: V̂ = V sqrt(ε/μ)/R_i, h/R_i, ρ̂_f = ρ_f/ρ_s, ĉ_f = c_f/sqrt(μ/ρ_s),
+    α̂ = 2π R_i/Λ, written out here."""
+    eps = 4.2e-11
+    cfg = config.parse_config({
+        "units": {"shear_modulus": MU, "density": RHO, "permittivity": eps, "inner_radius": RI},
+        "tube": {"voltage_V": 3000.0, "thickness_m": 1e-3, "lambda_i": 0.9},
+        "fluid": {"fluid_density_kg_m3": 1000.0, "sound_speed_m_s": 1480.0},
+        "axes": {"wavelength_m": [0.05, 0.1]}})
+    assert cfg.units == {"shear_modulus": MU, "density": RHO, "permittivity": eps, "inner_radius": RI}
+    assert cfg.tube["voltage"] == pytest.approx(3000.0 * math.sqrt(eps / MU) / RI, rel=1e-14)
+    assert cfg.tube["voltage"] == pytest.approx(0.027495, abs=1e-6)
+    assert cfg.tube["lambda_i"] == 0.9 and "voltage_V" not in cfg.tube
+    np.testing.assert_allclose(cfg.axes["thickness_ratio"], [0.2], rtol=1e-14)
+    assert cfg.fluid["density_ratio"] == pytest.approx(1000.0 / RHO, rel=1e-14)
+    assert cfg.fluid["speed_ratio"] == pytest.approx(1480.0 / math.sqrt(MU / RHO), rel=1e-14)
+    np.testing.assert_allclose(cfg.axes["alpha"], [2 * math.pi * RI / 0.05, 2 * math.pi * RI / 0.1],
+                               rtol=1e-14)
+    assert list(cfg.axes) == ["alpha", "thickness_ratio"]
+    assert cfg.scales.inner_radius == RI
+
+
+def test_netcdf_without_xarray_fails_before_computing(tmp_path, monkeypatch, capsys):
+    path = tmp_path / "nc.json"
+    path.write_text(json.dumps({"axes": {"n": [1]}, "output": {"formats": ["netcdf"]}}), encoding="utf-8")
+    monkeypatch.setitem(sys.modules, "netCDF4", None)
+    assert cli.main(["sweep", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err == ("jaxdea sweep: error: output format netcdf needs xarray and netCDF4: "
+                   "pip install 'jaxdea[xarray]'\n")
+    assert list(tmp_path.iterdir()) == [path]
 
 
 def test_example_config_is_valid():
@@ -261,7 +388,8 @@ def test_sweep_help_documents_every_config_key(capsys):
     assert cli.main(["sweep", "--help"]) == 0
     out = capsys.readouterr().out
     for key in (*(f"[{k}]" for k in config.TOP_KEYS), *config.TUBE_KEYS, *config.FLUID_KEYS,
-                *config.SOLVER_KEYS, *config.OUTPUT_KEYS, *config.LINSPACE_KEYS, *config.FORMATS):
+                *config.SOLVER_KEYS, *config.OUTPUT_KEYS, *config.LINSPACE_KEYS, *config.FORMATS,
+                *config.UNITS_KEYS, *config.SI_NAMES):
         assert key in out, key
 
 
@@ -282,6 +410,74 @@ def test_usage_error_exits_2(capsys):
     assert cli.main(["nonsense"]) == 2
 
 
+def _error_cases(tmp_path):
+    """(arguments, environment, what the message says) of command-line errors of every command."""
+    a_file = tmp_path / "file.txt"
+    a_file.write_text("not a folder", encoding="utf-8")
+    config = tmp_path / "ok.json"
+    config.write_text(json.dumps({"axes": {"n": [1]}}), encoding="utf-8")
+    (tmp_path / "folder.toml").mkdir()
+    cases = [
+        ([], {}, "the following arguments are required: COMMAND"),
+        (["nonsense"], {}, "invalid choice: 'nonsense'"),
+        (["--bogus", "table"], {}, "unrecognized arguments: --bogus"),
+        (["sweep"], {}, "the following arguments are required: CONFIG"),
+        (["sweep", str(config), "--bogus"], {}, "unrecognized arguments: --bogus"),
+        (["sweep", str(tmp_path / "missing.toml")], {}, "cannot read"),
+        (["sweep", str(tmp_path / "folder.toml")], {}, "cannot read"),
+        (["sweep", str(config), "--out", str(a_file)], {}, f"{a_file} is a file, not a folder"),
+        (["sweep", str(config), "--out", str(a_file / "sub")], {}, f"cannot write into {a_file / 'sub'}"),
+        (["figures", "--out", str(a_file)], {}, f"{a_file} is a file, not a folder"),
+        (["figures", "--out", str(a_file / "sub")], {}, f"cannot write into {a_file / 'sub'}"),
+        (["figures", "--quick=yes"], {}, "ignored explicit argument 'yes'"),
+        (["figures", "--out"], {}, "argument --out: expected one argument"),
+        (["table", "--n-layers", "x"], {}, "argument --n-layers: invalid int value: 'x'"),
+        (["table", "--n-layers", "0"], {}, "--n-layers must be >= 1"),
+        (["table", "extra"], {}, "unrecognized arguments: extra"),
+        (["cache"], {}, "the following arguments are required: action"),
+        (["cache", "wipe"], {}, "invalid choice: 'wipe'"),
+        (["cache", "clear"], {"JAXDEA_CACHE_DIR": str(a_file)}, f"{a_file}: Not a directory"),
+    ]
+    if "fit" in _subcommand_parsers()[1]:
+        cases += [
+            (["fit", str(tmp_path / "peaks.csv")], {}, "the following arguments are required: --config"),
+            (["fit", str(tmp_path / "peaks.csv"), "--config", str(tmp_path / "missing.toml")], {},
+             "missing.toml"),
+            (["fit", "peaks.csv", "--config", "fit.toml", "--bogus"], {}, "unrecognized arguments: --bogus"),
+        ]
+    return cases
+
+
+def test_every_command_error_is_one_line_with_status_2(tmp_path, monkeypatch, capsys, fake_figures):
+    """Bad options, missing files and unusable output folders of every command: exit status 2, one
+    line on stderr naming the problem, no traceback, nothing on stdout, no computation."""
+    cases = _error_cases(tmp_path)
+    commands = {argv[0] for argv, _, _ in cases if argv and not argv[0].startswith("-")}
+    assert set(_subcommand_parsers()[1]) <= commands
+    for argv, env, message in cases:
+        with monkeypatch.context() as patch:
+            for key, value in env.items():
+                patch.setenv(key, value)
+            assert cli.main(argv) == 2, argv
+        captured = capsys.readouterr()
+        assert captured.err.count("\n") == 1 and captured.err.endswith("\n"), (argv, captured.err)
+        assert message in captured.err, (argv, captured.err)
+        assert "Traceback" not in captured.err and captured.out == "", argv
+    assert fake_figures == []  # figures failed before computing anything
+    assert (tmp_path / "file.txt").read_text(encoding="utf-8") == "not a folder"
+
+
+def test_figures_into_a_file_fails_fast_in_a_fresh_process(tmp_path):
+    a_file = tmp_path / "file.txt"
+    a_file.write_text("x", encoding="utf-8")
+    proc = subprocess.run([sys.executable, "-m", "jaxdea", "figures", "--out", str(a_file / "figs")],
+                          capture_output=True, text=True, timeout=120, cwd=tmp_path,
+                          env={**os.environ, "JAXDEA_CACHE_DIR": "off"})
+    assert proc.returncode == 2
+    assert proc.stderr.splitlines() == [
+        f"jaxdea figures: error: cannot write into {a_file / 'figs'}: Not a directory"]
+
+
 @pytest.fixture
 def fake_figures(monkeypatch):
     """A stand-in for jaxdea.figures (the figures themselves are tested with that module)."""
@@ -296,13 +492,15 @@ def fake_figures(monkeypatch):
     return calls
 
 
-def test_figures_command_calls_make_figures(fake_figures, tmp_path, capsys):
+def test_figures_command_calls_make_figures(fake_figures, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the default --out figures is created here
     assert cli.main(["figures"]) == 0
+    assert (tmp_path / "figures").is_dir()
     assert fake_figures[-1] == dict(out=Path("figures"), quick=False, progress=True)
     assert capsys.readouterr().out.splitlines() == [str(Path("figures") / "fig2.png"),
                                                     str(Path("figures") / "fig2.csv")]
-    assert cli.main(["--quiet", "figures", "--out", str(tmp_path), "--quick"]) == 0
-    assert fake_figures[-1] == dict(out=tmp_path, quick=True, progress=False)
+    assert cli.main(["--quiet", "figures", "--out", str(tmp_path / "quick"), "--quick"]) == 0
+    assert fake_figures[-1] == dict(out=tmp_path / "quick", quick=True, progress=False)
     assert cli.main(["figures", "--quiet"]) == 0  # --quiet after the command works too
     assert fake_figures[-1]["progress"] is False
 

@@ -106,22 +106,27 @@ CAMPAIGN_LAYERS = 10  # the scan and the count see the same laminate, whatever N
 CAMPAIGN_ROOTS = 6
 
 
-def _random_tubes(n_cases, seed):
-    """Tubes with λ_i ∈ [0.7, 1.8], λ_z ∈ [1, 1.5], η ∈ [0.3, 0.95], G above I_1 − 3 in the wall
-    (or ∞, neo-Hookean), V̂ = u·V̂_cr(α̂) with u ∈ [0, 0.9] (0 where no V̂_cr below pull-in), and
-    α̂ ∈ [0.1, 5] (log-uniform)."""
-    rng = np.random.default_rng(seed)
-    lambda_i = rng.uniform(0.7, 1.8, n_cases)
+def _tubes_at_rest(rng, n_cases, stretch_range):
+    """Tubes at V̂ = 0 with λ_i ∈ ``stretch_range``, λ_z ∈ [1, 1.5], η ∈ [0.3, 0.95], G above
+    I_1 − 3 in the wall (or ∞, neo-Hookean)."""
+    lambda_i = rng.uniform(*stretch_range, n_cases)
     lambda_z = rng.uniform(1.0, 1.5, n_cases)
     eta = rng.uniform(0.3, 0.95, n_cases)
     excess = gent_limit_excess(lambda_i, lambda_z, eta)
     gent = np.where(rng.uniform(size=n_cases) < 0.25, np.inf,
                     np.maximum(2.0, excess * rng.uniform(1.05, 3.0, n_cases)))
+    return Tube(voltage=jnp.zeros(n_cases), lambda_i=jnp.asarray(lambda_i),
+                lambda_z=jnp.asarray(lambda_z), eta=jnp.asarray(eta), gent=jnp.asarray(gent),
+                length_ratio=jnp.full(n_cases, 10.0))
+
+
+def _random_tubes(n_cases, seed):
+    """Tubes of :func:`_tubes_at_rest` with λ_i ∈ [0.7, 1.8] at V̂ = u·V̂_cr(α̂), u ∈ [0, 0.9] (0
+    where no V̂_cr below pull-in), and α̂ ∈ [0.1, 5] (log-uniform)."""
+    rng = np.random.default_rng(seed)
+    tubes = _tubes_at_rest(rng, n_cases, (0.7, 1.8))
     alpha = jnp.asarray(np.exp(rng.uniform(np.log(0.1), np.log(5.0), n_cases)))
     share = rng.uniform(0.0, 0.9, n_cases)
-    tubes = Tube(voltage=jnp.zeros(n_cases), lambda_i=jnp.asarray(lambda_i),
-                 lambda_z=jnp.asarray(lambda_z), eta=jnp.asarray(eta), gent=jnp.asarray(gent),
-                 length_ratio=jnp.full(n_cases, 10.0))
     layers = laminate(CAMPAIGN_LAYERS, "midpoint")
     critical, _ = jax.jit(jax.vmap(
         lambda t, a: critical_voltage_unchecked(t, a, None, layers, 0)))(tubes, alpha)
@@ -196,3 +201,29 @@ def test_traced_bessel_order_of_a_sweep_over_n_matches_single_calls():
         z = roots.bessel_derivative_zeros(nu)
         np.testing.assert_array_equal(table[nu, : len(z)], z)
         assert np.all(np.isinf(table[nu, len(z):]))
+
+
+def _critical_grids(tubes, n_grids):
+    """V̂_cr of every m ≤ 8, n ≤ 3 of each tube, for each scan density ``n_grid`` (N = 10)."""
+    layers = laminate(CAMPAIGN_LAYERS, "midpoint")
+
+    def grid(tube, n_grid):
+        def one(m, alpha):
+            return critical_voltage_unchecked(tube, alpha, None, layers, 0, n_grid=n_grid, m=m,
+                                              family=roots.ORDER_M)[0]
+
+        return roots.map_orders_and_modes(tube, 3, 8, one)
+
+    return [np.asarray(jax.jit(jax.vmap(lambda t, g=g: grid(t, g)))(tubes)) for g in n_grids]
+
+
+@pytest.mark.parametrize("n_cases", [pytest.param(2, id="default"),
+                                     pytest.param(24, id="slow", marks=pytest.mark.slow)])
+def test_critical_voltage_scan_density(n_cases):
+    """f(Ω = 0; V̂) does not oscillate in V̂: the default chunk of 32 points over (0, V̂_lim] finds
+    the same lowest root as a 16 times denser scan, for every order m ≤ 8 and mode n ≤ 3."""
+    tubes = _tubes_at_rest(np.random.default_rng(5), n_cases, (0.85, 1.4))  # most (m, n) buckle
+    default, dense = _critical_grids(tubes, (32, 512))
+    assert np.isfinite(dense).sum() >= 10 * n_cases  # most (m, n) have a V̂_cr below pull-in
+    np.testing.assert_array_equal(np.isnan(default), np.isnan(dense))
+    np.testing.assert_allclose(default, dense, rtol=1e-11)

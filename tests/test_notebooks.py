@@ -17,7 +17,8 @@ SLOW = {"design",  # its optax loops compile the critical-voltage and Newton pro
 
 
 def test_every_notebook_is_listed():
-    assert {p.stem for p in NOTEBOOKS} >= {"quickstart", "paper_reproduction", "sensitivity_maps", "design"}
+    assert {p.stem for p in NOTEBOOKS} >= {"quickstart", "paper_reproduction", "sensitivity_maps", "design",
+                                             "explore"}
 
 
 @pytest.mark.parametrize("path", [pytest.param(p, marks=pytest.mark.slow) if p.stem in SLOW else p

@@ -1,0 +1,453 @@
+"""An interactive explorer: sliders for the tube, the fluid and the order m, live dispersion curves,
+phase velocities, the axial modes n, the stability status and the mode shape of a chosen root.
+
+The computation lives in pure functions (:func:`explorer_data`, :func:`stability_status`,
+:func:`explorer_mode`); :func:`explore` wraps them in an ipywidgets app (``pip install
+jaxdea[explore]``) that redraws matplotlib figures (rendered to PNG, so it works headless and with
+any matplotlib backend) whenever a control changes. Every slider value is a traced leaf of the
+compiled solvers, so moving a slider never recompiles; the empty tube, the filled one, each
+coupling and m = 0 against m ≥ 1 are separate programs, each compiled on first use.
+"""
+
+from __future__ import annotations
+
+import functools
+import html
+import io
+from typing import NamedTuple
+
+import numpy as np
+
+from .curves import dispersion_curve
+from .modes import mode_shape
+from .params import Fluid, Tube, axial_wavenumber
+from .roots import first_instability, phase_velocity
+
+ALPHAS = np.linspace(0.05, 3.0, 40)
+"""The default α̂ grid of the explorer (the axial modes' α̂_n are added to it)."""
+N_AXIAL = 5  # axial modes n = 1 … N_AXIAL marked on the curves
+DEFAULT_TUBE = Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2, eta=0.85)  # the paper's tube
+UNSTABLE_FACE = "#fbe3e3"  # axes background of an unstable state
+
+
+class ExplorerData(NamedTuple):
+    """The arrays the explorer plots (NumPy).
+
+    Attributes:
+        alpha: the grid α̂, shape (M,): the requested grid and the α̂_n, sorted.
+        omega: the ``n_modes`` lowest Ω at each α̂ (:func:`jaxdea.dispersion_curve`), (M, K).
+        phase_velocity: Ω/α̂, (M, K).
+        status: :class:`~jaxdea.Status` per root, (M, K).
+        axial_n: the axial mode numbers n = 1 … n_axial.
+        axial_alpha: their α̂_n (:func:`jaxdea.axial_wavenumber`).
+        axial_index: the row of each α̂_n in ``alpha`` (its roots are ``omega[axial_index]``).
+    """
+
+    alpha: np.ndarray
+    omega: np.ndarray
+    phase_velocity: np.ndarray
+    status: np.ndarray
+    axial_n: np.ndarray
+    axial_alpha: np.ndarray
+    axial_index: np.ndarray
+
+
+class StabilityStatus(NamedTuple):
+    """The stability of a state against the first instability (:func:`jaxdea.first_instability`).
+
+    Attributes:
+        voltage: V̂_first, the smallest critical voltage over the (m, n) searched (NaN: none below
+            pull-in; 0: unstable already at V̂ = 0).
+        m, n: its order and axial mode (−1, 0 where none).
+        unstable: True where the tube's V̂ ≥ V̂_first.
+        text: a one-line summary.
+    """
+
+    voltage: float
+    m: int
+    n: int
+    unstable: bool
+    text: str
+
+
+def explorer_grid(tube: Tube, alphas=ALPHAS, n_axial: int = N_AXIAL):
+    """(grid, n, α̂_n, rows): ``alphas`` with the α̂_n of n = 1 … ``n_axial`` inserted, sorted (a
+    fixed size, so the compiled curve is reused for every tube), and the row of each α̂_n."""
+    n = np.arange(1, n_axial + 1)
+    axial = np.asarray(axial_wavenumber(tube, n), dtype=np.float64)
+    grid = np.sort(np.concatenate([np.asarray(alphas, dtype=np.float64), axial]))
+    return grid, n, axial, np.searchsorted(grid, axial)
+
+
+def explorer_data(tube: Tube, fluid: Fluid | None = None, m: int = 0, n_modes: int = 3,
+                  alphas=ALPHAS, n_axial: int = N_AXIAL, n_layers: int = 30) -> ExplorerData:
+    """The dispersion curves Ω(α̂) of the ``n_modes`` lowest modes of order ``m`` by continuation
+    (:func:`jaxdea.dispersion_curve` on :func:`explorer_grid`), their phase velocities and the
+    axial modes n on them.
+
+    Raises:
+        ValueError: for invalid inputs (as :func:`jaxdea.dispersion_curve`, e.g. a wall past Gent
+            locking or the ``"paper"`` coupling at m ≥ 1).
+    """
+    grid, n, axial, rows = explorer_grid(tube, alphas, n_axial)
+    curve = dispersion_curve(tube, grid, fluid, n_roots=n_modes, n_layers=n_layers, m=m)
+    omega = np.asarray(curve.omega)
+    return ExplorerData(grid, omega, np.asarray(phase_velocity(omega, grid[:, None])),
+                        np.asarray(curve.status), n, axial, rows)
+
+
+def stability_status(tube: Tube, n_max: int = 3, m_max: int = 4, n_layers: int = 30) -> StabilityStatus:
+    """Whether the tube's V̂ has reached its first instability over 0 ≤ m ≤ ``m_max``,
+    1 ≤ n ≤ ``n_max`` (:func:`jaxdea.first_instability`; independent of V̂ and of a fluid)."""
+    first = first_instability(tube, n_max=n_max, m_max=m_max, n_layers=n_layers)
+    return judge_stability(float(first.voltage), int(first.m), int(first.n), float(tube.voltage),
+                           n_max, m_max)
+
+
+def judge_stability(v_first: float, m: int, n: int, voltage: float, n_max: int = 3,
+                    m_max: int = 4) -> StabilityStatus:
+    """The :class:`StabilityStatus` of V̂ = ``voltage`` against a first instability V̂_first at
+    (m, n) (NaN: none found for m ≤ ``m_max``, n ≤ ``n_max``)."""
+    if not np.isfinite(v_first):
+        return StabilityStatus(v_first, m, n, False, f"stable: no instability for m ≤ {m_max}, "
+                               f"n ≤ {n_max} below pull-in")
+    unstable = voltage >= v_first
+    where = f"(m = {m}, n = {n})"
+    if v_first == 0.0:
+        text = f"UNSTABLE at every V̂: {where} buckles already at V̂ = 0"
+    elif unstable:
+        text = f"UNSTABLE: V̂ = {voltage:.4g} ≥ V̂_first = {v_first:.4g} {where}"
+    else:
+        text = f"stable: V̂ = {voltage:.4g} < V̂_first = {v_first:.4g} {where}"
+    return StabilityStatus(v_first, m, n, bool(unstable), text)
+
+
+def explorer_mode(tube: Tube, data: ExplorerData, alpha, branch: int, fluid: Fluid | None = None,
+                  m: int = 0, n_layers: int = 30):
+    """(α̂, Ω, r, fields) of the root of ``branch`` (0: the lowest) at the grid α̂ nearest to
+    ``alpha``: :func:`jaxdea.mode_shape` there.
+
+    Raises:
+        ValueError: where that branch has no root at that α̂ (or as ``mode_shape``).
+    """
+    row = int(np.argmin(np.abs(data.alpha - float(alpha))))
+    a, omega = float(data.alpha[row]), float(data.omega[row, branch])
+    if not np.isfinite(omega):
+        raise ValueError(f"branch {branch + 1} has no root at α̂ = {a:.4g}")
+    r, fields = mode_shape(tube, a, omega, fluid, n_layers=n_layers, m=m)
+    return a, omega, np.asarray(r), np.asarray(fields)
+
+
+def explore(tube: Tube | None = None, fluid: Fluid | None = None, *, n_modes: int = 3,
+            alphas=ALPHAS, n_axial: int = N_AXIAL, n_layers: int = 30, n_max: int = 3,
+            m_max: int = 4, stability: bool = True):
+    """An ipywidgets app to explore the dispersion and stability of a tube interactively.
+
+    Sliders set V̂, λ_i, λ_z, η, G, ρ̂_f, ĉ_f and the order m; toggles choose the empty or filled
+    tube and the coupling (``"paper"`` with its Bessel order ν, valid at m = 0 only). The plots
+    show the ``n_modes`` lowest Ω(α̂) (:func:`explorer_data`), the phase velocity Ω/α̂, the axial
+    modes n = 1 … ``n_axial`` marked on both, and the stability status of
+    :func:`stability_status` (shaded when V̂ ≥ V̂_first; recomputed only when λ_i, λ_z, η or G
+    change). A click on a curve (on an interactive matplotlib canvas showing ``app.figure``), the
+    α̂ and branch controls, or ``app.select(alpha, branch)`` shows that root's mode shape in the
+    side panel. Invalid combinations (e.g. a wall past Gent locking) show the error message
+    instead of raising.
+
+    Args:
+        tube: the initial :class:`~jaxdea.Tube` (default: the paper's, V̂ = 0.1); its
+            ``length_ratio`` and ``material`` are kept.
+        fluid: the initial :class:`~jaxdea.Fluid`, or None for an empty tube.
+        n_modes: K, the number of branches (static).
+        alphas: the α̂ grid (its size is fixed for the life of the app: no recompilation).
+        n_axial: axial modes marked.
+        n_layers: sublayers N of every solve.
+        n_max, m_max: the (m, n) searched for the first instability.
+        stability: False leaves the stability status out (no ``first_instability`` solves).
+
+    Returns:
+        The app, an ``ipywidgets.VBox``: ``controls`` (the widgets by parameter name), ``set``
+        (several controls, one redraw), ``select`` and ``on_click``; ``data``
+        (:class:`ExplorerData`), ``status`` (:class:`StabilityStatus`), ``mode`` ((α̂, Ω, r,
+        fields)) and ``error`` (the message, or None) hold what is shown.
+
+    Raises:
+        ImportError: without ipywidgets (``pip install jaxdea[explore]``).
+
+    Example:
+        >>> app = jaxdea.explore(jaxdea.Tube(voltage=0.05, lambda_i=0.9, lambda_z=1.2))
+        >>> app.controls["voltage"].value = 0.02   # redraws; app.data holds the curves
+        >>> app.set(filled="filled", m=2)          # several controls, one redraw
+        >>> app.select(0.445, 0)                   # mode shape of the lowest root at α̂ ≈ 0.445
+        >>> app                                    # shows the app in a notebook
+    """
+    try:
+        import ipywidgets  # noqa: F401
+    except ImportError as exc:
+        raise ImportError("jaxdea.explore needs ipywidgets: pip install jaxdea[explore]") from exc
+    return _app_class()(tube if tube is not None else DEFAULT_TUBE, fluid, n_modes=n_modes,
+                        alphas=np.asarray(alphas, dtype=np.float64), n_axial=n_axial,
+                        n_layers=n_layers, n_max=n_max, m_max=m_max, stability=stability)
+
+
+def _png(figure) -> bytes:
+    """The figure as PNG bytes (Agg, whatever the backend)."""
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=72, pil_kwargs=dict(compress_level=1))  # fast encoding
+    return buffer.getvalue()
+
+
+def _slider(widgets, description, value, low, high, step, log=False):
+    """A float slider that updates on release, its range widened to hold ``value``."""
+    value = float(value)
+    if log:
+        value = value if np.isfinite(value) and value > 0 else 10.0**high
+        exponent = np.log10(value)
+        return widgets.FloatLogSlider(value=value, base=10, min=min(low, np.floor(exponent)),
+                                      max=max(high, np.ceil(exponent)), step=step,
+                                      description=description, continuous_update=False)
+    return widgets.FloatSlider(value=value, min=min(low, value), max=max(high, value), step=step,
+                               description=description, continuous_update=False, readout_format=".3f")
+
+
+@functools.cache
+def _app_class():
+    """The app's class (a ``VBox``), defined on first use so that ipywidgets stays optional."""
+    import ipywidgets as widgets
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    class Explorer(widgets.VBox):
+        """The explorer app (see :func:`explore`)."""
+
+        def __init__(self, tube, fluid, *, n_modes, alphas, n_axial, n_layers, n_max, m_max,
+                     stability):
+            self.base_tube, self.n_modes, self.alphas = tube, int(n_modes), alphas
+            self.n_axial, self.n_layers, self.n_max, self.m_max = n_axial, n_layers, n_max, m_max
+            self.stability = stability
+            self.data = self.status = self.mode = self.error = None
+            self.selection = None  # (α̂, branch) of the mode shown
+            self._first = {}  # (V̂_first, m, n) of the last wall
+            self._holding = False  # True while set() changes several controls
+            shown = fluid if fluid is not None else Fluid()
+            c = self.controls = dict(
+                voltage=_slider(widgets, "V̂", tube.voltage, 0.0, 0.3, 0.002),
+                lambda_i=_slider(widgets, "λ_i", tube.lambda_i, 0.7, 1.6, 0.01),
+                lambda_z=_slider(widgets, "λ_z", tube.lambda_z, 0.8, 2.0, 0.01),
+                eta=_slider(widgets, "η", tube.eta, 0.5, 0.95, 0.01),
+                gent=_slider(widgets, "G", tube.gent, -1.0, 3.0, 0.05, log=True),
+                density_ratio=_slider(widgets, "ρ̂_f", shown.density_ratio, 0.01, 2.0, 0.01),
+                speed_ratio=_slider(widgets, "ĉ_f", shown.speed_ratio, 0.05, 2.0, 0.01),
+                m=widgets.IntSlider(value=0, min=0, max=8, description="order m",
+                                    continuous_update=False),
+                filled=widgets.ToggleButtons(options=["empty", "filled"],
+                                             value="filled" if fluid is not None else "empty"),
+                coupling=widgets.ToggleButtons(options=["acoustic", "paper"], value=shown.coupling),
+                bessel_order=widgets.BoundedIntText(value=shown.bessel_order or 1, min=0, max=20,
+                                                    description="ν (paper)"),
+            )
+            self.pick = dict(
+                alpha=widgets.FloatSlider(value=float(alphas[0]), min=float(alphas.min()),
+                                          max=float(alphas.max()), step=0.01, description="α̂",
+                                          continuous_update=False, readout_format=".3f"),
+                branch=widgets.Dropdown(options=[(str(k + 1), k) for k in range(self.n_modes)],
+                                        value=0, description="branch"),
+                show=widgets.Button(description="show mode shape"),
+            )
+            self.message = widgets.HTML()
+            self.status_label = widgets.HTML()
+            self.figure = Figure(figsize=(12.0, 3.6))  # Ω(α̂), Ω/α̂ and the mode-shape side panel
+            FigureCanvasAgg(self.figure)
+            *self.axes, self.mode_axes = self.figure.subplots(1, 3, width_ratios=[1.0, 1.0, 0.8])
+            self._setup_axes()
+            self.image = widgets.Image(format="png")
+            self.figure.canvas.mpl_connect("button_press_event", self.on_click)
+            super().__init__([
+                widgets.HBox([widgets.VBox(list(c.values())),
+                              widgets.VBox([self.status_label, self.message,
+                                            widgets.HBox(list(self.pick.values()))])]),
+                self.image,
+            ])
+            for control in c.values():
+                control.observe(self.refresh, names="value")
+            self.pick["show"].on_click(lambda _: self.select(self.pick["alpha"].value,
+                                                             self.pick["branch"].value))
+            self.refresh()
+
+        # --------------------------------------------------------------------------- state
+        def parameters(self):
+            """(tube, fluid, m) of the controls (the fluid None for the empty tube)."""
+            c = self.controls
+            tube = self.base_tube.replace(**{k: float(c[k].value) for k in
+                                             ("voltage", "lambda_i", "lambda_z", "eta", "gent")})
+            fluid = None
+            if c["filled"].value == "filled":
+                paper = c["coupling"].value == "paper"
+                fluid = Fluid(float(c["density_ratio"].value), float(c["speed_ratio"].value),
+                              coupling=c["coupling"].value,
+                              bessel_order=int(c["bessel_order"].value) if paper else None)
+            return tube, fluid, int(c["m"].value)
+
+        def _stability(self, tube):
+            """:func:`stability_status`, its first-instability solve kept per wall (it does not
+            depend on V̂ or the fluid)."""
+            key = (tube.lambda_i, tube.lambda_z, tube.eta, tube.gent, tube.length_ratio,
+                   tube.material)
+            if key not in self._first:
+                first = first_instability(tube, n_max=self.n_max, m_max=self.m_max,
+                                          n_layers=self.n_layers)
+                self._first = {key: (float(first.voltage), int(first.m), int(first.n))}
+            return judge_stability(*self._first[key], float(tube.voltage), self.n_max, self.m_max)
+
+        def _show_error(self, text):
+            self.message.value = f'<span style="color:#b00020">{html.escape(text)}</span>'
+
+        def set(self, **values):
+            """Set several controls (by their key in ``controls``) with one recomputation."""
+            self._holding = True
+            try:
+                for key, value in values.items():
+                    self.controls[key].value = value
+            finally:
+                self._holding = False
+            self.refresh()
+
+        def refresh(self, change=None):
+            """Recompute for the controls' values and redraw; a ValueError is shown, not raised."""
+            if self._holding:
+                return
+            self.message.value = ""
+            try:
+                tube, fluid, m = self.parameters()
+                data = explorer_data(tube, fluid, m, self.n_modes, self.alphas, self.n_axial,
+                                     self.n_layers)
+                status = self._stability(tube) if self.stability else None
+            except ValueError as exc:
+                self.data, self.status, self.mode, self.error = None, None, None, str(exc)
+                self._show_error(str(exc))
+                self.status_label.value = ""
+            else:
+                self.data, self.status, self.error = data, status, None
+                self.status_label.value = "" if status is None else (
+                    f'<b style="color:{"#b00020" if status.unstable else "#1b5e20"}">'
+                    f"{html.escape(status.text)}</b>")
+                slider, low, high = self.pick["alpha"], float(data.alpha[0]), float(data.alpha[-1])
+                if low > slider.max:
+                    slider.max, slider.min = high, low
+                else:
+                    slider.min, slider.max = low, high
+                self.mode = self._mode(*self.selection) if self.selection is not None else None
+            self._draw()
+
+        def _mode(self, alpha, branch):
+            """:func:`explorer_mode` for the controls' values, or None (the error shown)."""
+            tube, fluid, m = self.parameters()
+            try:
+                return explorer_mode(tube, self.data, alpha, branch, fluid, m, self.n_layers)
+            except ValueError as exc:
+                self._show_error(str(exc))
+                return None
+
+        def select(self, alpha, branch):
+            """Show the mode shape of ``branch`` (0: the lowest) at the grid α̂ nearest to
+            ``alpha`` (:func:`explorer_mode`) and return it as (α̂, Ω, r, fields); a ValueError is
+            shown, not raised (None returned)."""
+            self.selection = (float(alpha), int(branch))
+            self.mode = self._mode(*self.selection) if self.data is not None else None
+            self._draw()
+            return self.mode
+
+        def on_click(self, event):
+            """Matplotlib click handler: the root nearest to the click (in axes units) on either
+            plot is selected."""
+            if self.data is None or event.inaxes not in self.axes or event.xdata is None:
+                return
+            ax = event.inaxes
+            y = self.data.omega if ax is self.axes[0] else self.data.phase_velocity
+            x0, x1 = ax.get_xlim()
+            y0, y1 = ax.get_ylim()
+            dx = (self.data.alpha[:, None] - event.xdata) / (x1 - x0)
+            dy = (y - event.ydata) / (y1 - y0)
+            distance = np.where(np.isfinite(dy), np.hypot(dx, dy), np.inf)
+            row, branch = np.unravel_index(np.argmin(distance), distance.shape)
+            if np.isfinite(distance[row, branch]):
+                self.select(self.data.alpha[row], branch)
+
+        # ------------------------------------------------------------------------ drawing
+        def _setup_axes(self):
+            ax, axv = self.axes
+            self.lines = [ax.plot([], [], lw=1.5, label=f"branch {k + 1}")[0]
+                          for k in range(self.n_modes)]
+            self.speed_lines = [axv.plot([], [], lw=1.5, color=line.get_color())[0]
+                                for line in self.lines]
+            self.markers = ax.plot([], [], "o", ms=4, color="k", label="axial modes n")[0]
+            self.speed_markers = axv.plot([], [], "o", ms=4, color="k")[0]
+            self.picked = ax.plot([], [], "*", ms=12, color="crimson")[0]
+            self.mode_lines = [self.mode_axes.plot([], [], label=name)[0] for name in ("ū", "v̄", "w̄")]
+            self.labels = []
+            ax.set(xlabel="axial wavenumber α̂", ylabel="frequency Ω")
+            axv.set(xlabel="axial wavenumber α̂", ylabel="phase velocity Ω/α̂")
+            self.mode_axes.set(xlabel="radius r̂", ylabel="displacement (mode shape)")
+            ax.legend(loc="upper left", fontsize=7)
+            self.mode_axes.legend(loc="upper right", fontsize=7)
+            for axis in (*self.axes, self.mode_axes):  # fewer tick labels: text dominates drawing
+                axis.locator_params(nbins=5)
+            self.figure.subplots_adjust(left=0.05, right=0.99, bottom=0.14, top=0.9, wspace=0.25)
+
+        def _draw(self):
+            """Put the data, the status and the mode shape on the figure and render it."""
+            ax, axv = self.axes
+            for label in self.labels:
+                label.remove()
+            self.labels = []
+            d = self.data
+            unstable = self.status is not None and self.status.unstable
+            for axis in self.axes:
+                axis.set_facecolor(UNSTABLE_FACE if unstable else "white")
+            if d is None:
+                for line in self.lines + self.speed_lines + [self.markers, self.speed_markers]:
+                    line.set_data([], [])
+                ax.set_title("invalid parameters (see the message)", fontsize=9)
+                axv.set_title("")
+            else:
+                for k in range(self.n_modes):
+                    self.lines[k].set_data(d.alpha, d.omega[:, k])
+                    self.speed_lines[k].set_data(d.alpha, d.phase_velocity[:, k])
+                rows = np.repeat(d.axial_index, self.n_modes)
+                ks = np.tile(np.arange(self.n_modes), len(d.axial_index))
+                self.markers.set_data(d.alpha[rows], d.omega[rows, ks])
+                self.speed_markers.set_data(d.alpha[rows], d.phase_velocity[rows, ks])
+                for n, a in zip(d.axial_n, d.axial_alpha, strict=True):
+                    self.labels.append(ax.annotate(f"n={n}", (a, 1.0), xycoords=("data", "axes fraction"),
+                                                   xytext=(0, 2), textcoords="offset points",
+                                                   ha="center", va="bottom", fontsize=7))
+                tube, fluid, m = self.parameters()
+                filled = "empty" if fluid is None else f"filled ({fluid.coupling})"
+                ax.set_title(f"order m = {m}, {filled}, V̂ = {float(tube.voltage):.3g}", fontsize=9,
+                             pad=12)
+                axv.set_title(self.status.text if self.status is not None else "", fontsize=8,
+                              color="#b00020" if unstable else "black")
+                for axis in self.axes:
+                    axis.relim()
+                    axis.autoscale_view()
+                top = np.nanmax(d.phase_velocity[d.alpha >= 0.2 * d.alpha[-1]], initial=1.0)
+                axv.set_ylim(0.0, 1.1 * top if np.isfinite(top) else 1.0)
+            self._draw_mode()
+            self.image.value = _png(self.figure)
+
+        def _draw_mode(self):
+            if self.mode is None:
+                self.picked.set_data([], [])
+                for line in self.mode_lines:
+                    line.set_data([], [])
+                self.mode_axes.set_title("click a curve, or pick α̂ and branch", fontsize=9)
+                return
+            a, omega, r, fields = self.mode
+            rows = (0, None, 1) if fields.shape[0] == 6 else (0, 1, 2)  # ū, v̄ (order m), w̄
+            for line, row in zip(self.mode_lines, rows, strict=True):
+                line.set_data(([], []) if row is None else (r, fields[row]))
+            self.mode_axes.relim()
+            self.mode_axes.autoscale_view()
+            self.mode_axes.set_title(f"α̂ = {a:.3f}, Ω = {omega:.4f}", fontsize=9)
+            self.picked.set_data([a], [omega])
+
+    return Explorer

@@ -1,0 +1,449 @@
+"""Files and plots of the inverse characterisation (:func:`jaxdea.fit`), and ``jaxdea fit``.
+
+Peaks are a CSV table (:func:`read_peaks`, :func:`write_peaks`) with one row per measured peak and
+the columns ``voltage_V`` (V), ``frequency_Hz`` (Hz, > 0), optional ``sigma_Hz`` (the standard
+deviation of the peak, Hz, > 0) and optional labels ``m`` (≥ 0), ``n`` (≥ 1), ``branch`` (≥ 0);
+lines starting with ``#`` are comments. :func:`write_fit` saves a :class:`jaxdea.FitResult` as
+JSON, :func:`plot_fit` draws the data against the fitted curves f(V) of the identified modes with
+the residuals below.
+
+``jaxdea fit DATA.csv --config fit.toml [--out DIR]`` reads the free parameters, fixed values, the
+fluid and the options of :func:`jaxdea.fit` from a TOML document (:data:`FORMAT`,
+:func:`load_fit_config`), prints a summary and writes DATA_fit.json and DATA_fit.png
+(:func:`run_fit`). Every error is a ValueError naming the file, column, row or key.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+import tomllib
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from .fit import NAMES, UNITS, FitResult, IdentifiabilityWarning, fit, fitted_frequencies
+
+COLUMNS = ("voltage_V", "frequency_Hz", "sigma_Hz", "m", "n", "branch")
+"""The columns of a peak table, in the order :func:`write_peaks` writes them."""
+LABELS = ("m", "n", "branch")
+LABEL_LOW = dict(m=0, n=1, branch=0)
+TOP_KEYS = ("free", "fixed", "fluid", "options")
+FREE_KEYS = ("lower", "upper", "initial")
+FLUID_KEYS = ("coupling", "bessel_order")
+OPTION_KEYS = ("n_layers", "m_max", "n_max", "n_branches", "threshold", "n_starts", "grid_points",
+               "max_iterations", "max_reassignments")
+
+FORMAT = f"""\
+fluid = "acoustic"   optional, before the tables (leave it out for an empty tube); or a table
+          [fluid] coupling = "acoustic" | "paper", bessel_order = ν (integer >= 0; paper only)
+[free]    the parameters to estimate (SI units): NAME = [lower, upper] or
+          NAME = {{lower = a, upper = b, initial = x}} (initial strictly inside the bounds; for every
+          free parameter or for none)
+[fixed]   every other parameter: NAME = value (gent = inf: neo-Hookean)
+          NAME one of {', '.join(NAMES[:5])} (Pa, kg/m^3, F/m, m, m),
+          {', '.join(NAMES[5:9])} (and fluid_density, fluid_speed with a fluid)
+[options] of jaxdea.fit: n_layers = 30, m_max = 2, n_max = 3, n_branches = 2 (the modes unlabelled
+          peaks may be assigned to), threshold = 0.1 (|log f_model - log f_data| beyond which a peak
+          is left unmatched), n_starts = 3 (0 with initial values: those alone), grid_points = 3,
+          max_iterations = 100, max_reassignments = 10
+"""
+
+
+# ---------------------------------------------------------------------------------------- peaks
+
+
+def read_peaks(path) -> dict:
+    """Measured peaks from a CSV file: {column: array} for :func:`jaxdea.fit`.
+
+    Columns (header row, any order): ``voltage_V``, ``frequency_Hz`` (> 0), optional ``sigma_Hz``
+    (> 0) and the optional labels ``m`` (≥ 0), ``n`` (≥ 1), ``branch`` (≥ 0); lines starting with
+    ``#`` and blank lines are skipped. Labels are integer arrays, the rest float64.
+
+    Raises:
+        ValueError: naming the file, column and line: an unreadable file, an unknown, repeated or
+            missing column, a cell that is not a number, NaN or ±inf, a frequency or σ ≤ 0, a label
+            that is not an integer in range, no data rows.
+
+    Example:
+        >>> peaks = read_peaks("peaks.csv")   # voltage_V,frequency_Hz,sigma_Hz / 2000,41.3,0.2 / …
+        >>> peaks["frequency_Hz"], peaks["sigma_Hz"]
+        >>> result = jd.fit(peaks, free, fixed)
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
+    lines = [(k + 1, line) for k, line in enumerate(text.splitlines())
+             if line.strip() and not line.lstrip().startswith("#")]
+    if not lines:
+        raise ValueError(f"{path}: no header row (expected the columns voltage_V, frequency_Hz)")
+    rows = list(csv.reader([line for _, line in lines]))
+    header = [name.strip() for name in rows[0]]
+    for name in header:
+        if name not in COLUMNS:
+            raise ValueError(f"{path}: unknown column {name!r} (allowed: {', '.join(COLUMNS)})")
+        if header.count(name) > 1:
+            raise ValueError(f"{path}: column {name!r} appears twice")
+    for name in COLUMNS[:2]:
+        if name not in header:
+            raise ValueError(f"{path}: missing the column {name!r} (needs voltage_V, frequency_Hz; "
+                             f"optional sigma_Hz, m, n, branch)")
+    if len(rows) < 2:
+        raise ValueError(f"{path}: no data rows below the header")
+    columns = {name: [] for name in header}
+    for (number, _), row in zip(lines[1:], rows[1:], strict=True):
+        if len(row) != len(header):
+            raise ValueError(f"{path}, line {number}: {len(row)} fields, the header has "
+                             f"{len(header)}")
+        for name, cell in zip(header, row, strict=True):
+            columns[name].append(_cell(path, number, name, cell.strip()))
+    return {name: (np.array(columns[name], dtype=int) if name in LABELS
+                   else np.array(columns[name], dtype=np.float64))
+            for name in COLUMNS if name in columns}
+
+
+def _cell(path, number, name, cell):
+    where = f"{path}, line {number}, column {name!r}"
+    try:
+        value = float(cell)
+    except ValueError:
+        raise ValueError(f"{where}: {cell!r} is not a number") from None
+    if not math.isfinite(value):
+        raise ValueError(f"{where}: {cell!r} is not a finite number")
+    if name in ("frequency_Hz", "sigma_Hz") and value <= 0:
+        raise ValueError(f"{where}: {cell} Hz, must be > 0")
+    if name in LABELS:
+        if value != round(value) or value < LABEL_LOW[name]:
+            raise ValueError(f"{where}: {cell}, must be an integer >= {LABEL_LOW[name]}")
+        return int(value)
+    return value
+
+
+def write_peaks(path, data) -> Path:
+    """Write peaks (a mapping with the columns of :func:`read_peaks`) as CSV; floats are written
+    with their shortest exact representation, so :func:`read_peaks` gives them back bit for bit.
+
+    Example:
+        >>> write_peaks("peaks.csv", {"voltage_V": [2e3, 5e3], "frequency_Hz": [41.3, 40.2]})
+        >>> read_peaks("peaks.csv")["frequency_Hz"]     # array([41.3, 40.2])
+    """
+    names = [name for name in COLUMNS if name in data]
+    for name in COLUMNS[:2]:
+        if name not in names:
+            raise ValueError(f"data is missing the column {name!r}")
+    columns = [np.asarray(data[name]).ravel() for name in names]
+    if any(column.size != columns[0].size for column in columns):
+        raise ValueError("data columns must have the same length")
+    path = Path(path)
+    with path.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(names)
+        for row in zip(*columns, strict=True):
+            writer.writerow([str(int(x)) if name in LABELS else repr(float(x))
+                             for name, x in zip(names, row, strict=True)])
+    return path
+
+
+# --------------------------------------------------------------------------------------- result
+
+
+def model_frequency(result: FitResult, data) -> np.ndarray:
+    """f_model in Hz per data point: f_data + r σ (NaN where the peak is unmatched)."""
+    f = np.asarray(data["frequency_Hz"], dtype=np.float64)
+    sigma = np.asarray(data["sigma_Hz"], dtype=np.float64) if "sigma_Hz" in data else 1.0
+    return f + np.asarray(result.residuals) * sigma
+
+
+def _plain(x):
+    """JSON-ready: NaN and ±inf as null, arrays as lists."""
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in (x.tolist() if isinstance(x, np.ndarray) else x)]
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    return x
+
+
+def write_fit(result: FitResult, data, path, warnings_=()) -> Path:
+    """Save a fit as JSON: status, iterations, the estimates, 95 % intervals, units, covariance and
+    correlation (in ``names`` order), every parameter value, the model settings and one record per
+    peak (voltage_V, frequency_Hz, sigma_Hz, model_Hz, residual, m, n, branch; m = n = branch = −1
+    for an unmatched peak, whose model_Hz and residual are null). NaN and ±inf are written as null.
+
+    Example:
+        >>> result = jd.fit(peaks, free, fixed)
+        >>> write_fit(result, peaks, "peaks_fit.json")
+        >>> estimate = json.load(open("peaks_fit.json"))["estimate"]
+        >>> estimate["shear_modulus"], estimate["lambda_i"]
+    """
+    voltage = np.asarray(data["voltage_V"], dtype=np.float64)
+    model = model_frequency(result, data)
+    sigma = np.asarray(data["sigma_Hz"], dtype=np.float64) if "sigma_Hz" in data else None
+    points = []
+    for i in range(voltage.size):
+        m, n, branch = (int(x) for x in result.assignment[i])
+        points.append(dict(voltage_V=voltage[i], frequency_Hz=float(data["frequency_Hz"][i]),
+                           sigma_Hz=None if sigma is None else sigma[i], model_Hz=model[i],
+                           residual=result.residuals[i], m=m, n=n, branch=branch))
+    document = dict(
+        status=result.status.name, iterations=int(result.iterations), names=list(result.names),
+        estimate=result.estimate, interval=result.interval,
+        units={k: UNITS[k] for k in result.names}, covariance=result.covariance,
+        correlation=result.correlation, parameters=result.parameters, settings=result.settings,
+        unmatched=[int(i) for i in np.flatnonzero(result.assignment[:, 0] < 0)],
+        warnings=list(warnings_), points=points)
+    path = Path(path)
+    path.write_text(json.dumps(_plain(document), indent=1) + "\n", encoding="utf-8")
+    return path
+
+
+def identified_modes(result: FitResult) -> list:
+    """The distinct (m, n, branch) of the matched peaks, sorted."""
+    matched = result.assignment[result.assignment[:, 0] >= 0]
+    return sorted({tuple(int(x) for x in row) for row in matched})
+
+
+def plot_fit(result: FitResult, data, path=None, points: int = 41):
+    """Data against the fitted model: f(V) of every identified mode (m, n, branch) as a curve of
+    ``points`` voltages over the data's range (:func:`jaxdea.fitted_frequencies` at the fitted
+    parameters), the peaks as markers in the colour of their mode (unmatched ones as grey
+    crosses), and the residuals (f_model − f_data)/σ (Hz without σ) against V in a panel below.
+
+    Returns:
+        The matplotlib Figure (Agg canvas; no pyplot state is touched), saved to ``path`` if given.
+        Its first axes hold one line per mode, labelled "(m, n, branch) = (…)", whose data are the
+        voltages and the model frequencies.
+
+    Example:
+        >>> fig = plot_fit(result, peaks, "peaks_fit.png")
+        >>> fig.axes[0].lines[0].get_xydata()           # (V, f_model in Hz) of the first mode
+    """
+    from matplotlib import colormaps
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    voltage = np.asarray(data["voltage_V"], dtype=np.float64)
+    frequency = np.asarray(data["frequency_Hz"], dtype=np.float64)
+    low, high = float(voltage.min()), float(voltage.max())
+    if low == high:
+        low, high = min(0.0, low), (high if high > 0 else 1.0)
+    grid = np.linspace(low, high, points)
+    modes = identified_modes(result)
+    if modes:
+        table = np.array(modes)
+        curves = fitted_frequencies(result, grid[None, :], table[:, :1], table[:, 1:2],
+                                    table[:, 2:3])
+    cmap = colormaps["tab10"]
+    fig = Figure(figsize=(7, 6.5), layout="constrained")
+    FigureCanvasAgg(fig)
+    top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(3, 1.3))
+    for k, mode in enumerate(modes):
+        color = cmap(k % 10)
+        top.plot(grid, curves[k], color=color, label=f"(m, n, branch) = {mode}")
+        own = np.all(result.assignment == np.array(mode), axis=1)
+        top.plot(voltage[own], frequency[own], "o", color=color, markersize=4,
+                 label="_nolegend_")
+        bottom.plot(voltage[own], result.residuals[own], "o", color=color, markersize=4)
+    unmatched = result.assignment[:, 0] < 0
+    if np.any(unmatched):
+        top.plot(voltage[unmatched], frequency[unmatched], "x", color="0.5",
+                 label="unmatched peaks")
+    bottom.axhline(0.0, color="k", linewidth=0.8)
+    top.set_ylabel("frequency f (Hz)")
+    bottom.set_ylabel(r"$(f_{model} - f)/\sigma$" if "sigma_Hz" in data
+                      else r"$f_{model} - f$ (Hz)")
+    bottom.set_xlabel("voltage V (V)")
+    if modes or np.any(unmatched):
+        top.legend(fontsize="small", frameon=False)
+    estimates = ", ".join(f"{k} = {v:.4g}" for k, v in result.estimate.items())
+    top.set_title(f"fit: {result.status.name.lower()}, {result.iterations} iterations\n"
+                  f"{estimates}", fontsize="medium")
+    for ax in (top, bottom):
+        ax.grid(alpha=0.3)
+    if path is not None:
+        fig.savefig(path, dpi=120)
+    return fig
+
+
+# ------------------------------------------------------------------------------ configuration
+
+
+@dataclasses.dataclass(frozen=True)
+class FitConfig:
+    """Validated settings of ``jaxdea fit``: the arguments of :func:`jaxdea.fit`."""
+
+    free: dict
+    fixed: dict
+    fluid: object
+    initial: dict | None
+    options: dict
+
+
+def _number(key, x, allow_inf=False):
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        raise ValueError(f"{key}: expected a number, got {x!r}")
+    if not (math.isfinite(x) or (allow_inf and x == math.inf)):
+        raise ValueError(f"{key}: expected a finite number, got {x!r}")
+    return float(x)
+
+
+def _table(key, x, allowed):
+    if not isinstance(x, dict):
+        raise ValueError(f"{key}: expected a table, got {x!r}")
+    for name in x:
+        if name not in allowed:
+            where = f"{key}.{name}" if key else name
+            raise ValueError(f"{where}: unknown key (allowed: {', '.join(allowed)})")
+    return x
+
+
+def parse_fit_config(data) -> FitConfig:
+    """Check a ``jaxdea fit`` configuration (a dict, as read from TOML; :data:`FORMAT`).
+
+    Raises:
+        ValueError: naming the offending key (``free.shear_modulus``, ``options.m_max``, …).
+    """
+    _table("", data, TOP_KEYS)
+    for key in ("free", "fixed"):
+        if key not in data:
+            raise ValueError(f"{key}: missing table [{key}]")
+    fluid = data.get("fluid")
+    if isinstance(fluid, dict):
+        _table("fluid", fluid, FLUID_KEYS)
+        if fluid.get("coupling", "acoustic") not in ("acoustic", "paper"):
+            raise ValueError(f"fluid.coupling: expected \"acoustic\" or \"paper\", got "
+                             f"{fluid['coupling']!r}")
+        order = fluid.get("bessel_order")
+        if order is not None and (isinstance(order, bool) or not isinstance(order, int)
+                                  or order < 0):
+            raise ValueError(f"fluid.bessel_order: expected an integer >= 0, got {order!r}")
+        from .params import Fluid
+
+        fluid = Fluid(coupling=fluid.get("coupling", "acoustic"), bessel_order=order)
+    elif fluid is not None and fluid not in ("acoustic", "paper"):
+        raise ValueError(f"fluid: expected \"acoustic\", \"paper\" or a table, got {fluid!r}")
+    known = NAMES if fluid is not None else NAMES[:-2]
+    free, initial = {}, {}
+    for name, spec in _table("free", data["free"], NAMES).items():
+        key = f"free.{name}"
+        if name not in known:
+            raise ValueError(f"{key}: a fluid parameter needs fluid = \"acoustic\" or [fluid]")
+        if isinstance(spec, dict):
+            _table(key, spec, FREE_KEYS)
+            for bound in ("lower", "upper"):
+                if bound not in spec:
+                    raise ValueError(f"{key}.{bound}: missing")
+            bounds = (spec["lower"], spec["upper"])
+            if "initial" in spec:
+                initial[name] = _number(f"{key}.initial", spec["initial"])
+        elif isinstance(spec, list) and len(spec) == 2:
+            bounds = spec
+        else:
+            raise ValueError(f"{key}: expected [lower, upper] or {{lower, upper, initial}}, "
+                             f"got {spec!r}")
+        free[name] = tuple(_number(f"{key}", b) for b in bounds)
+    fixed = {}
+    for name, value in _table("fixed", data["fixed"], NAMES).items():
+        if name not in known:
+            raise ValueError(f"fixed.{name}: a fluid parameter needs fluid = \"acoustic\" or "
+                             f"[fluid]")
+        fixed[name] = _number(f"fixed.{name}", value, allow_inf=name == "gent")
+    options = dict(_table("options", data.get("options", {}), OPTION_KEYS))
+    for name, value in options.items():
+        if name == "threshold":
+            options[name] = _number("options.threshold", value)
+        elif isinstance(value, bool) or not isinstance(value, int):
+            raise ValueError(f"options.{name}: expected an integer, got {value!r}")
+    if initial and len(initial) != len(free):
+        missing = [k for k in free if k not in initial]
+        raise ValueError(f"free.{missing[0]}.initial: needed when another free parameter has one")
+    return FitConfig(free, fixed, fluid, initial or None, options)
+
+
+def load_fit_config(path) -> FitConfig:
+    """Read and check a ``jaxdea fit`` configuration from a TOML file (:func:`parse_fit_config`)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: invalid TOML: {exc}") from None
+    try:
+        return parse_fit_config(data)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
+# ------------------------------------------------------------------------------------ command
+
+
+def summary(result: FitResult, data, source="data", caught=()) -> str:
+    """The text ``jaxdea fit`` prints: status, estimates ± 95 % half-widths with the intervals,
+    and the assignment of every peak (unmatched ones listed)."""
+    rows = result.assignment.shape[0]
+    lines = [f"fit of {rows} peaks from {source}: {len(result.names)} free parameters, status "
+             f"{result.status.name}, {result.iterations} iterations", "",
+             f"{'parameter':<16}{'estimate':>14}{'± 95 %':>12}   {'95 % interval':<30}unit"]
+    for name in result.names:
+        value, (low, high) = result.estimate[name], result.interval[name]
+        interval = f"[{low:.6g}, {high:.6g}]"
+        lines.append(f"{name:<16}{value:>14.7g}{0.5 * (high - low):>12.3g}   {interval:<30}"
+                     f"{UNITS[name]}")
+    model = model_frequency(result, data)
+    residual = "(f_model - f)/σ" if "sigma_Hz" in data else "f_model - f (Hz)"
+    lines += ["", f"{'peak':>4} {'voltage_V':>12} {'frequency_Hz':>14} {'model_Hz':>14} "
+              f"{residual:>16}  (m, n, branch)"]
+    for i in range(rows):
+        label = tuple(int(x) for x in result.assignment[i])
+        text = "unmatched" if label[0] < 0 else f"{label}"
+        lines.append(f"{i:>4} {data['voltage_V'][i]:>12.6g} {data['frequency_Hz'][i]:>14.7g} "
+                     f"{model[i]:>14.7g} {result.residuals[i]:>16.3g}  {text}")
+    unmatched = np.flatnonzero(result.assignment[:, 0] < 0)
+    lines.append("unmatched peaks: " + (", ".join(str(i) for i in unmatched) if unmatched.size
+                                        else "none"))
+    lines += [f"warning: {message}" for message in caught]
+    return "\n".join(lines)
+
+
+def run_fit(data_path, config_path, out=None):
+    """``jaxdea fit``: read the peaks and the configuration, fit, write DATA_fit.json
+    (:func:`write_fit`) and DATA_fit.png (:func:`plot_fit`) into ``out`` (default: the folder of
+    DATA).
+
+    Returns:
+        (result, summary text, written paths).
+
+    Raises:
+        ValueError: a bad file, key or value (one line, naming it).
+    """
+    config = load_fit_config(config_path)
+    data = read_peaks(data_path)
+    data_path = Path(data_path)
+    folder = Path(out) if out is not None else data_path.parent
+    paths = [folder / f"{data_path.stem}_fit.json", folder / f"{data_path.stem}_fit.png"]
+    try:  # before the fit: a bad folder fails at once
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"cannot write into {folder}: {exc.strerror or exc}") from None
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", IdentifiabilityWarning)
+        result = fit(data, config.free, config.fixed, config.fluid, initial=config.initial,
+                     **config.options)
+    messages = [str(w.message) for w in caught if issubclass(w.category, IdentifiabilityWarning)]
+    try:
+        write_fit(result, data, paths[0], messages)
+        plot_fit(result, data, paths[1])
+    except OSError as exc:
+        raise ValueError(f"cannot write into {folder}: {exc.strerror or exc}") from None
+    return result, summary(result, data, data_path.name, messages), paths
