@@ -11,9 +11,11 @@ coupling and m = 0 against m ≥ 1 are separate programs, each compiled on first
 
 from __future__ import annotations
 
+import concurrent.futures
 import functools
 import html
 import io
+import threading
 from typing import NamedTuple
 
 import numpy as np
@@ -147,8 +149,10 @@ def explore(tube: Tube | None = None, fluid: Fluid | None = None, *, n_modes: in
     tube and the coupling (``"paper"`` with its Bessel order ν, valid at m = 0 only). The plots
     show the ``n_modes`` lowest Ω(α̂) (:func:`explorer_data`), the phase velocity Ω/α̂, the axial
     modes n = 1 … ``n_axial`` marked on both, and the stability status of
-    :func:`stability_status` (shaded when V̂ ≥ V̂_first; recomputed only when λ_i, λ_z, η or G
-    change). A click on a curve (on an interactive matplotlib canvas showing ``app.figure``), the
+    :func:`stability_status` (shaded when V̂ ≥ V̂_first). Its ``first_instability`` solve depends
+    on λ_i, λ_z, η and G only: after a move of one of them it runs in the background (the curves
+    are drawn at once, the status and shading when it ends; ``app.wait()`` blocks until then), so
+    no update waits for it. A click on a curve (on an interactive matplotlib canvas showing ``app.figure``), the
     α̂ and branch controls, or ``app.select(alpha, branch)`` shows that root's mode shape in the
     side panel. Invalid combinations (e.g. a wall past Gent locking) show the error message
     instead of raising.
@@ -167,7 +171,8 @@ def explore(tube: Tube | None = None, fluid: Fluid | None = None, *, n_modes: in
     Returns:
         The app, an ``ipywidgets.VBox``: ``controls`` (the widgets by parameter name), ``set``
         (several controls, one redraw), ``select`` and ``on_click``; ``data``
-        (:class:`ExplorerData`), ``status`` (:class:`StabilityStatus`), ``mode`` ((α̂, Ω, r,
+        (:class:`ExplorerData`), ``status`` (:class:`StabilityStatus`, None while its solve
+        runs: ``wait``), ``mode`` ((α̂, Ω, r,
         fields)) and ``error`` (the message, or None) hold what is shown.
 
     Raises:
@@ -228,6 +233,9 @@ def _app_class():
             self.selection = None  # (α̂, branch) of the mode shown
             self._first = {}  # (V̂_first, m, n) of the last wall
             self._holding = False  # True while set() changes several controls
+            self._pool = concurrent.futures.ThreadPoolExecutor(max_workers=1)
+            self._pending = None  # (wall key, future) of the background first-instability solve
+            self._lock = threading.RLock()  # one recomputation or redraw at a time
             shown = fluid if fluid is not None else Fluid()
             c = self.controls = dict(
                 voltage=_slider(widgets, "V̂", tube.voltage, 0.0, 0.3, 0.002),
@@ -287,16 +295,56 @@ def _app_class():
                               bessel_order=int(c["bessel_order"].value) if paper else None)
             return tube, fluid, int(c["m"].value)
 
+        @staticmethod
+        def _wall_key(tube):
+            return (tube.lambda_i, tube.lambda_z, tube.eta, tube.gent, tube.length_ratio,
+                    tube.material)
+
         def _stability(self, tube):
-            """:func:`stability_status`, its first-instability solve kept per wall (it does not
-            depend on V̂ or the fluid)."""
-            key = (tube.lambda_i, tube.lambda_z, tube.eta, tube.gent, tube.length_ratio,
-                   tube.material)
-            if key not in self._first:
-                first = first_instability(tube, n_max=self.n_max, m_max=self.m_max,
-                                          n_layers=self.n_layers)
+            """:func:`stability_status` when the first instability of this wall is known (it does
+            not depend on V̂ or the fluid); else None, and its ``first_instability`` solve starts
+            in the background (the status and shading follow when it ends; :meth:`wait`)."""
+            key = self._wall_key(tube)
+            if key in self._first:
+                return judge_stability(*self._first[key], float(tube.voltage), self.n_max,
+                                       self.m_max)
+            if self._pending is None or self._pending[0] != key:
+                self._pending = (key, self._pool.submit(self._solve_first, key, tube))
+            return None
+
+        def _solve_first(self, key, tube):
+            """The background solve: store (V̂_first, m, n) and, if the controls still show this
+            wall, put its status on the app."""
+            first = first_instability(tube, n_max=self.n_max, m_max=self.m_max,
+                                      n_layers=self.n_layers)
+            with self._lock:
                 self._first = {key: (float(first.voltage), int(first.m), int(first.n))}
-            return judge_stability(*self._first[key], float(tube.voltage), self.n_max, self.m_max)
+                try:
+                    tube_now, _, _ = self.parameters()
+                except ValueError:
+                    return
+                if self.data is not None and self._wall_key(tube_now) == key:
+                    self.status = self._stability(tube_now)
+                    self._show_status()
+                    self._draw()
+
+        def wait(self):
+            """Block until the background first-instability solve (if any) has ended and its
+            status is shown."""
+            pending = self._pending
+            if pending is not None:
+                pending[1].result()
+
+        def _show_status(self):
+            status = self.status
+            if not self.stability:
+                self.status_label.value = ""
+            elif status is None:
+                self.status_label.value = "<i>stability: solving the first instability…</i>"
+            else:
+                self.status_label.value = (
+                    f'<b style="color:{"#b00020" if status.unstable else "#1b5e20"}">'
+                    f"{html.escape(status.text)}</b>")
 
         def _show_error(self, text):
             self.message.value = f'<span style="color:#b00020">{html.escape(text)}</span>'
@@ -315,21 +363,23 @@ def _app_class():
             """Recompute for the controls' values and redraw; a ValueError is shown, not raised."""
             if self._holding:
                 return
+            with self._lock:
+                self._refresh()
+
+        def _refresh(self):
             self.message.value = ""
             try:
                 tube, fluid, m = self.parameters()
                 data = explorer_data(tube, fluid, m, self.n_modes, self.alphas, self.n_axial,
                                      self.n_layers)
-                status = self._stability(tube) if self.stability else None
             except ValueError as exc:
                 self.data, self.status, self.mode, self.error = None, None, None, str(exc)
                 self._show_error(str(exc))
                 self.status_label.value = ""
             else:
-                self.data, self.status, self.error = data, status, None
-                self.status_label.value = "" if status is None else (
-                    f'<b style="color:{"#b00020" if status.unstable else "#1b5e20"}">'
-                    f"{html.escape(status.text)}</b>")
+                self.data, self.error = data, None
+                self.status = self._stability(tube) if self.stability else None
+                self._show_status()
                 slider, low, high = self.pick["alpha"], float(data.alpha[0]), float(data.alpha[-1])
                 if low > slider.max:
                     slider.max, slider.min = high, low
@@ -351,10 +401,11 @@ def _app_class():
             """Show the mode shape of ``branch`` (0: the lowest) at the grid α̂ nearest to
             ``alpha`` (:func:`explorer_mode`) and return it as (α̂, Ω, r, fields); a ValueError is
             shown, not raised (None returned)."""
-            self.selection = (float(alpha), int(branch))
-            self.mode = self._mode(*self.selection) if self.data is not None else None
-            self._draw()
-            return self.mode
+            with self._lock:
+                self.selection = (float(alpha), int(branch))
+                self.mode = self._mode(*self.selection) if self.data is not None else None
+                self._draw()
+                return self.mode
 
         def on_click(self, event):
             """Matplotlib click handler: the root nearest to the click (in axes units) on either

@@ -48,6 +48,7 @@ app
 # `dispersion_curve` on the app's grid (the α̂ grid with the axial modes' α̂_n inserted).
 
 # %%
+app.wait()  # the first-instability solve of a new wall runs in the background
 print(app.status.text)
 assert app.status.unstable and (app.status.m, app.status.n) == (2, 1)
 curve = jd.dispersion_curve(tube, app.data.alpha, n_roots=3)

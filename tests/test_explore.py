@@ -104,6 +104,7 @@ def test_click_shows_the_mode_shape(app):
 def test_stability_status_is_the_first_instability():
     app = jd.explore(TUBE.replace(voltage=0.1), m_max=3)
     first = jd.first_instability(TUBE, n_max=3, m_max=3)
+    app.wait()  # the first-instability solve runs in the background
     assert (app.status.m, app.status.n) == (int(first.m), int(first.n)) == (2, 1)
     assert app.status == stability_status(TUBE.replace(voltage=0.1), m_max=3)
     np.testing.assert_allclose(app.status.voltage, float(first.voltage), rtol=1e-12)
@@ -112,6 +113,12 @@ def test_stability_status_is_the_first_instability():
     app.controls["voltage"].value = 0.02  # below V̂_first = 0.0293: no new first_instability solve
     assert not app.status.unstable and "stable" in app.status_label.value
     assert app.axes[0].get_facecolor()[:3] == (1.0, 1.0, 1.0)
+    app.controls["lambda_i"].value = 1.1  # a new wall: curves at once, the status once solved
+    np.testing.assert_allclose(app.data.omega, explorer_data(app.parameters()[0], alphas=app.alphas).omega,
+                               rtol=1e-12)
+    app.wait()
+    assert app.status == stability_status(TUBE.replace(voltage=0.02, lambda_i=1.1), m_max=3)
+    assert "solving" not in app.status_label.value
 
 
 @pytest.mark.slow
