@@ -35,7 +35,8 @@ How the problems are posed, and why (what converged robustly in our runs):
   seeds the first guess and verifies the optimum (the tracked root must be the lowest).
 * The loss and its gradient come from one small compiled program that attaches implicit-function
   derivatives to those roots, dx/dθ = −(∂g/∂θ)/(∂g/∂x) for g(Ω) = f(Ω; θ) and g(V̂) = f(0; V̂, θ)
-  (``jax.lax.custom_root``; never derivatives of the iterations), and differentiates in forward
+  (:func:`jaxdea.scalar.implicit_root`, the mechanism of every solver of the package; never
+  derivatives of the iterations), and differentiates in forward
   mode (two or fewer variables). The solvers themselves are the library's compiled programs, shared
   with every other use, so a design run compiles only characteristic-function derivatives.
 * The tunability T = dΩ/dV̂ = −(∂f/∂V̂)/(∂f/∂Ω) is evaluated at the root that carries its implicit

@@ -30,7 +30,8 @@ uniform in the phase of the coupling near each pole Ω_k of B̂_ν (closed form,
 which splits a pair straddling it into two sign changes (:func:`pole_steps`).
 
 Derivatives. Every returned root carries implicit-function derivatives dΩ/dθ = −(∂f/∂θ)/(∂f/∂Ω)
-(a ``jax.custom_jvp`` around the values of the solver), never derivatives of the iterations: the
+(:func:`jaxdea.scalar.attach_implicit`, the one mechanism of every solver of the package: a
+``jax.custom_jvp`` around the values of the solver), never derivatives of the iterations: the
 solver is compiled once for values, and differentiating compiles only f and its derivatives.
 """
 
@@ -76,6 +77,7 @@ from .scalar import (
     run_lanes,
     start_lanes,
     value_and_slope,
+    with_implicit_derivatives,
 )
 from .state_matrix import LONGITUDINAL, ORDER_M
 from .transfer import Wall, discretize, laminate, voltage_expansion, wall_at_voltage
@@ -500,40 +502,18 @@ def _residual(x, tube, alpha, fluid, m, n_layers, order, unknown, family=LONGITU
     return characteristic_of_w(wall, x * x, alpha, fluid, order, method, m, family)
 
 
-@jit(static_argnames=("n_layers", "order", "unknown", "family"))
-def _root_tangent(x, params, dparams, n_layers, order, unknown, family):
-    """ẋ = −(∂f/∂θ · θ̇)/(∂f/∂x) at a root x (implicit function theorem), vectorised over roots."""
-    def one(x):
-        # a NaN root (padding, a failed solve) gets a zero tangent, not NaN: under reverse mode a
-        # NaN coefficient would spoil the cotangent of every other root (0 · NaN = NaN)
-        found = jnp.isfinite(x)
-        x = jnp.where(found, x, 1.0)
-        f = lambda y, p: _residual(y, *p, n_layers, order, unknown, family)  # noqa: E731
-        f_x = value_and_slope(lambda y: f(y, params), x)[1]
-        _, f_dot = jax.jvp(lambda p: f(x, p), (params,), (dparams,))
-        return jnp.where(found, -f_dot / jnp.where(found, f_x, 1.0), 0.0)
+class Residual(NamedTuple):
+    """The characteristic function as residual(x, params) of :func:`jaxdea.scalar.attach_implicit`:
+    :func:`_residual` with params = (tube, α̂, fluid, m); compared by value, so the tangent
+    program of each (N, order, unknown, family) compiles once."""
 
-    return jax.vmap(one)(x) if jnp.ndim(x) else one(x)
+    n_layers: object
+    order: object
+    unknown: str
+    family: str
 
-
-@functools.partial(jax.custom_jvp, nondiff_argnums=(2, 3, 4, 5))
-def _implicit(x, params, n_layers, order, unknown, family):
-    """Roots x (computed without derivatives) with implicit-function derivatives attached.
-
-    The solver is compiled once, for values only; differentiating recompiles only f and its
-    derivatives (:func:`_root_tangent`), never the iterations."""
-    del params, n_layers, order, unknown, family
-    return x
-
-
-@_implicit.defjvp
-def _implicit_jvp(n_layers, order, unknown, family, primals, tangents):
-    x, params = primals
-    _, dparams = tangents
-    # the root re-attached to its parameters: differentiating this rule again (second and higher
-    # derivatives) then sees dx/dθ too, not only the explicit dependence of f on θ at a fixed x
-    x = _implicit(x, params, n_layers, order, unknown, family)
-    return x, _root_tangent(x, params, dparams, n_layers, order, unknown, family)
+    def __call__(self, x, params):
+        return _residual(x, *params, self.n_layers, self.order, self.unknown, self.family)
 
 
 def _with_derivatives(roots: Roots, params, n_layers, order, unknown="omega",
@@ -541,7 +521,7 @@ def _with_derivatives(roots: Roots, params, n_layers, order, unknown="omega",
     """``roots`` with implicit derivatives with respect to ``params`` = (tube, α̂, fluid[, m])."""
     if len(params) == 3:
         params = (*params, 0.0)
-    omega = _implicit(jax.lax.stop_gradient(roots.omega), params, n_layers, order, unknown, family)
+    omega = with_implicit_derivatives(Residual(n_layers, order, unknown, family), roots.omega, params)
     return Roots(omega, roots.status)
 
 

@@ -6,10 +6,13 @@ failures give NaN and a status code instead of an exception.
 """
 
 import enum
+import functools
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+
+from .compiled import jit
 
 
 class Status(enum.IntEnum):
@@ -28,25 +31,72 @@ def value_and_slope(fun, x):
     return jax.jvp(fun, (x,), (jnp.ones_like(x),))
 
 
+@functools.partial(jax.custom_jvp, nondiff_argnums=(0,))
+def attach_implicit(residual, x, params):
+    """Roots ``x`` of residual(x, params) = 0 (solved without derivatives) with the
+    implicit-function derivatives ẋ = −(∂f/∂θ · θ̇)/(∂f/∂x) attached: the one mechanism of every
+    solver (roots, critical voltages, the base state, design, fit through the roots).
+
+    ``residual(y, params)`` is scalar in y (an array ``x`` holds independent roots of one
+    ``params``, a pytree) and hashable: the tangent program is compiled once per residual (a
+    value-equal object such as :class:`jaxdea.roots.Residual` hits the cache across calls). The
+    iterations that found ``x`` are never differentiated; first and higher derivatives work in
+    forward and reverse mode (the rule re-attaches x, so differentiating it sees dx/dθ too)."""
+    del residual, params
+    return x
+
+
+@attach_implicit.defjvp
+def _attach_implicit_jvp(residual, primals, tangents):
+    x, params = primals
+    _, dparams = tangents
+    x = attach_implicit(residual, x, params)
+    return x, root_tangent(residual, x, params, dparams)
+
+
+@jit(static_argnums=(0,))
+def root_tangent(residual, x, params, dparams):
+    """ẋ = −(∂f/∂θ · θ̇)/(∂f/∂x) at roots x of ``residual`` (vectorised over an array x)."""
+    def one(x):
+        # a NaN root (padding, a failed solve) gets a zero tangent, not NaN: under reverse mode a
+        # NaN coefficient would spoil the cotangent of every other root (0 · NaN = NaN)
+        found = jnp.isfinite(x)
+        x = jnp.where(found, x, 1.0)
+        f_x = value_and_slope(lambda y: residual(y, params), x)[1]
+        _, f_dot = jax.jvp(lambda p: residual(x, p), (params,), (dparams,))
+        return jnp.where(found, -f_dot / jnp.where(found, f_x, 1.0), 0.0)
+
+    return jax.vmap(one)(x) if jnp.ndim(x) else one(x)
+
+
+def with_implicit_derivatives(residual, x, params):
+    """:func:`attach_implicit` of the values of ``x`` (its own derivatives dropped)."""
+    return attach_implicit(residual, jax.lax.stop_gradient(x), params)
+
+
 def implicit_root(fun, solve, x0):
     """A root x* of ``fun`` with implicit-function derivatives, dx*/dθ = −(∂f/∂θ)/(∂f/∂x).
 
-    ``fun`` may close over traced parameters θ; ``solve()`` returns ``(x*, status)`` (its own
-    derivatives are never used: no differentiation through the iterations). Built on
-    ``jax.lax.custom_root``; ``x0`` only fixes the shape and dtype.
+    ``fun`` may close over traced parameters θ (hoisted by ``jax.closure_convert`` and passed to
+    :func:`attach_implicit`); ``solve()`` returns ``(x*, status)`` (its own derivatives are never
+    used: no differentiation through the iterations); ``x0`` only fixes the shape and dtype.
 
     Returns:
         (x*, status).
     """
-    def solver(f, guess):
-        del f, guess
-        x, status = solve()
-        return x, jnp.asarray(status, x.dtype)  # an integer aux has no tangent space here
+    x, status = solve()
+    converted, consts = jax.closure_convert(fun, x0)
+    x = with_implicit_derivatives(_Converted(converted), x, tuple(consts))
+    return x, jax.lax.stop_gradient(jnp.asarray(status)).astype(jnp.int32)
 
-    x, status = jax.lax.custom_root(
-        fun, x0, solver, lambda g, y: y / g(jnp.ones_like(y)), has_aux=True
-    )
-    return x, jax.lax.stop_gradient(status).astype(jnp.int32)
+
+class _Converted(NamedTuple):
+    """residual(y, consts) of a closure-converted function (hashable for :func:`attach_implicit`)."""
+
+    fun: object
+
+    def __call__(self, y, consts):
+        return self.fun(y, *consts)
 
 
 # ------------------------------------------------------------------------- vectorised lane solver
