@@ -44,7 +44,7 @@ import numpy as np
 
 from .base_state import voltage_limit
 from .bessel import NODES
-from .compiled import cached_jit, jit, serializable
+from .compiled import cached_jit, serializable
 from .dispersion import (
     characteristic_and_scale,
     characteristic_and_scale_of_w,

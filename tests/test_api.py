@@ -47,7 +47,7 @@ def test_every_derivative_of_frequency_matches_finite_differences():
 
 @pytest.mark.slow
 def test_reverse_mode_equals_forward_mode_and_group_velocity():
-    """jax.grad (reverse, through custom_root's transpose) equals jacfwd; dΩ/dα̂ equals
+    """jax.grad (reverse, through the transpose of the implicit-derivative rule) equals jacfwd; dΩ/dα̂ equals
     group_velocity; η enters directly too (empty tube)."""
     tube = jd.Tube(voltage=0.1, lambda_i=0.9, **PAPER)
     fun = lambda eta, alpha: jd.frequency(tube.replace(eta=eta), alpha, 0.72)  # noqa: E731
