@@ -315,8 +315,14 @@ def _app_class():
         def _solve_first(self, key, tube):
             """The background solve: store (V̂_first, m, n) and, if the controls still show this
             wall, put its status on the app."""
-            first = first_instability(tube, n_max=self.n_max, m_max=self.m_max,
-                                      n_layers=self.n_layers)
+            try:
+                first = first_instability(tube, n_max=self.n_max, m_max=self.m_max,
+                                          n_layers=self.n_layers)
+            except ValueError as exc:  # shown, like every other error; never a status left pending
+                with self._lock:
+                    self.status_label.value = ""
+                    self._show_error(str(exc))
+                return
             with self._lock:
                 self._first = {key: (float(first.voltage), int(first.m), int(first.n))}
                 try:

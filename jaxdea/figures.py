@@ -113,7 +113,7 @@ def _fmt(v):
 # ----------------------------------------------------------------------------- computations
 
 
-CV_CHUNK = 64  # critical voltages per compiled call: every grid pads to a multiple (one compilation)
+CV_CHUNK = 16  # critical voltages per compiled call: every grid pads to a multiple (one compilation)
 
 
 @cached_jit(static_argnames=("n_layers",))
