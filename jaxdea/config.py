@@ -57,8 +57,8 @@ FORMAT = f"""\
           exactly one of alpha (α̂) and n (axial mode numbers, integers >= 1); a parameter is fixed
           in [tube]/[fluid]/[solver] or swept here, not both; the plot's x axis is the first axis
           with more than one value
-[solver]  n_roots = 3 (K lowest roots per point), n_layers = 30 (sublayers N),
-          scheme = "midpoint" | "magnus4" | "magnus6" (how a sublayer is crossed),
+[solver]  n_roots = 3 (K lowest roots per point), n_layers = N (sublayers; default: chosen for 1e-8),
+          scheme = "midpoint" | "magnus4" | "magnus6" (how a sublayer is crossed; default graded magnus6),
           jacobian = false | true | [names] (dΩ/dθ and dΩ/dα̂ too), omega_max = a number
           (default: automatic), m = 0 (circumferential order, integer >= 0; or axes.m),
           torsional = false (the torsional family, m = 0 only), n_growth = 0 (growth rates
@@ -107,8 +107,8 @@ class SweepConfig:
         axes: ``{name: 1-D float64 array}`` in grid order (a fixed ``tube.thickness_ratio`` comes
             last, as an axis of length 1).
         n_roots: K, roots per point.
-        n_layers: sublayers N.
-        scheme: the propagation scheme (``jaxdea.sweep``'s ``scheme``).
+        n_layers: sublayers N, or None (the default discretisation, chosen for 1e-8).
+        scheme: the propagation scheme (``jaxdea.sweep``'s ``scheme``), or None.
         jacobian: False, True or a tuple of parameter names (``jaxdea.sweep``'s ``jacobian``).
         omega_max: upper end of each root search, or None (automatic).
         m: the fixed circumferential order (``jaxdea.sweep``'s ``m``; an axis ``m`` instead is in
@@ -128,8 +128,8 @@ class SweepConfig:
     fluid: dict | None
     axes: dict
     n_roots: int = 3
-    n_layers: int = 30
-    scheme: str = "midpoint"
+    n_layers: int | None = None
+    scheme: str | None = None
     jacobian: bool | tuple = False
     omega_max: float | None = None
     m: int = 0

@@ -263,8 +263,8 @@ def _count_roots(tube, alpha, omega_lo, omega_hi, fluid, height, max_evaluations
 
 
 def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = None,
-                n_layers: int = 30, height=None, max_evaluations: int = 65536,
-                symmetric: bool = True, scheme: str = "midpoint", m=0,
+                n_layers: int | None = None, height=None, max_evaluations: int = 65536,
+                symmetric: bool = True, scheme: str | None = None, m=0,
                 torsional: bool = False) -> RootCount:
     """The number of frequencies in (omega_lo, omega_hi), by the argument principle.
 
@@ -319,7 +319,7 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
     default = height is None
     height = as_float(1.0 if default else height)
     args = (tube, alpha, omega_lo, omega_hi, fluid, height, jnp.asarray(max_evaluations),
-            laminate(n_layers, scheme), order, bool(symmetric), default)
+            laminate(n_layers, scheme, tube, alpha, m=m), order, bool(symmetric), default)
     if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
         count, status, _ = _count_roots(*args)
     else:

@@ -258,7 +258,7 @@ _solve_curve = cached_jit(curve_unchecked,
 
 
 def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
-                     n_layers: int = 30, scheme: str = "midpoint", m=0,
+                     n_layers: int | None = None, scheme: str | None = None, m=0,
                      torsional: bool = False) -> Curve:
     """The ``n_roots`` lowest frequencies at every α̂ of a grid, by certified continuation.
 
@@ -300,7 +300,7 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
     order, family = _order_inputs(tube, 1.0, fluid, n_layers, scheme, m, torsional)
     n_roots = validate_count("n_roots", n_roots)
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
-    layers = laminate(n_layers, scheme)
+    layers = laminate(n_layers, scheme, tube, alpha, n_roots, m)
     values = jax.lax.stop_gradient((tube, alpha, fluid))
     if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
         curve = _solve_curve(*values, n_roots, layers, order)

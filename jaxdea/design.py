@@ -126,8 +126,8 @@ class DesignResult(NamedTuple):
 # ----------------------------------------------------------------------------- building blocks
 
 
-def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: int = 30,
-               scheme: str = "midpoint"):
+def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: int | None = None,
+               scheme: str | None = None):
     """dΩ/dV̂ on the branch through the root ``omega``: T = −(∂f/∂V̂)/(∂f/∂Ω) (implicit function theorem).
 
     ``omega`` must be a root (from :func:`jaxdea.frequency` or :func:`jaxdea.frequencies`), to the
@@ -162,7 +162,7 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
     f_omega = jax.jvp(lambda om: f(om, voltage), (omega,), (jnp.ones_like(omega),))[1]
     f_voltage = jax.jvp(lambda v: f(omega, v), (voltage,), (jnp.ones_like(voltage),))[1]
     distance = root_distance(*jax.lax.stop_gradient((tube, alpha, omega, fluid)),
-                             laminate(n_layers, scheme), order)
+                             laminate(n_layers, scheme, tube, alpha), order)
     if concrete and not isinstance(distance, jax.core.Tracer) and not float(distance) <= ROOT_RTOL:
         raise ValueError(f"omega = {float(omega)!r} is not a root of the characteristic function "
                          f"(a Newton step moves it by {float(distance):.2g} of itself, above "
@@ -488,7 +488,7 @@ def _seed(x0, setting, kind, fraction, n_layers, scheme, m_max, n_max, what):
 def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0.5, thickness=None,
                          voltage_fraction=None, thickness_bounds=(0.05, 1.0), voltage_margin=0.8,
                          m_max: int = 8, n_max: int = 3, learning_rate=0.2, max_steps=500,
-                         rtol=1e-6, n_layers: int = 30, scheme: str = "midpoint") -> DesignResult:
+                         rtol=1e-6, n_layers: int | None = None, scheme: str | None = None) -> DesignResult:
     """Undeformed thickness H/R_i and voltage V̂ that put the lowest frequency of mode n at ``target``.
 
     Fluid-free tube; λ_i, λ_z, G, L/R_o are kept. Design variables, mapped onto their ranges:
@@ -600,8 +600,8 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
 
 def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage_fraction=0.5,
                         lambda_i=None, voltage_margin=0.8, m_max: int = 8, n_max: int = 3,
-                        learning_rate=0.3, max_steps=300, rtol=1e-9, n_layers: int = 30,
-                        scheme: str = "midpoint") -> DesignResult:
+                        learning_rate=0.3, max_steps=300, rtol=1e-9, n_layers: int | None = None,
+                        scheme: str | None = None) -> DesignResult:
     """Voltage (and optionally λ_i) that maximise the tunability |dΩ/dV̂| of the lowest frequency.
 
     Fixed thickness (η), λ_z, G; fluid-free. Loss −|T| with T = dΩ/dV̂ = −(∂f/∂V̂)/(∂f/∂Ω) at the

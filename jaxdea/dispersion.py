@@ -132,8 +132,8 @@ def check_inputs(tube, alpha, fluid, n_layers, scheme="midpoint"):
     return resolve_order(tube, alpha, fluid)
 
 
-def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layers: int = 30,
-                   scheme: str = "midpoint", m=0, torsional: bool = False):
+def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layers: int | None = None,
+                   scheme: str | None = None, m=0, torsional: bool = False):
     """The real characteristic function whose zeros in Ω are the frequencies.
 
     f(Ω) = det(B Q_N) (module docstring): finite, pole-free, even in Ω, |f| ≤ 1, with the zeros and
@@ -168,13 +168,14 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
     validate_real("omega", omega)
     tube, omega, alpha, fluid = canonical(tube, omega, alpha, fluid)
     if family == LONGITUDINAL:
-        return _characteristic(tube, omega, alpha, fluid, laminate(n_layers, scheme), order)
+        return _characteristic(tube, omega, alpha, fluid, laminate(n_layers, scheme, tube, alpha, m=m),
+                               order)
     return _characteristic_m(tube, omega * omega, alpha, fluid, as_float(m),
-                             laminate(n_layers, scheme), order, family)
+                             laminate(n_layers, scheme, tube, alpha, m=m), order, family)
 
 
 def characteristic_at_omega_squared(tube: Tube, omega_squared, alpha, fluid: Fluid | None = None,
-                                    n_layers: int = 30, scheme: str = "midpoint", m=0,
+                                    n_layers: int | None = None, scheme: str | None = None, m=0,
                                     torsional: bool = False):
     """The characteristic function of :func:`characteristic` as a function of w = Ω², any sign.
 
@@ -194,7 +195,7 @@ def characteristic_at_omega_squared(tube: Tube, omega_squared, alpha, fluid: Flu
     tube, omega_squared, alpha, fluid = canonical(tube, omega_squared, alpha, fluid)
     family = ORDER_M if family == LONGITUDINAL else family
     return _characteristic_m(tube, omega_squared, alpha, fluid, as_float(m),
-                             laminate(n_layers, scheme), order, family)
+                             laminate(n_layers, scheme, tube, alpha, m=m), order, family)
 
 
 @cached_jit(static_argnames=("n_layers", "order", "family"))

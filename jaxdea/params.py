@@ -398,9 +398,11 @@ def validate_count(name: str, value, low: int = 1) -> int:
 
 
 def validate_layers(n_layers) -> None:
-    """n_layers is a static integer >= 1."""
+    """n_layers is None (the default discretisation) or a static integer >= 1."""
+    if n_layers is None:
+        return
     if not isinstance(n_layers, (int, np.integer)) or isinstance(n_layers, bool) or n_layers < 1:
-        raise ValueError(f"n_layers must be an integer >= 1, got {n_layers!r}")
+        raise ValueError(f"n_layers must be None or an integer >= 1, got {n_layers!r}")
 
 
 def mode_number(tube: Tube, alpha) -> int:

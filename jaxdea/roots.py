@@ -606,8 +606,8 @@ def _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional):
 
 
 def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3, m=0,
-                 torsional: bool = False, s_max=None, n_layers: int = 30,
-                 scheme: str = "midpoint"):
+                 torsional: bool = False, s_max=None, n_layers: int | None = None,
+                 scheme: str | None = None):
     """Growth rates s = √(−Ω²) of the unstable modes of order m at α̂, largest first, NaN-padded.
 
     An unstable state has modes with Ω² < 0 (e^{st} growth, s > 0): zeros of the characteristic
@@ -633,7 +633,7 @@ def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3
     if s_max is not None:
         validate_positive("s_max", s_max)
     tube, alpha, fluid, s_max, m = canonical(tube, alpha, fluid, s_max, m)
-    layers = laminate(n_layers, scheme)
+    layers = laminate(n_layers, scheme, tube, alpha, n_roots, m)
     roots = _solve_growth_rates(*jax.lax.stop_gradient((tube, alpha, fluid, s_max)), n_roots, layers,
                                 order, jax.lax.stop_gradient(m), family)
     return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "growth", family).omega
@@ -646,7 +646,7 @@ def _growth_family(family):
 
 
 def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
-                      omega_max=None, n_layers: int = 30, scheme: str = "midpoint", m=0,
+                      omega_max=None, n_layers: int | None = None, scheme: str | None = None, m=0,
                       torsional: bool = False) -> Roots:
     """The ``n_roots`` lowest roots in (0, omega_max] with a status per root (module docstring).
 
@@ -658,7 +658,7 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
     if omega_max is not None:
         validate_positive("omega_max", omega_max)
     tube, alpha, fluid, omega_max, m = canonical(tube, alpha, fluid, omega_max, m)
-    layers = laminate(n_layers, scheme)
+    layers = laminate(n_layers, scheme, tube, alpha, n_roots, m)
     if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
         roots = _solve_frequencies(*jax.lax.stop_gradient((tube, alpha, fluid, omega_max)),
                                    n_roots, layers, order)
@@ -669,7 +669,7 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
 
 
 def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
-                omega_max=None, n_layers: int = 30, scheme: str = "midpoint", m=0,
+                omega_max=None, n_layers: int | None = None, scheme: str | None = None, m=0,
                 torsional: bool = False):
     """The ``n_roots`` lowest frequencies Ω in (0, omega_max], ascending, NaN-padded.
 
@@ -728,13 +728,13 @@ def _solve_frequency(tube, alpha, guess, fluid, n_layers, order, m=0.0, family=L
 
 
 def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
-                    n_layers: int = 30, scheme: str = "midpoint", m=0,
+                    n_layers: int | None = None, scheme: str | None = None, m=0,
                     torsional: bool = False) -> Roots:
     """The root reached by safeguarded Newton from ``guess``, with its status (scalar Roots)."""
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_positive("guess", guess)
     tube, alpha, guess, fluid, m = canonical(tube, alpha, guess, fluid, m)
-    layers = laminate(n_layers, scheme)
+    layers = laminate(n_layers, scheme, tube, alpha, m=m)
     values = jax.lax.stop_gradient((tube, alpha, guess, fluid))
     if family == LONGITUDINAL:
         roots = _solve_frequency(*values, layers, order)
@@ -743,8 +743,8 @@ def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
     return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "omega", family)
 
 
-def frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, n_layers: int = 30,
-              scheme: str = "midpoint", m=0, torsional: bool = False):
+def frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, n_layers: int | None = None,
+              scheme: str | None = None, m=0, torsional: bool = False):
     """The root Ω reached by safeguarded Newton from ``guess``, with implicit derivatives.
 
     ``jax.grad``/``jax.jacfwd`` with respect to any Tube/Fluid leaf, α̂ and the ``h_over_Ri`` of
@@ -758,8 +758,8 @@ def frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, n_layers: in
     return solve_frequency(tube, alpha, guess, fluid, n_layers, scheme, m, torsional).omega
 
 
-def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: int = 30,
-                   scheme: str = "midpoint", m=0, torsional: bool = False):
+def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: int | None = None,
+                   scheme: str | None = None, m=0, torsional: bool = False):
     """dΩ/dα̂ on the branch through the root ``omega``: −(∂f/∂α̂)/(∂f/∂Ω) (implicit function theorem).
 
     ``omega`` should be a root (e.g. from :func:`frequencies`); the formula is exact for the
@@ -784,8 +784,8 @@ def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layer
                    lambda v: v > 0)
     tube, alpha, omega, fluid, m = canonical(tube, alpha, omega, fluid, m)
     if family == LONGITUDINAL:
-        return _group_velocity(tube, alpha, omega, fluid, laminate(n_layers, scheme), order)
-    return _group_velocity(tube, alpha, omega, fluid, laminate(n_layers, scheme), order, m, family)
+        return _group_velocity(tube, alpha, omega, fluid, laminate(n_layers, scheme, tube, alpha, m=m), order)
+    return _group_velocity(tube, alpha, omega, fluid, laminate(n_layers, scheme, tube, alpha, m=m), order, m, family)
 
 
 @cached_jit(static_argnames=("n_layers", "order", "family"))
@@ -805,12 +805,12 @@ def _group_velocity(tube, alpha, omega, fluid, n_layers, order, m=0.0, family=LO
 
 
 def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
-                           n_layers: int = 30, scheme: str = "midpoint", m=0,
+                           n_layers: int | None = None, scheme: str | None = None, m=0,
                            torsional: bool = False):
     """(V̂_cr, status): the smallest V̂ > 0 with f(Ω = 0; V̂) = 0 (see :func:`critical_voltage`)."""
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
-    layers = laminate(n_layers, scheme)
+    layers = laminate(n_layers, scheme, tube, alpha, m=m)
     values = jax.lax.stop_gradient((tube, alpha, fluid))
     if family == LONGITUDINAL:
         roots = Roots(*_solve_critical_voltage(*values, layers, order))
@@ -858,8 +858,8 @@ _solve_critical_voltage = cached_jit(critical_voltage_unchecked,
                                      static_argnames=("n_layers", "order", "n_grid", "family"))
 
 
-def critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None, n_layers: int = 30,
-                     scheme: str = "midpoint", m=0, torsional: bool = False):
+def critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None, n_layers: int | None = None,
+                     scheme: str | None = None, m=0, torsional: bool = False):
     """The smallest V̂ > 0 at which the lowest frequency of order ``m`` at α̂ reaches zero.
 
     Solves f(Ω = 0; V̂) = 0 in V̂ directly (the tube's ``voltage`` is ignored; λ_i, λ_z fixed): scan of
@@ -876,7 +876,7 @@ def critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None, n_layers: in
 
 
 def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
-                            n_layers: int = 30, scheme: str = "midpoint", m=0) -> Roots:
+                            n_layers: int | None = None, scheme: str | None = None, m=0) -> Roots:
     """(V̂_cr, status) for every axial mode n = 1 … n_max in one compiled call.
 
     α̂_n = 2nπη/(length_ratio λ_z) (:func:`jaxdea.axial_wavenumber`); each entry as
@@ -889,7 +889,7 @@ def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
     check_inputs(tube, 1.0, fluid, n_layers, scheme)
     family = mode_family(m, False, fluid)
     n_max = _validate_max("n_max", n_max, 1)
-    layers = laminate(n_layers, scheme)
+    layers = laminate(n_layers, scheme, tube, mode_wavenumber(canonical(tube), n_max), m=m)
     if family == LONGITUDINAL:
         return _critical_voltages(canonical(tube), n_max, layers)
     return _critical_voltages(canonical(tube), n_max, layers, as_float(m), family)
@@ -913,8 +913,8 @@ def _critical_voltages(tube, n_max, n_layers, m=0.0, family=LONGITUDINAL):
     return jax.lax.map(one, alphas)
 
 
-def critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None, n_layers: int = 30,
-                      scheme: str = "midpoint", m=0):
+def critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None, n_layers: int | None = None,
+                      scheme: str | None = None, m=0):
     """V̂_cr of the axial modes n = 1 … n_max at order ``m``, shape (n_max,)
     (see :func:`solve_critical_voltages`)."""
     return solve_critical_voltages(tube, n_max, fluid, n_layers, scheme, m).omega
@@ -976,7 +976,7 @@ def _instability_grid(tube, n_max, m_max, n_layers):
 
 
 def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = None,
-                      n_layers: int = 30, scheme: str = "midpoint") -> Instability:
+                      n_layers: int | None = None, scheme: str | None = None) -> Instability:
     """The tube's first instability: the smallest critical voltage over every circumferential
     order 0 ≤ m ≤ m_max and axial mode 1 ≤ n ≤ n_max, and which (m, n) it belongs to.
 
@@ -1010,7 +1010,7 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
     n_max = _validate_max("n_max", n_max, 1)
     m_max = _validate_max("m_max", m_max, 0)
     tube = canonical(tube)
-    layers = laminate(n_layers, scheme)
+    layers = laminate(n_layers, scheme, tube, mode_wavenumber(tube, n_max), m=m_max)
     voltage, status, growth = _instability_grid(jax.lax.stop_gradient(tube), n_max, m_max, layers)
     # the order: the modes unstable at V̂ = 0, fastest first (key −s₀ < 0), then the critical voltages
     key = jnp.where(voltage == 0.0, -growth, jnp.where(jnp.isnan(voltage), jnp.inf, voltage)).ravel()

@@ -68,7 +68,7 @@ def _growth_grid(tube, fluid, n_max, m_max, n_layers, order):
 
 
 def stability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = None,
-              n_layers: int = 30, scheme: str = "midpoint") -> Stability:
+              n_layers: int | None = None, scheme: str | None = None) -> Stability:
     """Is the state ``tube`` (at its own voltage) stable in every order 0 ≤ m ≤ m_max and axial
     mode 1 ≤ n ≤ n_max, and if not, which (m, n) grows fastest?
 
@@ -104,7 +104,7 @@ def stability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = 
         raise ValueError(f"m_max must be 0 with the 'paper' coupling (an axisymmetric model), got "
                          f"{m_max}")
     tube, fluid = canonical(tube, fluid)
-    layers = laminate(n_layers, scheme)
+    layers = laminate(n_layers, scheme, tube, mode_wavenumber(tube, n_max), m=m_max)
     growth, status = _growth_grid(*jax.lax.stop_gradient((tube, fluid)), n_max, m_max, layers, order)
     invalid = jnp.any(status == Status.INVALID)
     flat = jnp.where(jnp.isnan(growth), -jnp.inf, growth).ravel()

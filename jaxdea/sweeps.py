@@ -53,7 +53,7 @@ from .params import (
 from .roots import _growth_family, frequencies_unchecked, growth_rates_unchecked, guard
 from .scalar import Status
 from .state_matrix import LONGITUDINAL, ORDER_M
-from .transfer import discretize, laminate, validate_scheme
+from .transfer import AUTO_SCHEME, discretize, is_graded, laminate, split_layers, validate_scheme
 from .units import Scales, fluid_from_si, fluid_to_si
 
 SENSITIVITY = ("voltage", "lambda_i", "lambda_z", "density_ratio", "speed_ratio", "thickness_ratio",
@@ -490,8 +490,20 @@ def _axis(name, values):
     return np.atleast_1d(arr)
 
 
+def _grid_layers(n_layers, scheme, tube, fluid, grids, n_roots, m):
+    """The static discretisation of a sweep: the default's N (:func:`jaxdea.transfer.laminate`) for
+    the worst point of the grid (largest α̂ĥ, ĥ/r̂_i, m and closeness to locking)."""
+    if n_layers is not None or scheme not in (None, AUTO_SCHEME):
+        return laminate(n_layers, scheme)
+    values = {k: np.asarray(v, np.float64) for k, v in grids.items() if k != "m"}
+    alpha = values.pop("alpha", np.asarray(1.0)) if "n" not in values else None
+    points, alpha_of_points, _ = apply_parameters(tube, alpha, fluid, values)
+    orders = grids.get("m", m)
+    return laminate(None, scheme, points, alpha_of_points, n_roots, orders)
+
+
 def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max=None,
-          n_layers: int = 30, scheme: str = "midpoint", jacobian=None, chunk_size: int = CHUNK_SIZE,
+          n_layers: int | None = None, scheme: str | None = None, jacobian=None, chunk_size: int = CHUNK_SIZE,
           batch_size=None, progress=None, devices=None, client=None, m=0, torsional: bool = False,
           n_growth: int = 0, **axes) -> SweepResult:
     """The ``n_roots`` lowest frequencies over the grid spanned by ``axes``.
@@ -604,7 +616,8 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
     size = min(int(chunk_size), 1 << (per_device - 1).bit_length())  # power of two ≤ chunk_size
     size *= max(len(devices), 1)  # points per chunk, a multiple of the device count
     grids = [g.ravel() for g in np.meshgrid(*axes.values(), indexing="ij")]
-    static = dict(names=tuple(axes), n_roots=int(n_roots), n_layers=laminate(n_layers, scheme), order=order,
+    layers = _grid_layers(n_layers, scheme, tube, fluid, dict(zip(axes, grids)), n_roots, m)
+    static = dict(names=tuple(axes), n_roots=int(n_roots), n_layers=layers, order=order,
                   jac_names=jac_names, batch_size=min(int(batch_size), size))
     if family != LONGITUDINAL or n_growth:  # the longitudinal program is called as before order m
         static.update(m=float(0 if m_axis is not None else m), family=family, n_growth=int(n_growth))
@@ -636,7 +649,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
     omega, status, alpha = outputs[:3]
     k = 4 if n_growth else 3  # the first output after the growth rates
     reshape = lambda a: a.reshape(*shape, *a.shape[1:])  # noqa: E731
-    settings = _settings(tube, fluid, n_roots, omega_max, n_layers, scheme, m_axis, m, torsional)
+    settings = _settings(tube, fluid, n_roots, omega_max, layers, m_axis, m, torsional)
     if n_growth:
         settings["n_growth"] = int(n_growth)
     return SweepResult(
@@ -728,11 +741,12 @@ def _order(fluid, axes):
     return "n"
 
 
-def _settings(tube, fluid, n_roots, omega_max, n_layers, scheme, m_axis=None, m=0, torsional=False):
+def _settings(tube, fluid, n_roots, omega_max, layers, m_axis=None, m=0, torsional=False):
     leaf = lambda x: float(np.asarray(x)) if np.ndim(x) == 0 else np.asarray(x).tolist()  # noqa: E731
+    count, scheme = split_layers(layers)
     out = {"tube": {k: leaf(getattr(tube, k)) for k in TUBE_LEAVES}, "material": tube.material,
-           "n_roots": int(n_roots), "omega_max": omega_max, "n_layers": int(n_layers),
-           "scheme": scheme}
+           "n_roots": int(n_roots), "omega_max": omega_max, "n_layers": count,
+           "scheme": scheme, "graded": is_graded(layers)}
     if m_axis is None and int(m) != 0:
         out["m"] = int(m)
     if torsional:

@@ -93,7 +93,7 @@ from .params import (
 )
 from .roots import _order_inputs, scan_step
 from .state_matrix import LONGITUDINAL, ORDER_M
-from .transfer import discretize, laminate
+from .transfer import Layers, discretize, laminate
 
 DEFAULT_MAX_STEP = 0.1  # scaled arclength: at least ten points between the start and ``stop``
 MIN_STEP = 1e-10  # scaled arclength below which the trace gives up
@@ -419,8 +419,8 @@ def _validate_finite(name, x):
 
 
 def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along: str = "alpha",
-                 stop, max_points: int = 256, max_step=None, n_layers: int = 30,
-                 scheme: str = "midpoint", m=0, torsional: bool = False) -> Branch:
+                 stop, max_points: int = 256, max_step=None, n_layers: int | None = None,
+                 scheme: str | None = None, m=0, torsional: bool = False) -> Branch:
     """Follow the dispersion branch through the root ``omega`` along the parameter ``along``.
 
     The branch is the curve f(Ω; s) = 0 through (s_0, Ω_0), with f the characteristic function of
@@ -491,7 +491,11 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
         except ValueError as exc:
             raise ValueError(f"stop = {stop!r} is outside the valid range of {along!r}: {exc}") from exc
     args = jax.lax.stop_gradient(canonical(tube, alpha, omega, fluid, stop, max_step))
-    static = dict(along=along, max_points=int(max_points), n_layers=laminate(n_layers, scheme),
+    layers = laminate(n_layers, scheme, tube, alpha, m=m)
+    if not isinstance(stop, jax.core.Tracer) and isinstance(layers, Layers) and layers.graded:
+        end = laminate(n_layers, scheme, end_tube, end_alpha, m=m)  # the finer of the two ends
+        layers = max(layers, end, key=lambda x: x.count)
+    static = dict(along=along, max_points=int(max_points), n_layers=layers,
                   order=order)
     if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
         return _trace_branch(*args, **static)

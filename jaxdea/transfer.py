@@ -46,8 +46,9 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
-from .base_state import base_state, geometry, pressure_difference_unchecked
+from .base_state import _w1, base_state, geometry, pressure_difference_unchecked
 from .moduli import Coefficients, closed_form_coefficients, coefficients, push_forward_moduli
 from .params import Tube, as_float
 from .state_matrix import (
@@ -71,22 +72,112 @@ def scheme_order(scheme: str) -> int:
 
 
 class Layers(NamedTuple):
-    """A static discretisation other than the midpoint laminate: ``count`` sublayers crossed by
-    ``scheme`` (a key of :data:`SCHEMES`). The midpoint laminate is the plain int N."""
+    """A static discretisation other than the equal-thickness midpoint laminate: ``count``
+    sublayers crossed by ``scheme`` (a key of :data:`SCHEMES`), equally thick or, ``graded``,
+    growing geometrically away from the inner face (:func:`breakpoints`). The equal-thickness
+    midpoint laminate is the plain int N."""
 
     count: int
     scheme: str
+    graded: bool = False
 
 
-def laminate(n_layers: int, scheme: str = "midpoint"):
-    """The static discretisation passed to the solvers: N itself for ``"midpoint"`` (the historical
-    form, so compiled programs and their cache keys are unchanged), else ``Layers(N, scheme)``.
-    Validation is the caller's (:func:`jaxdea.params.validate_layers`, ``validate_scheme``)."""
-    return int(n_layers) if scheme == "midpoint" else Layers(int(n_layers), scheme)
+AUTO_SCHEME = "magnus6"
+"""The scheme of the default discretisation (``n_layers=None``): sixth-order Magnus, graded."""
+LAYER_COUNTS = (8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512)
+"""The sublayer counts the default discretisation chooses from (few programs to compile)."""
+TRACED_LAYERS = 24
+"""The default's N where the tube's geometry or α̂ are traced (inside a caller's jit, vmap or grad
+of them): ≤ 1e-8 for α̂ĥ ≤ 5 away from locking (tests/test_accuracy_default.py)."""
+PAPER_LAYERS = 30
+"""N of the paper's laminate: the default of ``scheme="midpoint"`` (and the Magnus schemes) given
+without ``n_layers``."""
+
+
+def auto_layer_count(thickness, r_inner, locking, alpha, n_roots: int = 3, m=0) -> int:
+    """N of the default discretisation (graded sixth-order Magnus) for roots to ≤ 1e-8 relative.
+
+    N ≥ 4 + 1.5 max(K, 3) + 2 α̂ĥ + 2 m ĥ/r̂_i + 4 ln(1 + ĥ/r̂_i) + 9 ln(1 + ĥ/ℓ), rounded up to
+    :data:`LAYER_COUNTS`: the K lowest roots reach the thickness mode ≈ K/2 (phase Ωĥ/c ≲ (K + 1)π),
+    the axial and circumferential wavenumbers α̂, m/r̂ add phase across ĥ, a thick wall adds the
+    variation of 1/r̂ and a face near Gent locking (length ℓ, :func:`grading_length`) that of
+    W_1. Calibrated on the measured errors (paper's tube, unstretched, η = 0.3 up to α̂ĥ = 86, 99 %
+    of locking at G = 2 and 4) with a margin of about 10 (tests/test_accuracy_default.py)."""
+    need = (4.0 + 1.5 * max(n_roots, 3) + 2.0 * alpha * thickness + 2.0 * m * thickness / r_inner
+            + 4.0 * math.log1p(thickness / r_inner) + 9.0 * math.log1p(thickness / locking))
+    return next((c for c in LAYER_COUNTS if c >= need), LAYER_COUNTS[-1])
+
+
+def _concrete_max(x):
+    """max of a concrete array-like as a float, or None for a tracer (or anything non-numeric)."""
+    try:
+        return float(np.max(np.asarray(x, dtype=np.float64)))
+    except (jax.errors.ConcretizationTypeError, jax.errors.TracerArrayConversionError, TypeError,
+            ValueError):
+        return None
+
+
+def _wall_lengths_of(lambda_i, lambda_z, eta, gent, material):
+    tube = Tube(lambda_i=lambda_i, lambda_z=lambda_z, eta=eta, gent=gent, material=material)
+    geo = geometry(tube)
+    ell = grading_length(tube, geo)
+    locking = jnp.where(ell < geo.r_inner, ell, jnp.inf)
+    return geo.thickness, geo.r_inner, locking
+
+
+_wall_lengths = jax.jit(jax.vmap(_wall_lengths_of, (0, 0, 0, 0, None)), static_argnums=4)
+
+
+def wall_lengths(tube: Tube):
+    """(ĥ, r̂_i, ℓ) of a concrete tube, the largest ĥ/r̂_i and ĥ/ℓ over batched leaves
+    (ℓ = ∞ where the locking layer is longer than r̂_i); None if a geometric leaf is traced."""
+    leaves = [tube.lambda_i, tube.lambda_z, tube.eta, tube.gent]
+    if any(_concrete_max(x) is None for x in leaves):
+        return None
+    arrays = np.broadcast_arrays(*[np.asarray(x, dtype=np.float64) for x in leaves])
+    h, r, ell = (np.asarray(a) for a in _wall_lengths(*[a.ravel() for a in arrays],
+                                                      tube.material))
+    ok = np.isfinite(h) & np.isfinite(r) & (h > 0) & (r > 0)
+    if not ok.any():
+        return None
+    h, r, ell = h[ok], r[ok], ell[ok]
+    top = float(np.max(h))  # the worst case of every term of auto_layer_count
+    locking = float(np.max(h / ell))
+    return top, top / float(np.max(h / r)), top / locking if locking > 0 else math.inf
+
+
+def laminate(n_layers=None, scheme=None, tube: Tube | None = None, alpha=None, n_roots: int = 3,
+             m=0):
+    """The static discretisation passed to the solvers.
+
+    ``n_layers=None`` with ``scheme`` None or ``"magnus6"``: the accurate default, graded
+    sixth-order Magnus with N of :func:`auto_layer_count` from the (concrete) ``tube``, ``alpha``
+    (largest over a batch), ``n_roots`` and ``m`` (:data:`TRACED_LAYERS` where they are traced):
+    ``Layers(N, "magnus6", graded=True)``. An explicit ``n_layers`` keeps its meaning: the
+    equal-thickness laminate of that ``scheme`` (``"midpoint"`` if None; N itself, the historical
+    form, so compiled programs and their cache keys are unchanged), and ``"midpoint"``/``"magnus4"``
+    without ``n_layers`` take the paper's N = 30. Validation is the caller's
+    (:func:`jaxdea.params.validate_layers`, ``validate_scheme``)."""
+    if n_layers is None and scheme in (None, AUTO_SCHEME):
+        return Layers(default_count(tube, alpha, n_roots, m), AUTO_SCHEME, True)
+    n_layers = PAPER_LAYERS if n_layers is None else int(n_layers)
+    scheme = "midpoint" if scheme is None else scheme
+    return n_layers if scheme == "midpoint" else Layers(n_layers, scheme)
+
+
+def default_count(tube, alpha, n_roots: int = 3, m=0) -> int:
+    """N of the default discretisation (:func:`laminate`)."""
+    lengths = None if tube is None else wall_lengths(tube)
+    alpha, m = _concrete_max(alpha), _concrete_max(m)
+    if lengths is None or alpha is None or m is None:
+        return TRACED_LAYERS
+    return auto_layer_count(*lengths, alpha, int(n_roots), m)
 
 
 def validate_scheme(scheme) -> None:
-    """``scheme`` is one of :data:`SCHEMES`."""
+    """``scheme`` is None (the default discretisation) or one of :data:`SCHEMES`."""
+    if scheme is None:
+        return
     if not isinstance(scheme, str) or scheme not in SCHEMES:
         raise ValueError(f"scheme must be one of {', '.join(map(repr, SCHEMES))}, got {scheme!r}")
 
@@ -98,6 +189,69 @@ def split_layers(n_layers):
     return int(n_layers), "midpoint"
 
 
+def is_graded(n_layers) -> bool:
+    """Whether a static discretisation has graded sublayers (:func:`breakpoints`)."""
+    return isinstance(n_layers, Layers) and n_layers.graded
+
+
+def grading_length(tube: Tube, geo=None):
+    """ℓ = min(r̂_i, W_1/|dW_1/dr̂|) at the inner face: the length on which the wall's coefficients
+    vary there.
+
+    The coefficients of M hold 1/r̂ (the geometry and D̂_r ∝ 1/r̂: length r̂ from the axis) and the
+    energy's W_1, W_11 (theory.md Eq. 33). Near Gent locking W_1 ∝ 1/(G − (I_1 − 3)) and
+    G − (I_1 − 3) ≈ d_0 + c(r̂ − r̂_i) (I_1 is largest at the inner face: λ(r̂) tends monotonically to
+    λ_z^{-1/2}, where I_1 is smallest), a boundary layer of thickness W_1/|W_1'| = d_0/c (1.6e-3 of
+    a 0.52 wall at 99 % of locking, G = 4); far from locking it is long (≈ G) and ℓ = r̂_i."""
+    geo = geometry(tube) if geo is None else geo
+    w1, dw1 = jax.jvp(lambda r: _w1(tube, r)[0], (geo.r_inner,), (jnp.ones_like(geo.r_inner),))
+    slope = jnp.abs(dw1)
+    safe = jnp.where(slope > 0, slope, 1.0)
+    locking = jnp.where(slope > 0, jnp.abs(w1) / safe, jnp.inf)
+    return jnp.minimum(geo.r_inner, locking)
+
+
+GRADING_SHARE = 0.5
+"""The share of the sublayers spent on the grading of :func:`breakpoints` (the rest equal)."""
+
+
+def breakpoints(tube: Tube, count: int, graded: bool = False):
+    """(r̂_0 … r̂_N, h_1 … h_N): the sublayer interfaces and thicknesses.
+
+    Equal sublayers h = ĥ/N, or ``graded``: the interfaces x_k = r̂_k − r̂_i equidistribute
+    S(x) = (1 − a) x/ĥ + a ln(1 + x/ℓ)/ln(1 + ĥ/ℓ) (S(x_k) = k/N, a = :data:`GRADING_SHARE`, ℓ of
+    :func:`grading_length`): half of the sublayers are equal (the waves across the wall need them
+    everywhere) and half grow geometrically from the inner face, where 1/r̂ and the locking factor
+    1/(d_0 + c(r̂ − r̂_i)) change fastest, so the scheme's error constant stays bounded however close
+    the inner face is to locking (measured in tests/test_accuracy_default.py). S is inverted by
+    bisection (its iterations without derivatives) and one Newton step that carries them (the
+    implicit-function derivative of x_k in every leaf)."""
+    geo = geometry(tube)
+    t = jnp.arange(count + 1) / count
+    if not graded:
+        return geo.r_inner + t * geo.thickness, jnp.broadcast_to(geo.thickness / count, (count,))
+    ratio = geo.thickness / grading_length(tube, geo)  # ĥ/ℓ ≥ ĥ/r̂_i > 0
+    log_span = jnp.log1p(ratio)
+
+    def share(u):  # S at x = u ĥ, and dS/du
+        return ((1.0 - GRADING_SHARE) * u + GRADING_SHARE * jnp.log1p(u * ratio) / log_span,
+                (1.0 - GRADING_SHARE) + GRADING_SHARE * ratio / ((1.0 + u * ratio) * log_span))
+
+    def bisect(_, bounds):
+        low, high = bounds
+        mid = 0.5 * (low + high)
+        below = share(mid)[0] < t
+        return jnp.where(below, mid, low), jnp.where(below, high, mid)
+
+    low, high = jax.lax.fori_loop(0, 60, bisect, jax.lax.stop_gradient(
+        (jnp.zeros_like(t), jnp.ones_like(t))))
+    u = jax.lax.stop_gradient(0.5 * (low + high))
+    value, slope = share(u)
+    u = jnp.clip(u - (value - t) / slope, 0.0, 1.0).at[0].set(0.0).at[-1].set(1.0)
+    x = geo.thickness * u
+    return geo.r_inner + x, jnp.diff(x)
+
+
 class Wall(NamedTuple):
     """The discretised wall: Ω-independent data shared by every evaluation at one tube.
 
@@ -105,7 +259,7 @@ class Wall(NamedTuple):
         r_inner, r_outer: deformed radii r̂_i, r̂_o.
         radii: the radii where M is sampled: (N,) mid-radii (``"midpoint"``) or (N, q) the q
             Gauss nodes of each sublayer (the Magnus schemes; the shape selects the scheme).
-        step: sublayer thickness h = ĥ/N.
+        step: sublayer thickness h = ĥ/N, or (N,) the thicknesses of graded sublayers.
         coef: :class:`Coefficients` with arrays shaped like ``radii``.
         pressure_inner: P̂_i = ΔP̂ (gauge P̂_o = 0).
     """
@@ -119,7 +273,9 @@ class Wall(NamedTuple):
 
     @property
     def thickness(self):
-        """ĥ = N·(ĥ/N), the deformed wall thickness (free of the cancellation of r̂_o − r̂_i)."""
+        """ĥ = N·(ĥ/N) (or Σ h_k), the deformed wall thickness (free of the cancellation of r̂_o − r̂_i)."""
+        if jnp.ndim(self.step):
+            return jnp.sum(self.step)
         return self.step * self.radii.shape[0]
 
 
@@ -146,12 +302,17 @@ def layer_coefficients(tube: Tube, r, moduli: str = "closed") -> Coefficients:
 
 def discretize(tube: Tube, n_layers) -> Wall:
     """Cut the wall into N equal sublayers (paper Eq. 42); ``n_layers`` is N (midpoint laminate) or
-    a :class:`Layers` (then M is sampled at the scheme's Gauss nodes)."""
+    a :class:`Layers` (then M is sampled at the scheme's Gauss nodes of each sublayer, equal or
+    graded: :func:`breakpoints`)."""
     count, scheme = split_layers(n_layers)
     geo = geometry(tube)
-    step = geo.thickness / count
     nodes = jnp.asarray(SCHEMES[scheme])
-    radii = geo.r_inner + (jnp.arange(count)[:, None] + nodes) * step
+    if is_graded(n_layers):
+        edges, step = breakpoints(tube, count, graded=True)
+        radii = edges[:-1, None] + nodes * step[:, None]
+    else:
+        step = geo.thickness / count
+        radii = geo.r_inner + (jnp.arange(count)[:, None] + nodes) * step
     if scheme == "midpoint":
         radii = radii[:, 0]
     return Wall(
@@ -441,8 +602,8 @@ def layer_generator(step, coef: Coefficients, radius, omega, alpha, m=0, family=
 def wall_generators(wall: Wall, alpha, m=0, family=LONGITUDINAL):
     """The coefficients of every sublayer's generator, shape (N, P, n, n)
     (:func:`generator_coefficients`): formed once per (wall, α̂, m), shared by every Ω."""
-    return jax.vmap(generator_coefficients, (None, 0, 0, None, None, None))(
-        wall.step, wall.coef, wall.radii, alpha, m, family)
+    return jax.vmap(generator_coefficients, (0 if jnp.ndim(wall.step) else None, 0, 0, None, None,
+                                             None))(wall.step, wall.coef, wall.radii, alpha, m, family)
 
 
 def layer_exponentials(wall: Wall, omega, alpha, method: str = "taylor", m=0,
