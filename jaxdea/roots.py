@@ -684,9 +684,16 @@ def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
         fluid: a :class:`~jaxdea.Fluid` or None (empty tube).
         n_roots: number of roots (static).
         omega_max: upper end of the search (None: automatic).
-        n_layers: sublayers N (static; laminate error O(N⁻²)).
-        scheme: ``"midpoint"`` (the laminate), ``"magnus4"`` or ``"magnus6"`` (errors O(N⁻⁴),
-            O(N⁻⁶); static, see :mod:`jaxdea.transfer`).
+        n_layers: sublayers N (static), or None (default): the accurate default, graded
+            sixth-order Magnus sublayers with N chosen from the case for roots to ≤ 1e-8 relative
+            (:func:`jaxdea.transfer.laminate`; N = 16 for the paper's tube and wherever the
+            geometry or α̂ are traced, more for thick walls at large α̂ĥ or a face near Gent
+            locking).
+        scheme: None (default, with ``n_layers=None``: the graded ``"magnus6"`` above),
+            ``"midpoint"`` (the paper's laminate, error O(N⁻²); ``scheme="midpoint",
+            n_layers=30`` reproduces the paper), ``"magnus4"`` or ``"magnus6"`` (equal sublayers,
+            errors O(N⁻⁴), O(N⁻⁶); static, see :mod:`jaxdea.transfer`). An explicit ``n_layers``
+            without a scheme is the midpoint laminate.
         m: circumferential order (int >= 0; theory_m.md): 0 the axisymmetric longitudinal modes,
             1 bending, 2, 3, … ovalisation and higher ring modes. May be traced (one program
             for every m >= 1 or a traced m).

@@ -513,7 +513,8 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         fluid: a :class:`~jaxdea.Fluid` or None.
         n_roots: K, roots per point (static).
         omega_max: upper end of each root search (None: automatic, see :func:`jaxdea.frequencies`).
-        n_layers: sublayers N (static).
+        n_layers: sublayers N (static), or None: the default discretisation for the grid's
+            worst point (:func:`jaxdea.frequencies`).
         scheme: ``"midpoint"``, ``"magnus4"`` or ``"magnus6"`` (static; :func:`jaxdea.frequencies`).
         jacobian: None (no derivatives), True (the sensitivity set (V̂, λ_i, λ_z, ρ̂_f, ĉ_f, h/R_i,
             G), fluid names dropped for an empty tube), or a sequence of parameter names. With it

@@ -84,11 +84,12 @@ class Layers(NamedTuple):
 
 AUTO_SCHEME = "magnus6"
 """The scheme of the default discretisation (``n_layers=None``): sixth-order Magnus, graded."""
-LAYER_COUNTS = (8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512)
+LAYER_COUNTS = (16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512)
 """The sublayer counts the default discretisation chooses from (few programs to compile)."""
-TRACED_LAYERS = 24
+TRACED_LAYERS = LAYER_COUNTS[0]
 """The default's N where the tube's geometry or α̂ are traced (inside a caller's jit, vmap or grad
-of them): ≤ 1e-8 for α̂ĥ ≤ 5 away from locking (tests/test_accuracy_default.py)."""
+of them), and its least N everywhere, so that a batch and its points alone use the same N in the
+usual regime: ≤ 1e-8 for α̂ĥ ≤ 2 away from locking (tests/test_accuracy_default.py)."""
 PAPER_LAYERS = 30
 """N of the paper's laminate: the default of ``scheme="midpoint"`` (and the Magnus schemes) given
 without ``n_layers``."""
@@ -98,7 +99,7 @@ def auto_layer_count(thickness, r_inner, locking, alpha, n_roots: int = 3, m=0) 
     """N of the default discretisation (graded sixth-order Magnus) for roots to ≤ 1e-8 relative.
 
     N ≥ 4 + 1.5 max(K, 3) + 2 α̂ĥ + 2 m ĥ/r̂_i + 4 ln(1 + ĥ/r̂_i) + 9 ln(1 + ĥ/ℓ), rounded up to
-    :data:`LAYER_COUNTS`: the K lowest roots reach the thickness mode ≈ K/2 (phase Ωĥ/c ≲ (K + 1)π),
+    :data:`LAYER_COUNTS` (16 at least): the K lowest roots reach the thickness mode ≈ K/2 (phase Ωĥ/c ≲ (K + 1)π),
     the axial and circumferential wavenumbers α̂, m/r̂ add phase across ĥ, a thick wall adds the
     variation of 1/r̂ and a face near Gent locking (length ℓ, :func:`grading_length`) that of
     W_1. Calibrated on the measured errors (paper's tube, unstretched, η = 0.3 up to α̂ĥ = 86, 99 %
@@ -135,8 +136,11 @@ def wall_lengths(tube: Tube):
     if any(_concrete_max(x) is None for x in leaves):
         return None
     arrays = np.broadcast_arrays(*[np.asarray(x, dtype=np.float64) for x in leaves])
-    h, r, ell = (np.asarray(a) for a in _wall_lengths(*[a.ravel() for a in arrays],
-                                                      tube.material))
+    try:  # inside a caller's trace the lengths are staged too: then unknown
+        h, r, ell = (np.asarray(a) for a in _wall_lengths(*[a.ravel() for a in arrays],
+                                                          tube.material))
+    except (jax.errors.TracerArrayConversionError, jax.errors.ConcretizationTypeError):
+        return None
     ok = np.isfinite(h) & np.isfinite(r) & (h > 0) & (r > 0)
     if not ok.any():
         return None
@@ -167,9 +171,9 @@ def laminate(n_layers=None, scheme=None, tube: Tube | None = None, alpha=None, n
 
 def default_count(tube, alpha, n_roots: int = 3, m=0) -> int:
     """N of the default discretisation (:func:`laminate`)."""
-    lengths = None if tube is None else wall_lengths(tube)
     alpha, m = _concrete_max(alpha), _concrete_max(m)
-    if lengths is None or alpha is None or m is None:
+    lengths = None if tube is None or alpha is None or m is None else wall_lengths(tube)
+    if lengths is None:
         return TRACED_LAYERS
     return auto_layer_count(*lengths, alpha, int(n_roots), m)
 

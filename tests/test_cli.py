@@ -293,8 +293,8 @@ def test_parse_config_defaults_and_derived_axes():
     assert cfg.plot_axis == "voltage"  # the first axis with more than one value
     assert (cfg.name, cfg.formats, cfg.plot, cfg.out_dir) == ("stem", ("csv", "npz"), True, None)
     args = cfg.sweep_arguments()
-    assert (args["n_roots"], args["n_layers"], args["jacobian"], args["omega_max"]) == (3, 30, None, None)
-    assert args["scheme"] == "midpoint"
+    assert (args["n_roots"], args["n_layers"], args["jacobian"], args["omega_max"]) == (3, None, None, None)
+    assert args["scheme"] is None  # the default discretisation
     magnus = config.parse_config({"axes": {"alpha": [1.0]}, "solver": {"scheme": "magnus6"}})
     assert magnus.sweep_arguments()["scheme"] == "magnus6"
     gent_inf = config.parse_config({"tube": {"gent": float("inf")}, "axes": {"alpha": [1.0]}})

@@ -1,0 +1,160 @@
+"""The default discretisation (no accuracy arguments): graded sixth-order Magnus with N chosen from
+the case (jaxdea.transfer.laminate) gives every root to <= 1e-8 relative.
+
+References are independent of the default's N: the exact incompressible cylinder (tests/exact_cylinder
+values), or the same scheme on a 4x finer graded wall (error 4^6 = 4096 times smaller), or the
+equal-thickness wall of 320 sublayers."""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from conftest import fd_derivative
+from exact_cylinder import EXACT_K, EXACT_OMEGA
+
+import jaxdea as jd
+from jaxdea import roots as R
+from jaxdea.transfer import (
+    LAYER_COUNTS,
+    TRACED_LAYERS,
+    Layers,
+    auto_layer_count,
+    breakpoints,
+    grading_length,
+    laminate,
+)
+
+PAPER = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2, eta=0.85)
+LOCKING_G4 = jd.Tube(voltage=0.05, lambda_i=0.35890249, lambda_z=1.2, eta=0.75, gent=4.0)
+TOL = 1e-8
+
+
+def _reference(tube, alpha, fluid=None, n_roots=3, m=0, factor=4):
+    """The default's roots recomputed on a graded wall `factor` times finer."""
+    layers = laminate(None, None, tube, alpha, n_roots, m)
+    return np.asarray(jd.frequencies(tube, alpha, fluid, n_roots=n_roots, m=m,
+                                     n_layers=factor * layers.count, scheme="magnus6"))
+
+
+def _fine_graded(tube, alpha, fluid=None, n_roots=3, factor=4):
+    layers = laminate(None, None, tube, alpha, n_roots)
+    order = R.check_inputs(tube, alpha, fluid, None, None)
+    t, a, f, om = R.canonical(tube, alpha, fluid, None)
+    fine = Layers(factor * layers.count, "magnus6", True)
+    return np.asarray(R._solve_frequencies(t, a, f, om, n_roots, fine, order).omega)
+
+
+def test_default_meets_the_exact_cylinder():
+    tube = jd.Tube(eta=0.85)
+    worst = 0.0
+    for k, exact in zip(EXACT_K, EXACT_OMEGA, strict=True):
+        got = np.asarray(jd.frequencies(tube, k, n_roots=3, omega_max=20.0))
+        worst = max(worst, float(np.max(np.abs(got - exact) / np.asarray(exact))))
+    assert worst <= TOL, worst
+
+
+@pytest.mark.parametrize("name, tube, alpha, fluid", [
+    ("paper tube, long waves", PAPER, 0.01, None),
+    ("paper tube, short waves", PAPER, 5.0, None),
+    ("thick wall", jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2, eta=0.3), 1.0, None),
+    ("99 % of locking, acoustic fluid", LOCKING_G4, jd.axial_wavenumber(LOCKING_G4, 2), jd.Fluid()),
+])
+def test_default_meets_a_finer_graded_wall(name, tube, alpha, fluid):
+    got = np.asarray(jd.frequencies(tube, alpha, fluid))
+    ref = _fine_graded(tube, alpha, fluid)
+    assert np.all(np.isfinite(got)), name
+    err = float(np.max(np.abs(got - ref) / ref))
+    assert err <= TOL, (name, err)
+
+
+def test_default_near_the_critical_voltage():
+    """V̂ = 0.9999 V̂_cr: the lowest root ∝ sqrt(V̂_cr − V̂) amplifies the error of V̂_cr by ~5000
+    (the midpoint laminate N = 30 was 6.6 % off here)."""
+    tube = PAPER.replace(voltage=0.0)
+    alpha = jd.axial_wavenumber(tube, 1)
+    v_cr = float(jd.critical_voltage(tube, alpha))
+    v_ref = float(jd.critical_voltage(tube, alpha, n_layers=160, scheme="magnus6"))
+    assert abs(v_cr - v_ref) <= TOL * v_ref
+    assert abs(v_ref - 0.2958940) < 1e-7  # the converged value quoted by the accuracy issue
+    near = tube.replace(voltage=0.9999 * v_ref)
+    got = float(jd.frequencies(near, alpha, n_roots=1)[0])
+    ref = float(jd.frequencies(near, alpha, n_roots=1, n_layers=160, scheme="magnus6")[0])
+    assert abs(got - ref) <= TOL * ref, (got, ref)
+
+
+def test_default_order_m():
+    """Ring modes (m = 2) of the paper's tube and the exact cylinder of order m = 3."""
+    got = np.asarray(jd.frequencies(PAPER.replace(voltage=0.02), 0.445, m=2))
+    ref = _reference(PAPER.replace(voltage=0.02), 0.445, m=2)
+    assert float(np.max(np.abs(got - ref) / ref)) <= TOL
+    exact = [0.87100773, 3.23062751, 6.37125587]  # theory_m.md §7(b), m = 3, α̂ = 1.5
+    got = np.asarray(jd.frequencies(jd.Tube(eta=0.85, gent=math.inf), 1.5, m=3))
+    assert float(np.max(np.abs(got - exact) / np.asarray(exact))) <= 1e-8  # 8 digits given
+
+
+def test_first_instability_default_is_converged():
+    tube = PAPER.replace(voltage=0.0)
+    got = jd.first_instability(tube, n_max=1, m_max=3)
+    ref = jd.first_instability(tube, n_max=1, m_max=3, n_layers=96, scheme="magnus6")
+    assert (int(got.m), int(got.n)) == (int(ref.m), int(ref.n)) == (2, 1)
+    assert abs(float(got.voltage) - float(ref.voltage)) <= TOL * float(ref.voltage)
+
+
+def test_breakpoints_cover_the_wall_and_grade_towards_locking():
+    for tube in (PAPER, LOCKING_G4, jd.Tube(eta=0.3, gent=math.inf)):
+        edges, steps = breakpoints(tube, 16, graded=True)
+        h = float(jd.thickness_ratio(tube))
+        assert float(edges[0]) == float(tube.lambda_i)
+        np.testing.assert_allclose(float(edges[-1] - edges[0]), h, rtol=1e-14)
+        np.testing.assert_allclose(float(jnp.sum(steps)), h, rtol=1e-14)
+        assert np.all(np.asarray(steps) > 0)
+        assert np.all(np.diff(np.asarray(steps)) >= -1e-15 * h)  # growing away from the inner face
+    # near locking the first sublayer resolves the boundary layer ℓ = W_1/|W_1'| (1.6e-3 here)
+    ell = float(grading_length(LOCKING_G4))
+    assert 1e-3 < ell < 2e-3
+    first = float(breakpoints(LOCKING_G4, 16, graded=True)[1][0])
+    assert first < 4 * ell
+    # far from locking the grading is mild: within a factor 2 of equal sublayers
+    steps = np.asarray(breakpoints(PAPER, 16, graded=True)[1])
+    assert steps.max() / steps.min() < 2.0
+
+
+def test_breakpoints_are_differentiable():
+    def edge(li):
+        return breakpoints(LOCKING_G4.replace(lambda_i=li), 12, graded=True)[0][3]
+
+    li = float(LOCKING_G4.lambda_i)
+    np.testing.assert_allclose(float(jax.grad(edge)(li)), fd_derivative(edge, li, 1e-7), rtol=1e-6)
+
+
+def test_layer_count_rule():
+    # the paper's tube needs few sublayers, a thick wall at large α̂ĥ and locking many
+    assert auto_layer_count(0.163, 0.9, math.inf, 0.445) == TRACED_LAYERS == 16
+    assert auto_layer_count(2.14, 0.9, math.inf, 40.0) >= 128
+    assert auto_layer_count(0.52, 0.359, 1.6e-3, 1.0) >= 64
+    assert auto_layer_count(1e3, 1.0, 1e-9, 1e6) == LAYER_COUNTS[-1]
+    assert laminate(None, None, PAPER, 0.445) == Layers(16, "magnus6", True)
+    # an explicit count keeps its meaning: the paper's laminate, or the equal Magnus wall
+    assert laminate(30, None) == 30 and laminate(None, "midpoint") == 30
+    assert laminate(6, "magnus6") == Layers(6, "magnus6")
+    # traced geometry or α̂: the fixed fallback
+    seen = []
+    jax.jit(lambda a: seen.append(laminate(None, None, PAPER, a)) or a)(0.445)
+    assert seen == [Layers(TRACED_LAYERS, "magnus6", True)]
+
+
+def test_default_gradient_matches_central_differences():
+    def omega(v):
+        return jd.frequency(LOCKING_G4.replace(voltage=v), 1.0, 0.27, fluid=jd.Fluid())
+
+    g = float(jax.grad(omega)(0.05))
+    np.testing.assert_allclose(g, fd_derivative(omega, 0.05, 1e-5), rtol=1e-6)
+
+
+def test_bad_accuracy_arguments_name_the_parameter():
+    with pytest.raises(ValueError, match="n_layers"):
+        jd.frequencies(PAPER, 0.445, n_layers=0)
+    with pytest.raises(ValueError, match="scheme"):
+        jd.frequencies(PAPER, 0.445, scheme="rk4")
