@@ -127,6 +127,9 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
         >>> est = frequencies_with_error(Tube(), 0.445, rtol=1e-10)
         >>> est.omega, est.error
     """
+    if n_layers is None or max_layers is None:
+        raise ValueError("n_layers and max_layers must be integers >= 1 here (the levels N, 2N, 4N, …), "
+                         f"got n_layers={n_layers!r}, max_layers={max_layers!r}")
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_layers(max_layers)
     if max_layers < 4 * n_layers:

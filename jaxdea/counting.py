@@ -279,7 +279,7 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
         alpha: α̂ = α R_i > 0.
         omega_lo, omega_hi: the interval, 0 ≤ ω_lo < ω_hi (open: its ends must not be roots).
         fluid: a :class:`~jaxdea.Fluid` or None (empty tube).
-        n_layers: sublayers N (static), or None: the default discretisation (:func:`jaxdea.frequencies`).
+        n_layers: sublayers N (static), or None: the accurate discretisation (:func:`jaxdea.frequencies`).
         height: half-height δ of the box; None: min(scan_step, (ω_hi − ω_lo)/16)/2.
         max_evaluations: budget of complex evaluations of the characteristic function (traced: a
             new value does not recompile).

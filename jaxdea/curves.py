@@ -274,7 +274,7 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
         fluid: a :class:`~jaxdea.Fluid` or None (empty tube); the ``paper`` coupling needs an
             explicit ``bessel_order`` (one order for the whole curve).
         n_roots: K, the number of roots at each α̂ (static).
-        n_layers: sublayers N (static), or None: the default discretisation (:func:`jaxdea.frequencies`).
+        n_layers: sublayers N (static), or None: the accurate discretisation (:func:`jaxdea.frequencies`).
         scheme: ``"midpoint"``, ``"magnus4"`` or ``"magnus6"`` (static; :func:`jaxdea.frequencies`).
         m, torsional: circumferential order (int >= 0) and, at m = 0, the torsional family: the
             roots of that order at every α̂ (:func:`jaxdea.frequencies`).

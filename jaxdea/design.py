@@ -142,7 +142,7 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
         alpha: α̂ = α R_i.
         omega: a root Ω at that α̂.
         fluid: a :class:`~jaxdea.Fluid` or None.
-        n_layers: sublayers N (static), or None: the default discretisation (:func:`jaxdea.frequencies`).
+        n_layers: sublayers N (static), or None: the accurate discretisation (:func:`jaxdea.frequencies`).
         scheme: the propagation scheme (static; :func:`jaxdea.frequencies`), that of the root.
 
     Example:
@@ -531,7 +531,7 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
         learning_rate: initial adam rate (decays by 0.97 a step).
         max_steps: step limit (>= 1).
         rtol: tolerance of the convergence test, in (0, 1).
-        n_layers: sublayers N (static), or None: the default discretisation (:func:`jaxdea.frequencies`).
+        n_layers: sublayers N (static), or None: the accurate discretisation (:func:`jaxdea.frequencies`).
         scheme: the propagation scheme (:func:`jaxdea.frequencies`) of every solve; ``"magnus6"``
             with ``n_layers=6`` resolves the wall to about 1e-9 (the default N = 30: 1e-5).
 

@@ -144,7 +144,7 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
         omega: Ω = ω R_i / c_s, a finite real number.
         alpha: α̂ = α R_i >= ALPHA_MIN = 1e-12 (:data:`jaxdea.params.ALPHA_MIN`).
         fluid: a :class:`~jaxdea.Fluid`, or None for the empty tube.
-        n_layers: number of sublayers N (static), or None: the default discretisation
+        n_layers: number of sublayers N (static), or None: the accurate discretisation
             (:func:`jaxdea.frequencies`).
         scheme: how a sublayer is crossed (static): ``"midpoint"`` (the paper's laminate, error
             O(N⁻²)), ``"magnus4"`` or ``"magnus6"`` (O(N⁻⁴), O(N⁻⁶); :mod:`jaxdea.transfer`).

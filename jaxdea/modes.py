@@ -39,18 +39,22 @@ from .dispersion import (
     problem_function,
 )
 from .params import Fluid, Tube, admissible, as_float, canonical, validate_count, validate_real
-from .scalar import value_and_slope
+from .scalar import ROOT_RTOL, value_and_slope
 from .state_matrix import LONGITUDINAL, ORDER_M, TORSIONAL, family_matrix, state_matrix
-from .transfer import Wall, discretize, expm_taylor, propagate_basis_history
+from .transfer import (
+    Wall,
+    discretize,
+    expm_taylor,
+    is_graded,
+    laminate,
+    layer_coefficients,
+    propagate_basis_history,
+    split_layers,
+)
 
 TORSIONAL_FIELDS = (1, 5)
 """Where the torsional state [V, Q] sits among the 8 fields [ū, v̄, w̄, Φ, T̄, Q̄, S̄, D̄]."""
 
-ROOT_RTOL = 1e-4
-"""Largest relative distance |f/f'|/|Ω| of ``omega`` from a root of the characteristic function of
-the laminate the shape is computed on (one Newton step: the residual against its own scale). A
-root of any discretisation that resolves the tube to better than 1e-4 (the default midpoint
-N = 30: about 1e-5) passes; Ω = 0.123 at α̂ = 0.4 (no root nearby) is ≈ 0.3 away."""
 
 
 def root_distance(tube, alpha, omega, fluid, n_layers, order, m=0.0, family=LONGITUDINAL):
@@ -90,20 +94,42 @@ def _interface_solution(wall: Wall, omega, alpha, fluid, order, m=0.0, family=LO
     return states, jax.scipy.linalg.solve_triangular(rs[0], c_0, lower=False)
 
 
-def _wall_fields(wall: Wall, states, omega, alpha, n_points: int, n_layers: int, m=0.0,
+def _midpoints(tube: Tube, wall: Wall):
+    """(interfaces r̂_0 … r̂_N, mid-radii, coefficients there) of any discretisation: the wall's own
+    for the equal midpoint laminate, else the sublayers' mid-radii (Magnus nodes, graded walls)."""
+    count = wall.radii.shape[0]
+    if jnp.ndim(wall.step):
+        edges = wall.r_inner + jnp.concatenate([jnp.zeros(1), jnp.cumsum(wall.step)])
+    else:
+        edges = wall.r_inner + jnp.arange(count + 1) * wall.step
+    if wall.radii.ndim == 1:
+        return edges, wall.radii, wall.coef
+    mids = 0.5 * (edges[:-1] + edges[1:])
+    return edges, mids, layer_coefficients(tube, mids)
+
+
+def _wall_fields(tube: Tube, wall: Wall, states, omega, alpha, n_points: int, m=0.0,
                  family=LONGITUDINAL):
     """Radii (n_points,) from r̂_i to r̂_o and the fields (n_points, n) there (module docstring,
-    step 3), unnormalised; the state matrix of ``family`` (order ``m``) in each sublayer."""
+    step 3), unnormalised; inside a sublayer, the exponential of the state matrix of ``family``
+    (order ``m``) at its mid-radius from the state at its nearer interface (exact at the
+    interfaces, which carry the scheme's accuracy; the midpoint laminate is exact throughout)."""
+    edges, mids, mid_coef = _midpoints(tube, wall)
+    count = mids.shape[0]
     r = jnp.linspace(wall.r_inner, wall.r_outer, n_points)
-    layer = jnp.clip(jnp.floor((r - wall.r_inner) / wall.step).astype(int), 0, n_layers - 1)
-    start = wall.r_inner + layer * wall.step
-    coef = jax.tree_util.tree_map(lambda x: x[layer], wall.coef)
+    layer = jnp.clip(jnp.searchsorted(edges, r, side="right") - 1, 0, count - 1)
+    # from the nearer interface of the sublayer (exactly the interface states at r̂_i, r̂_o and at
+    # every interface sampled: the crossing by the midpoint exponential is the scheme's only there)
+    after = r - edges[layer] > edges[layer + 1] - r
+    start = jnp.where(after, edges[layer + 1], edges[layer])
+    base = jnp.where(after[:, None], states[layer + 1], states[layer])
+    coef = jax.tree_util.tree_map(lambda x: x[layer], mid_coef)
     if family == LONGITUDINAL:
-        mats = jax.vmap(state_matrix, (0, 0, None, None))(coef, wall.radii[layer], omega, alpha)
+        mats = jax.vmap(state_matrix, (0, 0, None, None))(coef, mids[layer], omega, alpha)
     else:
         mats = jax.vmap(lambda c, rad: family_matrix(family, c, rad, omega * omega, alpha, m))(
-            coef, wall.radii[layer])
-    return r, jax.vmap(lambda m, d, y: expm_taylor(d * m) @ y)(mats, r - start, states[layer])
+            coef, mids[layer])
+    return r, jax.vmap(lambda m, d, y: expm_taylor(d * m) @ y)(mats, r - start, base)
 
 
 def _displacement_scale(fields, displacements=slice(U, W + 1)):
@@ -159,14 +185,14 @@ def _solve_mode(tube, alpha, omega, fluid, n_points, n_layers, order, m=0.0, fam
     wall = discretize(tube, n_layers)
     if family == LONGITUDINAL:
         states, coefficients = _interface_solution(wall, omega, alpha, fluid, order)
-        r, fields = _wall_fields(wall, states, omega, alpha, n_points, n_layers)
+        r, fields = _wall_fields(tube, wall, states, omega, alpha, n_points)
         scale = _displacement_scale(fields)
         order_ok = True
     else:
         order_ok = order_m_admissible(m, fluid, family)
         m = jnp.where(order_ok, as_float(m), 0.0) if family == ORDER_M else 0.0
         states, coefficients = _interface_solution(wall, omega, alpha, fluid, order, m, family)
-        r, fields = _wall_fields(wall, states, omega, alpha, n_points, n_layers, m, family)
+        r, fields = _wall_fields(tube, wall, states, omega, alpha, n_points, m, family)
         if family == TORSIONAL:  # [V, Q] into the 8 fields
             fields = jnp.zeros((n_points, 8), fields.dtype).at[:, jnp.array(TORSIONAL_FIELDS)].set(fields)
         scale = _displacement_scale(fields, slice(0, 3))
@@ -195,31 +221,37 @@ def _check_mode_arguments(omega, n_points) -> None:
     validate_count("n_points", n_points)
 
 
-def _solve(tube, alpha, omega, fluid, n_points, n_layers, m, torsional):
+def _describe(layers) -> str:
+    count, scheme = split_layers(layers)
+    return f"{scheme}{', graded' if is_graded(layers) else ''}, N = {count}"
+
+
+def _solve(tube, alpha, omega, fluid, n_points, n_layers, scheme, m, torsional):
     """Validate, then :func:`_solve_mode` (the axisymmetric program unchanged for m = 0); a
     concrete ``omega`` that is no root raises (a traced one gives NaN fields)."""
-    order = check_inputs(tube, alpha, fluid, n_layers)
+    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
     family = mode_family(m, torsional, fluid)
     _check_mode_arguments(omega, n_points)
     concrete = not isinstance(omega, jax.core.Tracer)
     tube, alpha, omega, fluid, m = canonical(tube, alpha, omega, fluid, m)
+    layers = laminate(n_layers, scheme, tube, alpha, m=m)
     if family == LONGITUDINAL:
-        out = _solve_mode(tube, alpha, omega, fluid, int(n_points), int(n_layers), order)
+        out = _solve_mode(tube, alpha, omega, fluid, int(n_points), layers, order)
     else:
-        out = _solve_mode(tube, alpha, omega, fluid, int(n_points), int(n_layers), order,
-                          as_float(m), family)
+        out = _solve_mode(tube, alpha, omega, fluid, int(n_points), layers, order, as_float(m),
+                          family)
     distance = out[-1]
     if concrete and not isinstance(distance, jax.core.Tracer) and not float(distance) <= ROOT_RTOL:
         raise ValueError(
             f"omega = {float(omega)!r} is not a root of the characteristic function of this case "
-            f"(order m = {m if family == ORDER_M else 0}, N = {n_layers}): a Newton step moves it "
+            f"(order m = {m if family == ORDER_M else 0}, {_describe(layers)}): a Newton step moves it "
             f"by {float(distance):.2g} of itself, above the tolerance {ROOT_RTOL:g}; pass a root "
             "from jaxdea.frequencies (or frequency) of the same tube, α̂, fluid and order")
     return out[:-1]
 
 
 def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: int = 64,
-               n_layers: int = 30, m=0, torsional: bool = False):
+               n_layers: int | None = None, m=0, torsional: bool = False, scheme: str | None = None):
     """The state fields [ū, w̄, Φ, T̄, S̄, D̄] across the wall for the root ``omega``
     ([ū, v̄, w̄, Φ, T̄, Q̄, S̄, D̄] for order m ≥ 1, a traced m or ``torsional=True``).
 
@@ -248,9 +280,10 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
         omega: a root Ω of the characteristic function (e.g. from :func:`jaxdea.frequencies`).
         fluid: a :class:`~jaxdea.Fluid`, or None for the empty tube.
         n_points: number of radii sampled across the wall (static).
-        n_layers: number of sublayers N of the midpoint laminate (static; use the value the root
-            was found with; for a root from a Magnus scheme, an N whose laminate resolves the
-            shape: the fields inside a sublayer need the midpoint exponential).
+        n_layers, scheme: the discretisation (static; :func:`jaxdea.frequencies`, default the
+            accurate one): use the one the root was found with. The states at the sublayer
+            interfaces have the scheme's accuracy; inside a sublayer the fields follow from the
+            exponential of M at its mid-radius.
         m: circumferential order, an integer ≥ 0 (the order the root was found with).
         torsional: with m = 0, the torsional family (static).
 
@@ -271,12 +304,12 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
         >>> omega2 = jd.frequencies(tube, 0.445, m=2)[0]
         >>> r, (u, v, w, phi, t, q, s, d) = jd.mode_shape(tube, 0.445, omega2, m=2)
     """
-    r, fields, _, _ = _solve(tube, alpha, omega, fluid, n_points, n_layers, m, torsional)
+    r, fields, _, _ = _solve(tube, alpha, omega, fluid, n_points, n_layers, scheme, m, torsional)
     return r, fields
 
 
-def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64, n_layers: int = 30,
-                   m=0):
+def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64,
+                   n_layers: int | None = None, m=0, scheme: str | None = None):
     """The acoustic excess pressure p̂*(r̂) in the cavity for the root ``omega`` (theory.md §4(c)).
 
     The fluid field of the consistent acoustic coupling, p* = μ p̂*(r̂) cos αz with
@@ -304,7 +337,7 @@ def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64, n
         omega: a root Ω of the fluid-filled tube (e.g. ``frequencies(tube, alpha, fluid)``).
         fluid: a :class:`~jaxdea.Fluid` with ``coupling="acoustic"``.
         n_points: number of radii sampled in the cavity and across the wall (static).
-        n_layers: number of sublayers N (static; use the value the root was found with).
+        n_layers, scheme: the discretisation (static; use the one the root was found with).
         m: circumferential order, an integer ≥ 0 (the order the root was found with).
 
     Returns:
@@ -329,5 +362,5 @@ def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64, n
             "coupling='paper' has no fluid pressure field: the paper's model (theory.md §4(b)) loads the "
             "inner face with an Ω-dependent follower pressure P̂_f only; use coupling='acoustic'"
         )
-    _, _, r, p = _solve(tube, alpha, omega, fluid, n_points, n_layers, m, False)
+    _, _, r, p = _solve(tube, alpha, omega, fluid, n_points, n_layers, scheme, m, False)
     return r, p

@@ -684,16 +684,16 @@ def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
         fluid: a :class:`~jaxdea.Fluid` or None (empty tube).
         n_roots: number of roots (static).
         omega_max: upper end of the search (None: automatic).
-        n_layers: sublayers N (static), or None (default): the accurate default, graded
+        n_layers: sublayers N (static), or None (default): the accurate discretisation, graded
             sixth-order Magnus sublayers with N chosen from the case for roots to ≤ 1e-8 relative
             (:func:`jaxdea.transfer.laminate`; N = 16 for the paper's tube and wherever the
             geometry or α̂ are traced, more for thick walls at large α̂ĥ or a face near Gent
             locking).
-        scheme: None (default, with ``n_layers=None``: the graded ``"magnus6"`` above),
-            ``"midpoint"`` (the paper's laminate, error O(N⁻²); ``scheme="midpoint",
-            n_layers=30`` reproduces the paper), ``"magnus4"`` or ``"magnus6"`` (equal sublayers,
-            errors O(N⁻⁴), O(N⁻⁶); static, see :mod:`jaxdea.transfer`). An explicit ``n_layers``
-            without a scheme is the midpoint laminate.
+        scheme: None (default: the midpoint laminate with an ``n_layers``, the graded
+            ``"magnus6"`` above without), ``"midpoint"`` (the paper's laminate, error O(N⁻²);
+            ``scheme="midpoint", n_layers=30`` reproduces the paper), ``"magnus4"`` or
+            ``"magnus6"`` (equal sublayers, errors O(N⁻⁴), O(N⁻⁶); static, see
+            :mod:`jaxdea.transfer`).
         m: circumferential order (int >= 0; theory_m.md): 0 the axisymmetric longitudinal modes,
             1 bending, 2, 3, … ovalisation and higher ring modes. May be traced (one program
             for every m >= 1 or a traced m).
@@ -790,9 +790,10 @@ def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layer
     validate_range("omega", omega, "a finite real number > 0 (a root of the characteristic function)",
                    lambda v: v > 0)
     tube, alpha, omega, fluid, m = canonical(tube, alpha, omega, fluid, m)
+    layers = laminate(n_layers, scheme, tube, alpha, m=m)
     if family == LONGITUDINAL:
-        return _group_velocity(tube, alpha, omega, fluid, laminate(n_layers, scheme, tube, alpha, m=m), order)
-    return _group_velocity(tube, alpha, omega, fluid, laminate(n_layers, scheme, tube, alpha, m=m), order, m, family)
+        return _group_velocity(tube, alpha, omega, fluid, layers, order)
+    return _group_velocity(tube, alpha, omega, fluid, layers, order, m, family)
 
 
 @cached_jit(static_argnames=("n_layers", "order", "family"))

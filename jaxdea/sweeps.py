@@ -491,8 +491,9 @@ def _axis(name, values):
 
 
 def _grid_layers(n_layers, scheme, tube, fluid, grids, n_roots, m):
-    """The static discretisation of a sweep: the default's N (:func:`jaxdea.transfer.laminate`) for
-    the worst point of the grid (largest α̂ĥ, ĥ/r̂_i, m and closeness to locking)."""
+    """The static discretisation of a sweep: with ``n_layers=None`` the accurate discretisation's N
+    (:func:`jaxdea.transfer.laminate`) for the worst point of the grid (largest α̂ĥ, ĥ/r̂_i, m and
+    closeness to locking)."""
     if n_layers is not None or scheme not in (None, AUTO_SCHEME):
         return laminate(n_layers, scheme)
     values = {k: np.asarray(v, np.float64) for k, v in grids.items() if k != "m"}
@@ -513,7 +514,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         fluid: a :class:`~jaxdea.Fluid` or None.
         n_roots: K, roots per point (static).
         omega_max: upper end of each root search (None: automatic, see :func:`jaxdea.frequencies`).
-        n_layers: sublayers N (static), or None: the default discretisation for the grid's
+        n_layers: sublayers N (static), or None: the accurate discretisation for the grid's
             worst point (:func:`jaxdea.frequencies`).
         scheme: ``"midpoint"``, ``"magnus4"`` or ``"magnus6"`` (static; :func:`jaxdea.frequencies`).
         jacobian: None (no derivatives), True (the sensitivity set (V̂, λ_i, λ_z, ρ̂_f, ĉ_f, h/R_i,
@@ -617,7 +618,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
     size = min(int(chunk_size), 1 << (per_device - 1).bit_length())  # power of two ≤ chunk_size
     size *= max(len(devices), 1)  # points per chunk, a multiple of the device count
     grids = [g.ravel() for g in np.meshgrid(*axes.values(), indexing="ij")]
-    layers = _grid_layers(n_layers, scheme, tube, fluid, dict(zip(axes, grids)), n_roots, m)
+    layers = _grid_layers(n_layers, scheme, tube, fluid, dict(zip(axes, grids, strict=True)), n_roots, m)
     static = dict(names=tuple(axes), n_roots=int(n_roots), n_layers=layers, order=order,
                   jac_names=jac_names, batch_size=min(int(batch_size), size))
     if family != LONGITUDINAL or n_growth:  # the longitudinal program is called as before order m

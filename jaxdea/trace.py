@@ -448,7 +448,7 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
         max_points: buffer length, ≥ 2 (static).
         max_step: largest step of the scaled arclength, in which the range s_0 → stop has length 1
             (None: 0.1, i.e. at least ten points on a straight branch).
-        n_layers: sublayers N (static), or None: the default discretisation (:func:`jaxdea.frequencies`).
+        n_layers: sublayers N (static), or None: the accurate discretisation (:func:`jaxdea.frequencies`).
         scheme: the propagation scheme (static; :func:`jaxdea.frequencies`).
         m, torsional: the circumferential order (int >= 0; fixed along the trace) and, at m = 0,
             the torsional family (:func:`jaxdea.frequencies`): the branch of that order.

@@ -83,23 +83,24 @@ class Layers(NamedTuple):
 
 
 AUTO_SCHEME = "magnus6"
-"""The scheme of the default discretisation (``n_layers=None``): sixth-order Magnus, graded."""
+"""The scheme of the default, accurate discretisation (``n_layers=None``): sixth-order Magnus, graded."""
 LAYER_COUNTS = (16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512)
-"""The sublayer counts the default discretisation chooses from (few programs to compile)."""
+"""The sublayer counts the accurate discretisation chooses from (few programs to compile)."""
 TRACED_LAYERS = LAYER_COUNTS[0]
-"""The default's N where the tube's geometry or α̂ are traced (inside a caller's jit, vmap or grad
-of them), and its least N everywhere, so that a batch and its points alone use the same N in the
-usual regime: ≤ 1e-8 for α̂ĥ ≤ 2 away from locking (tests/test_accuracy_default.py)."""
+"""The accurate discretisation's N where the tube's geometry or α̂ are traced (inside a caller's
+jit, vmap or grad of them), and its least N everywhere, so that a batch and its points alone use
+the same N in the usual regime: ≤ 1e-8 for α̂ĥ ≤ 2 away from locking (tests/test_accuracy_default.py)."""
 PAPER_LAYERS = 30
-"""N of the paper's laminate: the default of ``scheme="midpoint"`` (and the Magnus schemes) given
-without ``n_layers``."""
+"""N of the paper's laminate, taken by ``"midpoint"`` and ``"magnus4"`` given without
+``n_layers``."""
 
 
 def auto_layer_count(thickness, r_inner, locking, alpha, n_roots: int = 3, m=0) -> int:
-    """N of the default discretisation (graded sixth-order Magnus) for roots to ≤ 1e-8 relative.
+    """N of the accurate discretisation (graded sixth-order Magnus) for roots to ≤ 1e-8 relative.
 
     N ≥ 4 + 1.5 max(K, 3) + 2 α̂ĥ + 2 m ĥ/r̂_i + 4 ln(1 + ĥ/r̂_i) + 9 ln(1 + ĥ/ℓ), rounded up to
-    :data:`LAYER_COUNTS` (16 at least): the K lowest roots reach the thickness mode ≈ K/2 (phase Ωĥ/c ≲ (K + 1)π),
+    :data:`LAYER_COUNTS` (16 at least): the K lowest roots reach the thickness mode ≈ K/2 (phase
+    Ωĥ/c ≲ (K + 1)π),
     the axial and circumferential wavenumbers α̂, m/r̂ add phase across ĥ, a thick wall adds the
     variation of 1/r̂ and a face near Gent locking (length ℓ, :func:`grading_length`) that of
     W_1. Calibrated on the measured errors (paper's tube, unstretched, η = 0.3 up to α̂ĥ = 86, 99 %
@@ -154,7 +155,7 @@ def laminate(n_layers=None, scheme=None, tube: Tube | None = None, alpha=None, n
              m=0):
     """The static discretisation passed to the solvers.
 
-    ``n_layers=None`` with ``scheme`` None or ``"magnus6"``: the accurate default, graded
+    ``n_layers=None`` with ``scheme`` None or ``"magnus6"``: the accurate discretisation, graded
     sixth-order Magnus with N of :func:`auto_layer_count` from the (concrete) ``tube``, ``alpha``
     (largest over a batch), ``n_roots`` and ``m`` (:data:`TRACED_LAYERS` where they are traced):
     ``Layers(N, "magnus6", graded=True)``. An explicit ``n_layers`` keeps its meaning: the
@@ -170,7 +171,7 @@ def laminate(n_layers=None, scheme=None, tube: Tube | None = None, alpha=None, n
 
 
 def default_count(tube, alpha, n_roots: int = 3, m=0) -> int:
-    """N of the default discretisation (:func:`laminate`)."""
+    """N of the accurate discretisation (:func:`laminate`)."""
     alpha, m = _concrete_max(alpha), _concrete_max(m)
     lengths = None if tube is None or alpha is None or m is None else wall_lengths(tube)
     if lengths is None:

@@ -42,6 +42,8 @@ def test_dispersion_grid_holds_the_axial_modes_of_the_tube():
     np.testing.assert_allclose(grid[::4], modes, rtol=1e-14)
 
 
+FIG_N = 30  # the figures use the paper's laminate (midpoint, N = 30): their CSV says so
+
 @pytest.fixture(scope="module")
 def written(tmp_path_factory):
     out = tmp_path_factory.mktemp("figures")
@@ -73,7 +75,7 @@ def test_csv_values_are_direct_solves(written):
         tube = figures.PAPER_TUBE.replace(lambda_i=float(r["lambda_i"]), voltage=float(r["voltage"]))
         alpha = jd.axial_wavenumber(tube, int(r["n"]))
         fluid = jd.Fluid(**figures.PAPER_FLUID, coupling=r["coupling"])
-        direct = float(jd.frequencies(tube, alpha, fluid, n_roots=1)[0])
+        direct = float(jd.frequencies(tube, alpha, fluid, n_roots=1, n_layers=FIG_N)[0])
         assert float(r["alpha_hat"]) == pytest.approx(float(alpha), rel=1e-14)
         assert float(r["omega"]) == pytest.approx(direct, rel=1e-10)
         assert float(r["phase_velocity"]) == pytest.approx(direct / float(alpha), rel=1e-10)
@@ -90,7 +92,7 @@ def test_blank_points_are_exactly_those_past_the_critical_voltage(written):
     assert any(r["status"] == "past critical" for r in table)  # V̂ = 0.2 buckles λ_i = 1.1 modes
     r = next(r for r in table if r["lambda_i"] == "1.1" and r["n"] == "1")
     tube = figures.PAPER_TUBE.replace(lambda_i=1.1)
-    v_cr = float(jd.critical_voltage(tube, jd.axial_wavenumber(tube, 1)))
+    v_cr = float(jd.critical_voltage(tube, jd.axial_wavenumber(tube, 1), n_layers=FIG_N))
     assert float(r["v_critical"]) == pytest.approx(v_cr, rel=1e-10)
 
 
@@ -120,11 +122,12 @@ def test_stability_map_envelope_is_the_first_instability(written):
     # smallest λ_i (at λ_i = 0.875 the ring mode m = 2 grows already)
     low = figures.PAPER_TUBE.replace(lambda_i=stretches[0], voltage=0.0)
     for m in figures.ORDERS:
-        assert np.all(np.isnan(np.asarray(jd.growth_rates(low, jd.axial_wavenumber(low, 1), m=m))))
+        growth = jd.growth_rates(low, jd.axial_wavenumber(low, 1), m=m, n_layers=FIG_N)
+        assert np.all(np.isnan(np.asarray(growth)))
     for li in (stretches[1], stretches[-1]):
         at = [r for r in along if float(r["lambda_i"]) == li]
         assert [int(r["m"]) for r in at] == list(figures.ORDERS)
-        first = jd.first_instability(figures.PAPER_TUBE.replace(lambda_i=li), n_max=1, m_max=4)
+        first = jd.first_instability(figures.PAPER_TUBE.replace(lambda_i=li), n_max=1, m_max=4, n_layers=FIG_N)
         np.testing.assert_allclose(floats(at, "v_critical"), np.asarray(first.critical)[:, 0], rtol=1e-10)
         for r in at:  # the envelope: min over m
             assert float(r["v_first"]) == pytest.approx(float(first.voltage), rel=1e-10)
@@ -139,7 +142,8 @@ def test_shaded_voltage_is_the_first_instability(written):
     stability = [r for r in rows(out, "stability_map") if r["panel"] == "n"]
     for name, li in (("fig2_voltage_empty", 0.9), ("fig5_voltage_fluid", 1.1),
                      ("fig4_modes_critical_empty", figures.CRITICAL_STRETCH)):
-        first = jd.first_instability(figures.PAPER_TUBE.replace(lambda_i=li), n_max=max_mode, m_max=4)
+        first = jd.first_instability(figures.PAPER_TUBE.replace(lambda_i=li), n_max=max_mode, m_max=4,
+                                     n_layers=FIG_N)
         table = [r for r in rows(out, name) if float(r["lambda_i"]) == pytest.approx(li, rel=1e-11)]
         assert table
         for r in table:
@@ -160,8 +164,8 @@ def test_cross_section_outline_is_the_radial_displacement_of_the_mode(written):
     # base state: r_i = λ_i R_i, and r_o² − r_i² = (R_o² − R_i²)/λ_z (incompressibility)
     r_outer = math.sqrt(0.9**2 + (1.0 / 0.85**2 - 1.0) / 1.2)
     for m in figures.SHAPE_ORDERS:
-        omega = float(jd.frequencies(tube, alpha, n_roots=1, m=m)[0])
-        r, fields = jd.mode_shape(tube, alpha, omega, m=m)
+        omega = float(jd.frequencies(tube, alpha, n_roots=1, m=m, n_layers=FIG_N)[0])
+        r, fields = jd.mode_shape(tube, alpha, omega, m=m, n_layers=FIG_N)
         u = np.asarray(fields[0])[[0, -1]]
         at = [x for x in table if int(x["m"]) == m]
         assert float(at[0]["omega"]) == pytest.approx(omega, rel=1e-10)
@@ -197,12 +201,12 @@ def test_order_m_dispersion_points_are_roots(written):
         for a in (alphas[0], alphas[-1]):
             for r in (r for r in points if float(r["alpha_hat"]) == a):
                 omega = float(r["omega"])
-                f = [float(jd.characteristic(tube, omega * (1.0 + d), a, fluid, m=1))
+                f = [float(jd.characteristic(tube, omega * (1.0 + d), a, fluid, m=1, n_layers=FIG_N))
                      for d in (-1e-6, 0.0, 1e-6)]
                 assert f[0] * f[2] < 0  # a sign change across the root …
                 assert abs(f[1]) < 1e-4 * min(abs(f[0]), abs(f[2]))  # … and f ≈ 0 at it
     lowest = [r for r in m1 if r["coupling"] == "none" and r["branch"] == "1"]
     alpha_1 = float(lowest[0]["alpha_hat"])
     assert alpha_1 == pytest.approx(float(jd.axial_wavenumber(tube, 1)), rel=1e-14)
-    assert float(lowest[0]["omega"]) == pytest.approx(float(jd.frequencies(tube, alpha_1, n_roots=1, m=1)[0]),
-                                                      rel=1e-10)
+    direct = float(jd.frequencies(tube, alpha_1, n_roots=1, m=1, n_layers=FIG_N)[0])
+    assert float(lowest[0]["omega"]) == pytest.approx(direct, rel=1e-10)

@@ -239,7 +239,7 @@ def _valid_tube(values, material="gent"):
 
 # -------------------------------------------------------------------------------- result checks
 def _f(tube, omega, alpha, fluid=None):
-    return float(jd.characteristic(tube, omega, alpha, fluid))
+    return float(jd.characteristic(tube, omega, alpha, fluid, N_LAYERS))
 
 
 def assert_root(tube, alpha, omega, fluid=None, what="root"):
@@ -420,7 +420,7 @@ def characteristic(case):
                     and _moderate_fluid(values, fluid_values)), f"NaN for moderate inputs {case}"
         return
     assert abs(f) <= 1.0 + 1e-12
-    mirrored = float(jd.characteristic(tube, -_scalar(values["omega"]), values["alpha"], fluid))
+    mirrored = float(jd.characteristic(tube, -_scalar(values["omega"]), values["alpha"], fluid, N_LAYERS))
     np.testing.assert_allclose(mirrored, f, rtol=1e-10, atol=1e-300)  # f is even in Ω
 
 
@@ -476,7 +476,8 @@ def newton(case):
     values, wrapper = case
     problems, ambiguous = _problems(values)
     tube = _tube(values)
-    out = solved(lambda: jd.solve_frequency(tube, values["alpha"], values["guess"]), problems,
+    out = solved(lambda: jd.solve_frequency(tube, values["alpha"], values["guess"], n_layers=N_LAYERS),
+                 problems,
                  ambiguous)
     if out is None:
         return
@@ -484,7 +485,8 @@ def newton(case):
         assert float(out.omega) > 0
         assert_root(_valid_tube(values), _scalar(values["alpha"]), float(out.omega))
     if wrapper:
-        np.testing.assert_array_equal(jd.frequency(tube, values["alpha"], values["guess"]), out.omega)
+        again = jd.frequency(tube, values["alpha"], values["guess"], n_layers=N_LAYERS)
+        np.testing.assert_array_equal(again, out.omega)
 
 
 test_newton, test_newton_slow = fuzz(newton_cases())(newton)
@@ -502,7 +504,8 @@ def group_velocity(values):
     if w is not None and not w > 0:
         problems.add("omega")  # a root Ω > 0 (∂f/∂Ω = 0 at Ω = 0)
     tube = _tube(values)
-    out = run(lambda: jd.group_velocity(tube, values["alpha"], values["omega"]), problems, ambiguous)
+    out = run(lambda: jd.group_velocity(tube, values["alpha"], values["omega"], n_layers=N_LAYERS),
+              problems, ambiguous)
     if out is REJECTED:
         return
     assert not problems or ambiguous, f"invalid input {problems} accepted: {out}"
@@ -552,13 +555,15 @@ def critical_voltage(case):
     problems, ambiguous = _problems(values)
     problems |= extra | _problems(fluid_values)[0]
     tube = _tube(values)
-    out = solved(lambda: jd.solve_critical_voltage(tube, values["alpha"], fluid), problems, ambiguous)
+    out = solved(lambda: jd.solve_critical_voltage(tube, values["alpha"], fluid, n_layers=N_LAYERS),
+                 problems, ambiguous)
     if out is None:
         return
     if out.status == jd.Status.CONVERGED:
         assert_critical(_valid_tube(values), _scalar(values["alpha"]), float(out.omega))
     if wrapper:
-        np.testing.assert_array_equal(jd.critical_voltage(tube, values["alpha"], fluid), out.omega)
+        again = jd.critical_voltage(tube, values["alpha"], fluid, n_layers=N_LAYERS)
+        np.testing.assert_array_equal(again, out.omega)
 
 
 test_critical_voltage, test_critical_voltage_slow = fuzz(
@@ -578,7 +583,7 @@ def critical_voltages(case):
     if not _is(n_max, 2):
         problems.add("n_max")
     tube = _tube(values)
-    out = run(lambda: jd.solve_critical_voltages(tube, n_max), problems, ambiguous)
+    out = run(lambda: jd.solve_critical_voltages(tube, n_max, n_layers=N_LAYERS), problems, ambiguous)
     if out is REJECTED:
         return
     assert_statuses(out.omega, out.status)
@@ -590,7 +595,7 @@ def critical_voltages(case):
         if s == jd.Status.CONVERGED:
             assert_critical(_valid_tube(values), _mode_alpha(values, n), float(v))
     if wrapper:
-        np.testing.assert_array_equal(jd.critical_voltages(tube, n_max), out.omega)
+        np.testing.assert_array_equal(jd.critical_voltages(tube, n_max, n_layers=N_LAYERS), out.omega)
 
 
 test_critical_voltages, test_critical_voltages_slow = fuzz(
@@ -620,7 +625,7 @@ def _not_a_root(call, tube, alpha, omega, fluid):
     except ValueError as exc:
         if "is not a root" not in str(exc):
             raise
-        ends = [float(jd.characteristic(tube, omega * (1 + e), alpha, fluid)) for e in (-5e-5, 5e-5)]
+        ends = [float(jd.characteristic(tube, omega * (1 + e), alpha, fluid, N_LAYERS)) for e in (-5e-5, 5e-5)]
         assert ends[0] * ends[1] > 0, f"a root within 5e-5 of omega = {omega} was refused: {exc}"
         return NOT_A_ROOT
 
@@ -633,17 +638,17 @@ def mode(case):
         problems.add("n_points")
     tube, alpha, omega = _tube(values), values["alpha"], values["omega"]
     if at_root and not problems and not ambiguous:  # a root (else Ω is almost surely none)
-        omega = float(jd.frequencies(tube, alpha, fluid, n_roots=1)[0])
+        omega = float(jd.frequencies(tube, alpha, fluid, n_roots=1, n_layers=N_LAYERS)[0])
         assume(np.isfinite(omega))
     if pressure:
         if fluid is None:
             problems.add("fluid")
         elif isinstance(fluid.coupling, str) and fluid.coupling == "paper":
             problems.add("paper")
-        out = run(lambda: _not_a_root(lambda: jd.fluid_pressure(tube, alpha, omega, fluid, n_points),
+        out = run(lambda: _not_a_root(lambda: jd.fluid_pressure(tube, alpha, omega, fluid, n_points, N_LAYERS),
                                       tube, alpha, omega, fluid), problems, ambiguous)
     else:
-        out = run(lambda: _not_a_root(lambda: jd.mode_shape(tube, alpha, omega, fluid, n_points),
+        out = run(lambda: _not_a_root(lambda: jd.mode_shape(tube, alpha, omega, fluid, n_points, N_LAYERS),
                                       tube, alpha, omega, fluid), problems, ambiguous)
     if out is REJECTED or out is NOT_A_ROOT:
         return
@@ -872,7 +877,7 @@ def sweep(case):
     for name in TUBE_FIELDS:
         if name != "voltage" and _scalar(values[name]) is None:
             problems.add(name)  # the fixed fields must be real scalars
-    kwargs = dict(n_roots=2, chunk_size=4, progress=False) | settings_
+    kwargs = dict(n_roots=2, chunk_size=4, progress=False, n_layers=N_LAYERS) | settings_
     out = run(lambda: jd.sweep(_tube(values), **kwargs, **axes), problems)
     if out is REJECTED:
         return
@@ -926,7 +931,7 @@ def trace(case):
         problems.add("stop")  # along α̂, stop is an α̂ too (>= ALPHA_MIN)
     if "alpha" in problems or "stop" in problems:  # messages: "stop ... outside the range of 'alpha'"
         problems |= {"alpha", "stop"}
-    kwargs = dict(along="alpha", max_points=16) | statics
+    kwargs = dict(along="alpha", max_points=16, n_layers=N_LAYERS) | statics
     tube = _tube(values)
     out = run(lambda: jd.trace_branch(tube, values["alpha"], values["omega"], stop=values["stop"],
                                       max_step=values["max_step"], **kwargs), problems, ambiguous)
@@ -1345,8 +1350,9 @@ def _traced_rows():
 def _assert_only_first_row_valid(f, g):
     f, g = np.asarray(f), np.asarray(g)
     assert np.all(np.isnan(f[1:])) and np.all(np.isnan(g[1:])), (f, g)
-    np.testing.assert_allclose(f[0], jd.characteristic(TUBE, 1.0, 0.445, jd.Fluid()), rtol=1e-13)
-    np.testing.assert_allclose(g[0], jd.group_velocity(TUBE, 0.445, 1.0, jd.Fluid()), rtol=1e-13)
+    np.testing.assert_allclose(f[0], jd.characteristic(TUBE, 1.0, 0.445, jd.Fluid(), N_LAYERS), rtol=1e-13)
+    np.testing.assert_allclose(g[0], jd.group_velocity(TUBE, 0.445, 1.0, jd.Fluid(), N_LAYERS),
+                               rtol=1e-13)
 
 
 def test_compiled_characteristic_and_group_velocity_give_nan_for_invalid_values():

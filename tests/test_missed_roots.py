@@ -58,7 +58,7 @@ def test_paper_pairs_straddling_poles():
     np.testing.assert_allclose(omega[:3], PAPER_REFERENCE, rtol=0, atol=2e-5)
 
     # each pair straddles a pole of B̂_1 (closed form with SciPy's zeros of J'_1)
-    wall = discretize(PAPER_TUBE, 30)
+    wall = discretize(PAPER_TUBE, laminate(None, None, PAPER_TUBE, alpha))  # the roots' discretisation
     r_inner = float(wall.r_inner)
     poles = 0.27 * np.sqrt(float(alpha) ** 2 + (jnp_zeros(1, 2) / r_inner) ** 2)
     code_poles, widths = (np.asarray(v)[:2] for v in coupling_poles(wall, alpha, PAPER_FLUID, 1))
@@ -175,6 +175,16 @@ def test_campaign_paper_coupling():
         hi = 0.5 * float(roots.omega[3] + roots.omega[4])
         count = jaxdea.count_roots(tube, alpha, 0.0, hi, PAPER_FLUID, height=THIN_BOX)
         assert int(count.status) == CountStatus.CERTIFIED and int(count.count) == 4
+
+
+@pytest.mark.parametrize("coupling, n_cases", [(None, 34), ("acoustic", 33), ("paper", 33)])
+def test_campaign_hundred_random_tubes(coupling, n_cases):
+    """The default tier's campaign: 100 random tubes in all (thick and thin walls, G from 2 to ∞,
+    V̂ up to 0.9 V̂_cr, α̂ 0.1–5), split over the three fluid models; the scan's 6 lowest roots
+    against the certified count (other tubes than the slow campaign's)."""
+    fluid = None if coupling is None else Fluid(coupling=coupling,
+                                                bessel_order=1 if coupling == "paper" else None)
+    _check_campaign(fluid, 1 if coupling == "paper" else 0, n_cases, seed=5)
 
 
 @pytest.mark.slow
