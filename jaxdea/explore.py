@@ -82,7 +82,7 @@ def explorer_grid(tube: Tube, alphas=ALPHAS, n_axial: int = N_AXIAL):
 
 
 def explorer_data(tube: Tube, fluid: Fluid | None = None, m: int = 0, n_modes: int = 3,
-                  alphas=ALPHAS, n_axial: int = N_AXIAL, n_layers: int = 30) -> ExplorerData:
+                  alphas=ALPHAS, n_axial: int = N_AXIAL, n_layers: int | None = None) -> ExplorerData:
     """The dispersion curves Ω(α̂) of the ``n_modes`` lowest modes of order ``m`` by continuation
     (:func:`jaxdea.dispersion_curve` on :func:`explorer_grid`), their phase velocities and the
     axial modes n on them.
@@ -98,7 +98,8 @@ def explorer_data(tube: Tube, fluid: Fluid | None = None, m: int = 0, n_modes: i
                         np.asarray(curve.status), n, axial, rows)
 
 
-def stability_status(tube: Tube, n_max: int = 3, m_max: int = 4, n_layers: int = 30) -> StabilityStatus:
+def stability_status(tube: Tube, n_max: int = 3, m_max: int = 4,
+                     n_layers: int | None = None) -> StabilityStatus:
     """Whether the tube's V̂ has reached its first instability over 0 ≤ m ≤ ``m_max``,
     1 ≤ n ≤ ``n_max`` (:func:`jaxdea.first_instability`; independent of V̂ and of a fluid)."""
     first = first_instability(tube, n_max=n_max, m_max=m_max, n_layers=n_layers)
@@ -125,7 +126,7 @@ def judge_stability(v_first: float, m: int, n: int, voltage: float, n_max: int =
 
 
 def explorer_mode(tube: Tube, data: ExplorerData, alpha, branch: int, fluid: Fluid | None = None,
-                  m: int = 0, n_layers: int = 30):
+                  m: int = 0, n_layers: int | None = None):
     """(α̂, Ω, r, fields) of the root of ``branch`` (0: the lowest) at the grid α̂ nearest to
     ``alpha``: :func:`jaxdea.mode_shape` there.
 
@@ -141,7 +142,7 @@ def explorer_mode(tube: Tube, data: ExplorerData, alpha, branch: int, fluid: Flu
 
 
 def explore(tube: Tube | None = None, fluid: Fluid | None = None, *, n_modes: int = 3,
-            alphas=ALPHAS, n_axial: int = N_AXIAL, n_layers: int = 30, n_max: int = 3,
+            alphas=ALPHAS, n_axial: int = N_AXIAL, n_layers: int | None = None, n_max: int = 3,
             m_max: int = 4, stability: bool = True):
     """An ipywidgets app to explore the dispersion and stability of a tube interactively.
 
@@ -164,7 +165,7 @@ def explore(tube: Tube | None = None, fluid: Fluid | None = None, *, n_modes: in
         n_modes: K, the number of branches (static).
         alphas: the α̂ grid (its size is fixed for the life of the app: no recompilation).
         n_axial: axial modes marked.
-        n_layers: sublayers N of every solve.
+        n_layers: sublayers N of every solve (None: the default, accurate discretisation).
         n_max, m_max: the (m, n) searched for the first instability.
         stability: False leaves the stability status out (no ``first_instability`` solves).
 

@@ -224,7 +224,7 @@ def test_design_with_a_scheme_meets_the_target_on_that_discretisation():
 @pytest.mark.parametrize("call", [
     lambda: jd.characteristic(TUBE, 1.0, ALPHA, scheme="rk4"),
     lambda: jd.frequencies(TUBE, ALPHA, scheme="Magnus6"),
-    lambda: jd.frequency(TUBE, ALPHA, 1.0, scheme=None),
+    lambda: jd.frequency(TUBE, ALPHA, 1.0, scheme="none"),
     lambda: jd.dispersion_curve(TUBE, [1.0, 2.0], scheme="magnus8"),
     lambda: jd.sweep(TUBE, alpha=[1.0], scheme="euler", progress=False),
     lambda: jd.critical_voltage(TUBE, ALPHA, scheme="magnus5"),
