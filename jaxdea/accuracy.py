@@ -47,11 +47,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from .compiled import cached_jit, serializable
-from .params import Fluid, Tube, canonical, validate_layers
+from .params import Fluid, Tube, canonical, validate_count, validate_layers
 from .roots import _guard_order, _order_inputs, _problem, guard, scan_step, solve_frequencies
 from .state_matrix import LONGITUDINAL
 from .scalar import Status, run_lanes, start_lanes
-from .transfer import laminate, scheme_order
+from .transfer import Layers, is_graded, laminate, scheme_order, split_layers
 
 
 @serializable
@@ -99,8 +99,8 @@ def _follow(tube, alpha, fluid, guesses, n_layers, order, m=0.0, family=LONGITUD
 
 
 def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
-                           omega_max=None, n_layers: int = 30, rtol=None,
-                           max_layers: int = 1920, scheme: str = "midpoint", m=0,
+                           omega_max=None, n_layers: int | None = None, rtol=None,
+                           max_layers: int | None = None, scheme: str | None = None, m=0,
                            torsional: bool = False) -> Estimate:
     """The ``n_roots`` lowest roots with an error estimate each (module docstring).
 
@@ -112,9 +112,11 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
 
     Args:
         tube, alpha, fluid, n_roots, omega_max: as in :func:`jaxdea.frequencies`.
-        n_layers: the coarsest level N, where the roots are isolated.
+        n_layers: the coarsest level N, where the roots are isolated; None (default): the N of
+            the default discretisation, whose levels are graded sixth-order Magnus walls
+            (:func:`jaxdea.frequencies`), so the estimate is that of the default's roots.
         rtol: requested relative accuracy, or None (levels until the asymptotic regime only).
-        max_layers: finest level allowed.
+        max_layers: finest level allowed (None: max(1920, 4N)).
         scheme: the propagation scheme of every level (:func:`jaxdea.frequencies`); its order p
             sets the Richardson factor 2^p.
         m, torsional: the circumferential order and family (:func:`jaxdea.frequencies`); every
@@ -127,25 +129,33 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
         >>> est = frequencies_with_error(Tube(), 0.445, rtol=1e-10)
         >>> est.omega, est.error
     """
-    if n_layers is None or max_layers is None:
-        raise ValueError("n_layers and max_layers must be integers >= 1 here (the levels N, 2N, 4N, …), "
-                         f"got n_layers={n_layers!r}, max_layers={max_layers!r}")
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    n_roots = validate_count("n_roots", n_roots)
+    base = laminate(n_layers, scheme, *canonical(tube, alpha), n_roots, canonical(m))
+    count, scheme = split_layers(base)
+    graded = is_graded(base)
+
+    def level(n):  # the static discretisation of the level with n sublayers
+        return Layers(n, scheme, True) if graded else laminate(n, scheme)
+
+    if max_layers is None:
+        max_layers = max(1920, 4 * count)
     validate_layers(max_layers)
-    if max_layers < 4 * n_layers:
-        raise ValueError(f"max_layers must be >= 4 * n_layers = {4 * n_layers}, got {max_layers!r}")
+    if max_layers < 4 * count:
+        raise ValueError(f"max_layers must be >= 4 * n_layers = {4 * count}, got {max_layers!r}")
     if rtol is not None and not (np.isfinite(rtol) and rtol > 0):
         raise ValueError(f"rtol must be a finite number > 0, got {rtol!r}")
-    first = solve_frequencies(tube, alpha, fluid, n_roots, omega_max, n_layers, scheme, m, torsional)
+    first = solve_frequencies(tube, alpha, fluid, n_roots, omega_max, *((None, None) if graded else
+                                                                         (count, scheme)), m, torsional)
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
     order_args = () if family == LONGITUDINAL else (m, family)
     levels = [np.asarray(first.omega)]
     status = np.asarray(first.status).copy()
-    layers = [int(n_layers)]
+    layers = [count]
     while True:
         n = 2 * layers[-1]
-        omega, stat = (np.asarray(x) for x in _follow(tube, alpha, fluid, levels[-1],
-                                                      laminate(n, scheme), order, *order_args))
+        omega, stat = (np.asarray(x) for x in _follow(tube, alpha, fluid, levels[-1], level(n),
+                                                      order, *order_args))
         status = np.where(status == Status.CONVERGED, stat, status)
         levels.append(omega)
         layers.append(n)

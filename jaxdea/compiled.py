@@ -56,6 +56,7 @@ import shutil
 import stat
 import tempfile
 import warnings
+import weakref
 from pathlib import Path
 
 import jax
@@ -222,6 +223,20 @@ def clear_cache() -> Path | None:
     return root
 
 
+_PROGRAMS: weakref.WeakSet = weakref.WeakSet()
+"""Every :class:`CachedJit` of the process (for :func:`clear_memory`)."""
+
+
+def clear_memory() -> None:
+    """Drop the compiled programs this process holds in memory (every :func:`cached_jit`'s loaded
+    programs and JAX's own jit caches): a long session, or a test run, that has compiled many
+    configurations frees their executables. The disk cache is kept, so the next call of a program
+    loads it again (≈ 0.1–0.6 s) instead of compiling it."""
+    for program in list(_PROGRAMS):
+        program._calls.clear()
+    jax.clear_caches()
+
+
 class CachedJit:
     """``jax.jit(fun, static_argnames=...)`` whose first call in a process may load the program's
     exported form from disk instead of tracing it (module docstring). Other attributes (``lower``,
@@ -235,6 +250,7 @@ class CachedJit:
         self._signature = inspect.signature(fun)
         self._name = f"{fun.__module__}.{fun.__qualname__}"
         self._calls = {}  # key -> jax.jit of the exported program, this process
+        _PROGRAMS.add(self)
         self.counts = {"loaded": 0, "exported": 0, "stored": 0}  # entries read / traced here / written
         functools.update_wrapper(self, fun)
         PROGRAMS.append(self)

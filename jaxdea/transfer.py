@@ -50,7 +50,7 @@ import numpy as np
 
 from .base_state import _w1, base_state, geometry, pressure_difference_unchecked
 from .moduli import Coefficients, closed_form_coefficients, coefficients, push_forward_moduli
-from .params import Tube, as_float
+from .params import Tube, admissible, as_float
 from .state_matrix import (
     LONGITUDINAL,
     ORDER_M,
@@ -124,7 +124,8 @@ def _wall_lengths_of(lambda_i, lambda_z, eta, gent, material):
     geo = geometry(tube)
     ell = grading_length(tube, geo)
     locking = jnp.where(ell < geo.r_inner, ell, jnp.inf)
-    return geo.thickness, geo.r_inner, locking
+    ok = admissible(tube)  # a point past locking (or otherwise invalid) sets no N: it gives NaN
+    return tuple(jnp.where(ok, x, jnp.nan) for x in (geo.thickness, geo.r_inner, locking))
 
 
 _wall_lengths = jax.jit(jax.vmap(_wall_lengths_of, (0, 0, 0, 0, None)), static_argnums=4)
@@ -142,7 +143,7 @@ def wall_lengths(tube: Tube):
                                                           tube.material))
     except (jax.errors.TracerArrayConversionError, jax.errors.ConcretizationTypeError):
         return None
-    ok = np.isfinite(h) & np.isfinite(r) & (h > 0) & (r > 0)
+    ok = np.isfinite(h) & np.isfinite(r) & (h > 0) & (r > 0) & ~np.isnan(ell)
     if not ok.any():
         return None
     h, r, ell = h[ok], r[ok], ell[ok]

@@ -15,6 +15,9 @@ jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+import jaxdea.compiled  # noqa: E402
 
 
 def fd_derivative(fun, x, h=None):
@@ -32,3 +35,13 @@ def assert_tree_allclose(a, b, rtol=1e-12, atol=0.0):
     assert len(la) == len(lb)
     for x, y in zip(la, lb, strict=True):
         np.testing.assert_allclose(np.asarray(x), np.asarray(y), rtol=rtol, atol=atol)
+
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _free_compiled_programs():
+    """Each test module's compiled programs are freed after it (they are reloaded from the disk
+    cache where a later module needs them): the worker processes of a test run stay a few GB."""
+    yield
+    jaxdea.compiled.clear_memory()
+

@@ -15,7 +15,7 @@ def test_error_estimate_bounds_the_true_error():
     error, by about 15 (asymptotic ratio of consecutive Richardson errors, 16 − 1), never by 1000."""
     tube, alpha = jd.Tube(eta=0.85), 0.5
     exact = exact_cylinder.roots(alpha, 1.0, 1 / 0.85, 3, 22.0, 2000)
-    est = frequencies_with_error(tube, alpha, n_roots=3, omega_max=22.0)
+    est = frequencies_with_error(tube, alpha, n_roots=3, omega_max=22.0, n_layers=30)
     assert np.all(est.status == jd.Status.CONVERGED)
     np.testing.assert_array_equal(est.n_layers, [30, 60, 120])
     true = np.abs(est.omega - exact)
@@ -28,11 +28,12 @@ def test_error_estimate_bounds_the_true_error():
 def test_tolerance_is_reached_by_doubling():
     tube, alpha = jd.Tube(eta=0.85), 0.5
     exact = exact_cylinder.roots(alpha, 1.0, 1 / 0.85, 3, 22.0, 2000)
-    est = frequencies_with_error(tube, alpha, n_roots=3, omega_max=22.0, rtol=1e-12)
+    est = frequencies_with_error(tube, alpha, n_roots=3, omega_max=22.0, rtol=1e-12, n_layers=30)
     assert np.all(est.status == jd.Status.CONVERGED)
     assert est.n_layers[-1] > 120 and np.all(est.error <= 1e-12 * est.omega)
     assert np.all(np.abs(est.omega - exact) <= 1e-12 * exact)
-    few = frequencies_with_error(tube, alpha, n_roots=3, omega_max=22.0, rtol=1e-15, max_layers=120)
+    few = frequencies_with_error(tube, alpha, n_roots=3, omega_max=22.0, rtol=1e-15, max_layers=120,
+                                 n_layers=30)
     assert np.all(few.status == jd.Status.INACCURATE) and np.all(np.isfinite(few.omega))
 
 
@@ -46,7 +47,7 @@ def test_thick_wall_at_alpha_h_150_against_the_exact_cylinder():
     alpha = 150.0 / float(jd.thickness_ratio(tube))
     exact = exact_cylinder.roots(alpha, 1.0, 1 / 0.3, 13, 66.0, 16000)
     assert np.sum(np.isfinite(exact)) == 12
-    est = frequencies_with_error(tube, alpha, n_roots=13, omega_max=66.0)
+    est = frequencies_with_error(tube, alpha, n_roots=13, omega_max=66.0, n_layers=30)
     assert np.all(est.status[:12] == jd.Status.CONVERGED) and est.status[12] == jd.Status.NO_ROOT
     true = np.abs(est.omega[:12] - exact[:12])
     assert np.all(true <= est.error[:12]) and np.all(est.error[:12] < 1e-4 * exact[:12])
@@ -59,8 +60,8 @@ def test_amplified_error_near_the_critical_voltage_is_visible():
     than that of the next root and covers the change from N = 30 to the extrapolated value."""
     tube = jd.Tube(lambda_i=1.1, lambda_z=1.2)
     alpha = jd.axial_wavenumber(tube, 1)
-    v_cr = float(jd.critical_voltage(tube, alpha))
-    est = frequencies_with_error(tube.replace(voltage=0.999 * v_cr), alpha, n_roots=3)
+    v_cr = float(jd.critical_voltage(tube, alpha, n_layers=30))
+    est = frequencies_with_error(tube.replace(voltage=0.999 * v_cr), alpha, n_roots=3, n_layers=30)
     assert np.all(est.status == jd.Status.CONVERGED)
     rel = est.error / est.omega
     assert rel[0] > 1e3 * max(rel[1], rel[2])
@@ -72,17 +73,17 @@ def test_amplified_error_near_the_critical_voltage_is_visible():
 def test_near_critical_estimate_against_a_finer_reference():
     tube = jd.Tube(lambda_i=1.1, lambda_z=1.2)
     alpha = jd.axial_wavenumber(tube, 1)
-    v_cr = float(jd.critical_voltage(tube, alpha))
+    v_cr = float(jd.critical_voltage(tube, alpha, n_layers=30))
     for frac in (0.99, 0.999):
         t = tube.replace(voltage=frac * v_cr)
-        est = frequencies_with_error(t, alpha, n_roots=2)
+        est = frequencies_with_error(t, alpha, n_roots=2, n_layers=30)
         ref = frequencies_with_error(t, alpha, n_roots=2, n_layers=240)
         assert np.all(np.abs(est.omega - ref.omega) <= est.error)
 
 
 @pytest.mark.parametrize("kwargs, name", [(dict(rtol=-1.0), "rtol"), (dict(rtol=np.nan), "rtol"),
                                           (dict(max_layers=60), "max_layers")])
-def test_bad_accuracy_arguments(kwargs, name):
+def test_bad_accuracy_arguments(kwargs, name):  # max_layers < 4N, N = 16 by default
     with pytest.raises(ValueError, match=name):
         frequencies_with_error(jd.Tube(), 0.5, **kwargs)
 
@@ -119,3 +120,18 @@ def test_richardson_eliminates_the_leading_term_of_each_order(order):
     last = d * (2 * n) ** -(order + 2) * (0.25 - 1.0) / (factor - 1.0)  # R_last − Ω: the d term
     np.testing.assert_allclose(value - omega, last, rtol=1e-6)
     np.testing.assert_allclose(error, (2.0 ** (order + 2) - 1.0) * abs(last), rtol=1e-6)
+
+
+def test_default_levels_are_graded_and_their_estimate_bounds_the_error():
+    """Without n_layers the levels are the default's graded sixth-order walls (N, 2N, 4N from the
+    default N = 16): the estimate of the default's roots, CONVERGED, bounding the error against the
+    exact cylinder (true errors ~1e-14 here)."""
+    tube, alpha = jd.Tube(eta=0.85), 0.5
+    exact = exact_cylinder.roots(alpha, 1.0, 1 / 0.85, 3, 22.0, 2000)
+    est = frequencies_with_error(tube, alpha, n_roots=3, omega_max=22.0)
+    np.testing.assert_array_equal(est.n_layers, [16, 32, 64])
+    np.testing.assert_array_equal(est.levels[0], np.asarray(jd.frequencies(tube, alpha, n_roots=3,
+                                                                             omega_max=22.0)))
+    assert np.all(est.status == jd.Status.CONVERGED)
+    assert np.all(np.abs(est.omega - exact) <= est.error + 2e-14 * exact)
+    assert np.all(est.error < 1e-10 * exact)

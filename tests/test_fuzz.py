@@ -1280,7 +1280,8 @@ def test_invalid_points_of_a_sweep_are_invalid():
     """Sweeps do not raise on values: a locked point or α̂ below ALPHA_MIN gives NaN and status
     INVALID, the other points their roots."""
     res = jd.sweep(jd.Tube(lambda_z=1.2), lambda_i=[1.0, 12.0], alpha=[0.445, ALPHA_MIN / 10],
-                   n_roots=2, chunk_size=4, batch_size=1, progress=False)  # as in test_determinism
+                   n_roots=2, chunk_size=4, batch_size=1, progress=False,
+                   n_layers=N_LAYERS)  # as in test_determinism
     valid = np.array([[True, False], [False, False]])
     assert np.all(res.status[~valid] == jd.Status.INVALID) and np.all(np.isnan(res.omega[~valid]))
     assert np.all(res.status[0, 0] == jd.Status.CONVERGED)
@@ -1392,7 +1393,7 @@ def test_alpha_down_to_its_minimum():
     α̂ → 0, up to the O(N⁻²) laminate error of the 1/r̂ terms (4e-7 at N = 30). Below ALPHA_MIN a
     ValueError states the range (traced: status INVALID, test_invalid_points_of_a_sweep_are_invalid)."""
     tube = jd.Tube()
-    roots = jd.solve_frequencies(tube, ALPHA_MIN)
+    roots = jd.solve_frequencies(tube, ALPHA_MIN, n_layers=N_LAYERS)
     assert roots.status[0] == jd.Status.CONVERGED
     assert float(roots.omega[0]) / ALPHA_MIN == pytest.approx(math.sqrt(3.0), rel=1e-6)
     assert_roots(tube, ALPHA_MIN, None, roots)

@@ -211,7 +211,7 @@ def test_error_estimate_near_locking_is_honest():
     240 sublayers the roots are INACCURATE, with conservative errors that still bound it."""
     tube, fluid = jd.Tube(**LOCKED), jd.Fluid(density_ratio=0.13, speed_ratio=0.27)
     alpha = float(jd.axial_wavenumber(tube, 2))
-    est = jd.frequencies_with_error(tube, alpha, fluid, n_roots=3)
+    est = jd.frequencies_with_error(tube, alpha, fluid, n_roots=3, n_layers=30)
     reference = [[float(jd.frequency(tube, alpha, w, fluid, n_layers=n, scheme="magnus6"))
                   for w in est.omega] for n in (480, 960)]
     np.testing.assert_allclose(reference[0], reference[1], rtol=1e-6)
@@ -221,8 +221,30 @@ def test_error_estimate_near_locking_is_honest():
     assert est.n_layers[-1] > 120 and np.all(est.status == jd.Status.CONVERGED)
     assert np.all(np.abs(est.omega - reference[1]) <= est.error)
     assert abs(levels[0][1] - reference[1][1]) > 0.1  # root 2 at N = 30: the layer is unresolved
-    short = jd.frequencies_with_error(tube, alpha, fluid, n_roots=3, max_layers=240)
+    short = jd.frequencies_with_error(tube, alpha, fluid, n_roots=3, max_layers=240, n_layers=30)
     np.testing.assert_array_equal(short.n_layers, [30, 60, 120, 240])
     assert np.all(short.status == jd.Status.INACCURATE)
     assert np.all(np.abs(short.omega - reference[1]) <= short.error)
     assert np.all(np.isfinite(short.error))
+
+
+@pytest.mark.slow
+def test_default_levels_near_locking_converge_at_sixth_order():
+    """The same tube without n_layers: the graded sixth-order levels (96, 192, 384) are in the
+    asymptotic regime at once (CONVERGED, errors below 1e-8), and each estimate bounds the distance
+    to the roots followed on a graded wall of 1536 sublayers."""
+    tube, fluid = jd.Tube(**LOCKED), jd.Fluid(density_ratio=0.13, speed_ratio=0.27)
+    alpha = float(jd.axial_wavenumber(tube, 2))
+    est = jd.frequencies_with_error(tube, alpha, fluid, n_roots=3)
+    assert est.n_layers[0] == 96 and np.all(est.status == jd.Status.CONVERGED)
+    assert np.all(est.error < 1e-8 * est.omega)
+    from jaxdea.accuracy import _follow
+    from jaxdea.dispersion import check_inputs
+    from jaxdea.params import canonical
+    from jaxdea.transfer import Layers
+
+    order = check_inputs(tube, alpha, fluid, None, None)
+    fine, status = _follow(*canonical(tube, alpha, fluid), jnp.asarray(est.omega),
+                           Layers(1536, "magnus6", True), order)  # 4× the finest level
+    assert np.all(np.asarray(status) == jd.Status.CONVERGED)
+    assert np.all(np.abs(est.omega - np.asarray(fine)) <= np.maximum(est.error, 1e-12 * est.omega))
