@@ -852,9 +852,9 @@ def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=32, v
     def g(v):  # f(Ω = 0; V̂ = v), the wall formed from its expansion in V̂ (the same function)
         wall = wall_at_voltage(expansion, v)
         if family == LONGITUDINAL:
-            return characteristic_on_wall(wall, jnp.zeros_like(v), alpha, fluid, order, "adaptive")
+            return characteristic_on_wall(wall, jnp.zeros_like(v), alpha, fluid, order, "at_rest")
         # fluid-free: κ ∝ Ω² vanishes at Ω = 0 (theory_m.md §6)
-        return characteristic_of_w(wall, jnp.zeros_like(v), alpha, None, order, "adaptive", m_safe,
+        return characteristic_of_w(wall, jnp.zeros_like(v), alpha, None, order, "at_rest", m_safe,
                                    family)
 
     roots = _first_root(g, v_end / n_grid, v_end)

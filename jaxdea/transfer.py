@@ -459,7 +459,9 @@ def _expm_taylor_jvp(primals, tangents):
 
 
 EXPONENTIALS = {"taylor": expm_taylor, "adaptive": expm_taylor_adaptive,
-                "expm": jax.scipy.linalg.expm}
+                "at_rest": expm_taylor_adaptive, "expm": jax.scipy.linalg.expm}
+"""The sublayer exponentials by ``method``; ``"at_rest"`` is ``"adaptive"`` at Ω = 0 only, with the
+generators formed without their inertia terms (:func:`generator_coefficients`)."""
 
 
 def _poly_product(p, q):
@@ -542,7 +544,8 @@ def _poly_commutator(p, q):
             for k in range(len(p) + len(q) - 1)]
 
 
-def generator_coefficients(step, coef: Coefficients, radius, alpha, m=0, family=LONGITUDINAL):
+def generator_coefficients(step, coef: Coefficients, radius, alpha, m=0, family=LONGITUDINAL,
+                           at_rest: bool = False):
     """G_j (shape (P, n, n)) with G(Ω) = Σ_j G_j Ω^{2j} the sublayer's generator (:func:`layer_generator`).
 
     Every node has M = M_0 − Ω² E (:data:`INERTIA`), so G is a polynomial in w = Ω²: of degree 1
@@ -554,6 +557,10 @@ def generator_coefficients(step, coef: Coefficients, radius, alpha, m=0, family=
 
     ``family`` (static) and ``m`` (traced, ``"order_m"`` only) select the state matrix and its E
     (:func:`jaxdea.state_matrix.family_matrix`, ``family_inertia``); n = 6, 8 or 2.
+
+    ``at_rest`` (static): G at w = 0 only (P = 1), the inertia left out: a search in V̂ at Ω = 0
+    (:func:`jaxdea.critical_voltage`) forms the sixth-order generator with 6 matrix products per
+    sublayer instead of 24 (its wall changes with every V̂); the same G_0, to rounding.
     """
     if family == LONGITUDINAL:
         matrix, inertia = (lambda c, r: state_matrix(c, r, 0.0, alpha)), INERTIA
@@ -561,15 +568,16 @@ def generator_coefficients(step, coef: Coefficients, radius, alpha, m=0, family=
         matrix = lambda c, r: family_matrix(family, c, r, 0.0, alpha, m)  # noqa: E731
         inertia = family_inertia(family, m)
     if jnp.ndim(radius) == 0:
-        return jnp.stack([step * matrix(coef, radius), -step * inertia])
+        return jnp.stack([step * matrix(coef, radius)] + ([] if at_rest else [-step * inertia]))
     m0 = jax.vmap(matrix)(coef, radius)
-    e = -step * inertia
+    e = [] if at_rest else [-step * inertia]
+    minus_e = [] if at_rest else [-inertia]
     if radius.shape[0] == 2:
-        mean = [0.5 * step * (m0[0] + m0[1]), e]
+        mean = [0.5 * step * (m0[0] + m0[1]), *e]
         # [M_2, M_1] with M_j = M_j⁰ − wE; its w² coefficient [E, E] is exactly zero
-        inner = _poly_commutator([m0[1], -inertia], [m0[0], -inertia])[:2]
+        inner = _poly_commutator([m0[1], *minus_e], [m0[0], *minus_e])[:2]
         return jnp.stack(_poly_add(mean, _poly_scale((math.sqrt(3.0) / 12.0) * step**2, inner)))
-    b1 = [step * m0[1], e]
+    b1 = [step * m0[1], *e]
     b2 = [(math.sqrt(15.0) / 3.0) * step * (m0[2] - m0[0])]
     b3 = [(10.0 / 3.0) * step * (m0[2] - 2.0 * m0[1] + m0[0])]
     c1 = _poly_commutator(b1, b2)
@@ -605,11 +613,12 @@ def layer_generator(step, coef: Coefficients, radius, omega, alpha, m=0, family=
     return evaluate_generator(generator_coefficients(step, coef, radius, alpha, m, family), omega)
 
 
-def wall_generators(wall: Wall, alpha, m=0, family=LONGITUDINAL):
+def wall_generators(wall: Wall, alpha, m=0, family=LONGITUDINAL, at_rest: bool = False):
     """The coefficients of every sublayer's generator, shape (N, P, n, n)
     (:func:`generator_coefficients`): formed once per (wall, α̂, m), shared by every Ω."""
     return jax.vmap(generator_coefficients, (0 if jnp.ndim(wall.step) else None, 0, 0, None, None,
-                                             None))(wall.step, wall.coef, wall.radii, alpha, m, family)
+                                             None, None))(wall.step, wall.coef, wall.radii, alpha, m,
+                                                          family, at_rest)
 
 
 def layer_exponentials(wall: Wall, omega, alpha, method: str = "taylor", m=0,
@@ -625,7 +634,9 @@ def layer_exponentials(wall: Wall, omega, alpha, method: str = "taylor", m=0,
 
 def layer_exponentials_of_w(wall: Wall, omega_squared, alpha, method: str = "taylor", m=0,
                             family=LONGITUDINAL):
-    """:func:`layer_exponentials` at w = Ω² (either sign)."""
+    """:func:`layer_exponentials` at w = Ω² (either sign; w = 0 for ``method="at_rest"``)."""
+    if method == "at_rest":  # G at w = 0 only, formed without the inertia terms
+        return jax.vmap(EXPONENTIALS[method])(wall_generators(wall, alpha, m, family, True)[:, 0])
     gens = jax.vmap(generator_of_w, (0, None))(wall_generators(wall, alpha, m, family),
                                                omega_squared)
     return jax.vmap(EXPONENTIALS[method])(gens)
@@ -708,10 +719,10 @@ def propagate_basis_of_w(wall: Wall, omega_squared, alpha, basis, method: str = 
     w = omega_squared
     if jnp.iscomplexobj(w) and not jnp.iscomplexobj(basis):
         basis = basis.astype(jnp.result_type(basis.dtype, w))
-    if family == ORDER_M and method != "adaptive":
+    if family == ORDER_M and method not in ("adaptive", "at_rest"):
         return propagate_balanced_of_w(wall, w, alpha, basis, method, m, family)
     q0, log0 = orthonormalize(basis)
-    if method == "adaptive":
+    if method in ("adaptive", "at_rest"):
         # the solvers' value-and-slope evaluations (small batches: lanes, 32-point grid chunks): all
         # N exponentials at once, then the scan (fewer sequential steps; 1.2–1.5× faster there)
         (q, log_scale), _ = jax.lax.scan(

@@ -37,7 +37,6 @@ def assert_tree_allclose(a, b, rtol=1e-12, atol=0.0):
         np.testing.assert_allclose(np.asarray(x), np.asarray(y), rtol=rtol, atol=atol)
 
 
-
 @pytest.fixture(autouse=True, scope="module")
 def _free_compiled_programs():
     """Each test module's compiled programs are freed after it (they are reloaded from the disk
