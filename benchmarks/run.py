@@ -259,7 +259,7 @@ def work_explore(cfg: dict) -> dict:
     by a first move): recomputing the curves (``explorer_data``), the whole update (curves, the
     stability status and rendering the figure) for V̂ on the empty tube at m = 0, the filled tube
     (acoustic) and m = 2, and a λ_i move, which solves ``first_instability`` again (m ≤ 4, n ≤ 3).
-    Best of the repeats; the paper's tube, 45 α̂ × 3 branches, N = 30."""
+    Best of the repeats; the paper's tube, 45 α̂ × 3 branches, the default discretisation."""
     jax, jaxdea = _jax()
     from jaxdea.explore import explorer_data
 
@@ -977,7 +977,7 @@ def render_fit(r: dict) -> list:
 def render_explore(r: dict) -> list:
     """Section (i): one update of the interactive explorer."""
     lines = ["", f"## (i) Interactive explorer (`jaxdea.explore`): one update after a slider move, "
-             f"warm ({r['points']} α̂ × 3 branches, N = 30)", "",
+             f"warm ({r['points']} α̂ × 3 branches, the default discretisation)", "",
              "| setting | curves (`explorer_data`), s | whole update of V̂ (curves, status, figure), s |",
              "|---|---:|---:|"]
     for row in r["rows"]:
