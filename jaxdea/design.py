@@ -532,8 +532,10 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
         max_steps: step limit (>= 1).
         rtol: tolerance of the convergence test, in (0, 1).
         n_layers: sublayers N (static), or None: the accurate discretisation (:func:`jaxdea.frequencies`).
-        scheme: the propagation scheme (:func:`jaxdea.frequencies`) of every solve; ``"magnus6"``
-            with ``n_layers=6`` resolves the wall to about 1e-9 (the default N = 30: 1e-5).
+        scheme: the propagation scheme (:func:`jaxdea.frequencies`) of every solve. The default
+            discretisation is resolved once for the run (its N for the thickest wall allowed and
+            the orders and modes of the bound): ≤ 1e-8; ``scheme="midpoint", n_layers=30`` is the
+            paper's laminate (1e-5).
 
     Returns:
         :class:`DesignResult`.
@@ -562,7 +564,12 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
                    margin=voltage_margin, h_lo=h_lo, h_hi=h_hi)
     setting = jax.tree_util.tree_map(as_float, setting)
     x0 = [_sigmoid_inverse(h0, h_lo, h_hi), _sigmoid_inverse(s0, 0.0, 1.0)]
-    guess, bound = _seed(x0, setting, "frequency", s0, int(n_layers), scheme, int(m_max), int(n_max),
+    # one discretisation for the whole run: the default's N for its thickest wall and the orders
+    # and modes of the bound (the run solves and differentiates on this one wall model)
+    thickest = tube.replace(eta=1.0 / (1.0 + h_hi))
+    layers = laminate(n_layers, scheme, thickest, mode_wavenumber(thickest, max(int(n), int(n_max))),
+                      m=int(m_max))
+    guess, bound = _seed(x0, setting, "frequency", s0, layers, None, int(m_max), int(n_max),
                          "thickness")
 
     def done(aux, grad):
@@ -576,13 +583,13 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
     steps_left, x, handoff = int(max_steps), x0, near
     history = []
     while True:
-        aux, more, status, x = _run(x, guess, bound, setting, "frequency", int(n_layers), scheme,
+        aux, more, status, x = _run(x, guess, bound, setting, "frequency", layers, None,
                                     learning_rate, steps_left, done, handoff=handoff)
         history += more
         steps_left -= len(more)
         if status is None or (status == DesignStatus.MAX_STEPS
                               and abs(float(aux["miss"])) <= NEWTON_START):
-            finished = _newton_finish(x, aux["omega"], bound, setting, int(n_layers), scheme,
+            finished = _newton_finish(x, aux["omega"], bound, setting, layers, None,
                                       history, done)
             if finished is not None:
                 aux, status = finished
@@ -592,7 +599,7 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
                 continue
             status = DesignStatus.MAX_STEPS if status is None else status
         break
-    return _finish(aux, np.asarray(history), status, bound, tube.material, int(n_layers), scheme)
+    return _finish(aux, np.asarray(history), status, bound, tube.material, layers, None)
 
 
 # ----------------------------------------------------------------------------- problem 2
@@ -665,8 +672,10 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
     setting = jax.tree_util.tree_map(as_float, setting)
     kind = "tunability_lambda" if free else "tunability"
     x0 = [_cosine_inverse(s0, 0.0, 1.0)] + ([_cosine_inverse(li0, li_lo, li_hi)] if free else [])
-    guess, bound = _seed(x0, setting, kind, s0, int(n_layers), scheme, int(m_max), int(n_max),
-                         "lambda_i")
+    start = setting["tube"]
+    layers = laminate(n_layers, scheme, start, mode_wavenumber(start, max(int(n), int(n_max))),
+                      m=int(m_max))  # one discretisation for the whole run
+    guess, bound = _seed(x0, setting, kind, s0, layers, None, int(m_max), int(n_max), "lambda_i")
 
     recent = []
 
@@ -675,6 +684,6 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
         recent.append(float(aux["loss"]))
         return len(recent) > PLATEAU and abs(recent[-1] - recent[-1 - PLATEAU]) <= rtol * abs(recent[-1])
 
-    aux, history, status, _ = _run(x0, guess, bound, setting, kind, int(n_layers), scheme,
+    aux, history, status, _ = _run(x0, guess, bound, setting, kind, layers, None,
                                    learning_rate, max_steps, done)
-    return _finish(aux, np.asarray(history), status, bound, tube.material, int(n_layers), scheme)
+    return _finish(aux, np.asarray(history), status, bound, tube.material, layers, None)

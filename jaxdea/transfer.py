@@ -164,6 +164,8 @@ def laminate(n_layers=None, scheme=None, tube: Tube | None = None, alpha=None, n
     form, so compiled programs and their cache keys are unchanged), and ``"midpoint"``/``"magnus4"``
     without ``n_layers`` take the paper's N = 30. Validation is the caller's
     (:func:`jaxdea.params.validate_layers`, ``validate_scheme``)."""
+    if isinstance(n_layers, Layers):  # already resolved (e.g. once for a whole design run)
+        return n_layers
     if n_layers is None and scheme in (None, AUTO_SCHEME):
         return Layers(default_count(tube, alpha, n_roots, m), AUTO_SCHEME, True)
     n_layers = PAPER_LAYERS if n_layers is None else int(n_layers)

@@ -15,6 +15,7 @@ from jaxdea import design
 
 TUBE = jd.Tube(lambda_i=1.1, lambda_z=1.2, eta=0.85)  # the paper's tube, inflated
 ALPHA = jd.axial_wavenumber(TUBE, 1)
+N = 30  # the internal objective tests run on the paper's laminate (midpoint, N = 30)
 
 
 @pytest.mark.parametrize("call, name", [
@@ -57,7 +58,7 @@ def test_candidates_are_the_modes_near_the_first_instability():
 
 
 def _objective(x, setting, kind, guess, candidates):
-    aux, grad = design._evaluate(jnp.asarray(x, jnp.float64), guess, setting, kind, 30, "midpoint",
+    aux, grad = design._evaluate(jnp.asarray(x, jnp.float64), guess, setting, kind, N, "midpoint",
                                  candidates)
     return float(aux["loss"]), np.asarray(grad), aux
 
@@ -68,8 +69,8 @@ def test_bound_is_the_first_instability_and_refreshes_when_overtaken():
     is not confirmed, and the refresh brings in the (m, n) that buckles first."""
     setting = dict(tube=TUBE.replace(voltage=0.0), n=1.0, margin=0.8, li_lo=0.0, li_hi=1.0)
     setting = jax.tree_util.tree_map(lambda v: jnp.asarray(v, jnp.float64), setting)
-    first = jd.first_instability(TUBE, n_max=3, m_max=8)
-    bound = design._Bound(setting, "tunability", 30, "midpoint", 8, 3)
+    first = jd.first_instability(TUBE, n_max=3, m_max=8, n_layers=N)
+    bound = design._Bound(setting, "tunability", N, "midpoint", 8, 3)
     x = [1.0]
     assert bound.refresh(x)
     assert bound.first == pytest.approx(float(first.voltage), rel=1e-13)
@@ -80,8 +81,8 @@ def test_bound_is_the_first_instability_and_refreshes_when_overtaken():
     assert bound.confirmed(x, aux)
     axisymmetric = design.Candidates(jnp.zeros(4), jnp.ones(4))  # (0, 1) only, the paper's bound
     _, _, aux = _objective(x, setting, "tunability", guess, axisymmetric)
-    assert float(aux["critical_voltage"]) == pytest.approx(float(jd.critical_voltage(TUBE, ALPHA)),
-                                                         rel=1e-12)
+    assert float(aux["critical_voltage"]) == pytest.approx(
+        float(jd.critical_voltage(TUBE, ALPHA, n_layers=N)), rel=1e-12)
     assert not bound.confirmed(x, aux)
     assert (2.0, 1.0) in zip(np.asarray(bound.candidates.m).tolist(),
                              np.asarray(bound.candidates.n).tolist())
@@ -93,7 +94,7 @@ def test_tunability_objective_gradient_matches_central_differences():
     (through V̂_cr(λ_i) and the root); central differences of the loss, each point solved afresh."""
     setting = dict(tube=TUBE.replace(voltage=0.0), n=1.0, margin=0.8, li_lo=0.9, li_hi=1.4)
     x = np.array([1.9, 1.3])  # s = 0.66, λ_i = 1.16
-    bound = design._Bound(setting, "tunability_lambda", 30, "midpoint", 8, 3)
+    bound = design._Bound(setting, "tunability_lambda", N, "midpoint", 8, 3)
     assert bound.refresh(x)
     cands = bound.candidates  # several (m, n) near the first instability; the gradient of the min
     guess = float(jd.frequencies(TUBE.replace(voltage=0.05), ALPHA, n_roots=1)[0])
@@ -109,7 +110,8 @@ def test_tunability_objective_gradient_matches_central_differences():
     tube = aux["tube"]
     v = float(tube.voltage)
     dv = 1e-5 * v
-    roots = [float(jd.frequencies(tube.replace(voltage=v + d), ALPHA, n_roots=1)[0]) for d in (dv, -dv)]
+    roots = [float(jd.frequencies(tube.replace(voltage=v + d), ALPHA, n_roots=1, n_layers=N)[0])
+             for d in (dv, -dv)]
     np.testing.assert_allclose(float(aux["tunability"]), (roots[0] - roots[1]) / (2 * dv), rtol=1e-7)
     assert loss == pytest.approx(-abs(float(aux["tunability"])), rel=1e-14)
 
