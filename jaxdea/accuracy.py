@@ -145,8 +145,7 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
         raise ValueError(f"max_layers must be >= 4 * n_layers = {4 * count}, got {max_layers!r}")
     if rtol is not None and not (np.isfinite(rtol) and rtol > 0):
         raise ValueError(f"rtol must be a finite number > 0, got {rtol!r}")
-    first = solve_frequencies(tube, alpha, fluid, n_roots, omega_max, *((None, None) if graded else
-                                                                         (count, scheme)), m, torsional)
+    first = solve_frequencies(tube, alpha, fluid, n_roots, omega_max, base, None, m, torsional)
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
     order_args = () if family == LONGITUDINAL else (m, family)
     levels = [np.asarray(first.omega)]

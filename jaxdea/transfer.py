@@ -223,10 +223,10 @@ GRADING_SHARE = 0.5
 """The share of the sublayers spent on the grading of :func:`breakpoints` (the rest equal)."""
 
 
-def breakpoints(tube: Tube, count: int, graded: bool = False):
-    """(r̂_0 … r̂_N, h_1 … h_N): the sublayer interfaces and thicknesses.
+def breakpoints(tube: Tube, count: int):
+    """(r̂_0 … r̂_N, h_1 … h_N): the interfaces and thicknesses of graded sublayers.
 
-    Equal sublayers h = ĥ/N, or ``graded``: the interfaces x_k = r̂_k − r̂_i equidistribute
+    The interfaces x_k = r̂_k − r̂_i equidistribute
     S(x) = (1 − a) x/ĥ + a ln(1 + x/ℓ)/ln(1 + ĥ/ℓ) (S(x_k) = k/N, a = :data:`GRADING_SHARE`, ℓ of
     :func:`grading_length`): half of the sublayers are equal (the waves across the wall need them
     everywhere) and half grow geometrically from the inner face, where 1/r̂ and the locking factor
@@ -236,8 +236,6 @@ def breakpoints(tube: Tube, count: int, graded: bool = False):
     implicit-function derivative of x_k in every leaf)."""
     geo = geometry(tube)
     t = jnp.arange(count + 1) / count
-    if not graded:
-        return geo.r_inner + t * geo.thickness, jnp.broadcast_to(geo.thickness / count, (count,))
     ratio = geo.thickness / grading_length(tube, geo)  # ĥ/ℓ ≥ ĥ/r̂_i > 0
     log_span = jnp.log1p(ratio)
 
@@ -316,7 +314,7 @@ def discretize(tube: Tube, n_layers) -> Wall:
     geo = geometry(tube)
     nodes = jnp.asarray(SCHEMES[scheme])
     if is_graded(n_layers):
-        edges, step = breakpoints(tube, count, graded=True)
+        edges, step = breakpoints(tube, count)
         radii = edges[:-1, None] + nodes * step[:, None]
     else:
         step = geo.thickness / count

@@ -105,7 +105,7 @@ def test_first_instability_default_is_converged():
 
 def test_breakpoints_cover_the_wall_and_grade_towards_locking():
     for tube in (PAPER, LOCKING_G4, jd.Tube(eta=0.3, gent=math.inf)):
-        edges, steps = breakpoints(tube, 16, graded=True)
+        edges, steps = breakpoints(tube, 16)
         h = float(jd.thickness_ratio(tube))
         assert float(edges[0]) == float(tube.lambda_i)
         np.testing.assert_allclose(float(edges[-1] - edges[0]), h, rtol=1e-14)
@@ -115,16 +115,16 @@ def test_breakpoints_cover_the_wall_and_grade_towards_locking():
     # near locking the first sublayer resolves the boundary layer ℓ = W_1/|W_1'| (1.6e-3 here)
     ell = float(grading_length(LOCKING_G4))
     assert 1e-3 < ell < 2e-3
-    first = float(breakpoints(LOCKING_G4, 16, graded=True)[1][0])
+    first = float(breakpoints(LOCKING_G4, 16)[1][0])
     assert first < 4 * ell
     # far from locking the grading is mild: within a factor 2 of equal sublayers
-    steps = np.asarray(breakpoints(PAPER, 16, graded=True)[1])
+    steps = np.asarray(breakpoints(PAPER, 16)[1])
     assert steps.max() / steps.min() < 2.0
 
 
 def test_breakpoints_are_differentiable():
     def edge(li):
-        return breakpoints(LOCKING_G4.replace(lambda_i=li), 12, graded=True)[0][3]
+        return breakpoints(LOCKING_G4.replace(lambda_i=li), 12)[0][3]
 
     li = float(LOCKING_G4.lambda_i)
     np.testing.assert_allclose(float(jax.grad(edge)(li)), fd_derivative(edge, li, 1e-7), rtol=1e-6)
