@@ -89,7 +89,8 @@ STEPS_PER_OSCILLATION = 16
 HERMITE_FINAL = 1e-6  # _first_root: a sign change ≤ 1e-6 Δ wide …
 HERMITE_FINAL_SLOPES = 1e-3  # … with end slopes equal to 1e-3 is solved by its Hermite cubic
 SCALE_EXPONENT_MAX = 600.0  # |log_scale − its value at Ω = 0| is clipped here (e^600 < 1e261)
-BESSEL_GRID = 0.25  # bracketing grid of the zeros of J'_ν (consecutive zeros are > 2 apart)
+BESSEL_GRID = 1.0  # bracketing grid of the zeros of J'_ν: consecutive zeros are > 2 apart, so an
+# interval holds at most one
 
 
 @serializable
@@ -156,9 +157,11 @@ def bessel_derivative_zeros(order: int) -> np.ndarray:
     """The zeros j'_{ν,k} of J'_ν in [0, NODES − 40 − ν), ascending (NumPy, computed once per ν).
 
     Where :func:`jaxdea.bessel.coupling_pair` is finite (x + ν < NODES − 40). J'_ν(x) =
-    (1/2π)∫₀^{2π} sin(νt − x sin t) sin t dt by the trapezoidal rule on 2·NODES points (exact to
-    rounding there), sign changes on a grid of ``BESSEL_GRID``, then bisection to rounding. For
-    ν = 0 the list starts with x = 0: D_0 = −s/2 + O(s²) vanishes at s = 0.
+    (1/2π)∫₀^{2π} sin(νt − x sin t) sin t dt and J''_ν(x) = −(1/2π)∫₀^{2π} cos(νt − x sin t) sin²t dt
+    by the trapezoidal rule on 2·NODES points (exact to rounding there), sign changes on a grid of
+    ``BESSEL_GRID`` from x = ν, 4 bisections (to 0.06), then Newton steps kept inside the bracket
+    (quadratic: to rounding in four; a step where J'' = 0 is skipped). For ν = 0 the list starts
+    with x = 0: D_0 = −s/2 + O(s²) vanishes at s = 0.
     """
     theta = 2.0 * np.pi * np.arange(2 * NODES) / (2 * NODES)
     sin_theta = np.sin(theta)
@@ -166,15 +169,24 @@ def bessel_derivative_zeros(order: int) -> np.ndarray:
     def derivative(x):
         return np.mean(np.sin(order * theta - x[:, None] * sin_theta) * sin_theta, axis=1)
 
-    grid = np.arange(BESSEL_GRID, NODES - 40 - order, BESSEL_GRID)
+    def second(x):
+        return -np.mean(np.cos(order * theta - x[:, None] * sin_theta) * sin_theta**2, axis=1)
+
+    start = max(float(order), BESSEL_GRID)  # j'_{ν,1} > ν for ν > 0; below it J'_ν is rounding noise
+    limit = NODES - 40 - order
+    grid = np.append(np.arange(start, limit, BESSEL_GRID), limit)
     values = derivative(grid)
     change = np.flatnonzero(values[:-1] * values[1:] < 0)
     lo, hi, f_lo = grid[change], grid[change + 1], values[change]
-    for _ in range(60):
+    for _ in range(4):
         mid = 0.5 * (lo + hi)
         same = derivative(mid) * f_lo > 0
         lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
     zeros = 0.5 * (lo + hi)
+    for _ in range(5):
+        slope = second(zeros)
+        step = derivative(zeros) / np.where(slope == 0.0, np.inf, slope)
+        zeros = np.clip(zeros - step, lo, hi)
     return np.concatenate([[0.0], zeros]) if order == 0 else zeros
 
 
