@@ -70,6 +70,7 @@ from .params import (
     validate_range,
 )
 from .scalar import (
+    ROOT_RTOL,
     Status,
     hermite_extremum,
     hermite_root,
@@ -781,35 +782,57 @@ def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layer
                    scheme: str | None = None, m=0, torsional: bool = False):
     """dΩ/dα̂ on the branch through the root ``omega``: −(∂f/∂α̂)/(∂f/∂Ω) (implicit function theorem).
 
-    ``omega`` should be a root (e.g. from :func:`frequencies`); the formula is exact for the
-    discretisation. The paper's coupling with ``bessel_order=None`` needs an integer mode α̂ and then
-    differentiates at fixed order ν.
+    ``omega`` must be a root (from :func:`frequency` or :func:`frequencies`), to the relative Newton
+    distance |f/f_Ω|/|Ω| ≤ ``ROOT_RTOL`` = 1e-4 of the same discretisation: a concrete non-root
+    raises a ValueError (a traced one gives NaN), since −f_α̂/f_Ω off a root is a plausible number
+    that means nothing. The formula is exact for the discretisation. When ``omega`` carries its
+    implicit derivatives, as those functions' roots do, ``jax.grad`` of the group velocity with
+    respect to any leaf is exact too. The paper's coupling with ``bessel_order=None`` needs an
+    integer mode α̂ and then differentiates at fixed order ν.
 
     Args:
         tube: the :class:`~jaxdea.Tube`.
         alpha: α̂ = α R_i >= ALPHA_MIN = 1e-12.
-        omega: a root Ω > 0, finite (at Ω = 0 the even f has ∂f/∂Ω = 0).
+        omega: a root Ω > 0 at that α̂, finite (at Ω = 0 the even f has ∂f/∂Ω = 0), to the relative
+            Newton distance ``ROOT_RTOL``; a concrete non-root raises ValueError, a traced one gives
+            NaN.
         fluid: a :class:`~jaxdea.Fluid`, or None for the empty tube.
         n_layers: number of sublayers N (static; use the value the root was found with).
         scheme: the propagation scheme the root was found with (:func:`frequencies`).
         m, torsional: the order the root was found with (:func:`frequencies`).
 
     Raises:
-        ValueError: for invalid concrete inputs, naming the parameter. Traced invalid inputs give
-            NaN.
+        ValueError: for invalid concrete inputs, naming the parameter, and for a concrete ``omega``
+            that is not a root (farther than ``ROOT_RTOL`` by one Newton step). Traced invalid
+            inputs and traced non-roots give NaN.
+
+    Example:
+        >>> t = Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
+        >>> group_velocity(t, 0.445, frequencies(t, 0.445)[0])  # ≈ 1.661
+        >>> group_velocity(t, 0.445, 0.7)  # ValueError: omega = 0.7 is not a root (0.1 away)
     """
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_range("omega", omega, "a finite real number > 0 (a root of the characteristic function)",
                    lambda v: v > 0)
+    concrete = not isinstance(omega, jax.core.Tracer)
     tube, alpha, omega, fluid, m = canonical(tube, alpha, omega, fluid, m)
     layers = laminate(n_layers, scheme, tube, alpha, m=m)
     if family == LONGITUDINAL:
-        return _group_velocity(tube, alpha, omega, fluid, layers, order)
-    return _group_velocity(tube, alpha, omega, fluid, layers, order, m, family)
+        velocity, distance = _group_velocity(tube, alpha, omega, fluid, layers, order)
+    else:
+        velocity, distance = _group_velocity(tube, alpha, omega, fluid, layers, order, m, family)
+    if concrete and not isinstance(distance, jax.core.Tracer) and not float(distance) <= ROOT_RTOL:
+        raise ValueError(f"omega = {float(omega)!r} is not a root of the characteristic function "
+                         f"(a Newton step moves it by {float(distance):.2g} of itself, above "
+                         f"{ROOT_RTOL:g}): pass a root from jaxdea.frequency or jaxdea.frequencies")
+    return velocity
 
 
 @cached_jit(static_argnames=("n_layers", "order", "family"))
 def _group_velocity(tube, alpha, omega, fluid, n_layers, order, m=0.0, family=LONGITUDINAL):
+    """(−f_α̂/f_Ω, the relative Newton distance |f/f_Ω|/|Ω| of ``omega``): NaN velocity for invalid
+    inputs and where the distance exceeds ROOT_RTOL (``omega`` no root). f, f_Ω and f_α̂ come from
+    one reverse pass."""
     ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
     omega = as_float(omega)
     ok &= jnp.isfinite(omega) & (omega > 0)
@@ -820,8 +843,13 @@ def _group_velocity(tube, alpha, omega, fluid, n_layers, order, m=0.0, family=LO
     else:
         f = lambda om, al: _residual(om, tube, al, fluid, m, n_layers, order, "omega",  # noqa: E731
                                      family)
-    f_omega, f_alpha = jax.grad(f, argnums=(0, 1))(omega, alpha)
-    return jnp.where(ok, -f_alpha / f_omega, jnp.nan)
+    value, (f_omega, f_alpha) = jax.value_and_grad(f, argnums=(0, 1))(omega, alpha)
+    # as jaxdea.modes.root_distance (omega > 0 here): inf where f_Ω = 0, NaN where f is not finite
+    size = jax.lax.stop_gradient(jnp.abs(f_omega) * omega)
+    distance = jnp.abs(jax.lax.stop_gradient(value)) / jnp.where(size > 0, size, 1.0) \
+        + jnp.where(size > 0, 0.0, jnp.inf)
+    distance = jnp.where(ok, distance, jnp.nan)
+    return jnp.where(ok & (distance <= ROOT_RTOL), -f_alpha / f_omega, jnp.nan), distance
 
 
 def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,

@@ -22,7 +22,9 @@ from jaxdea import compiled  # noqa: E402
 TUBE = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2, eta=0.85)
 FLUID = jd.Fluid()
 ALPHA = 0.445
-OMEGA = 0.7686116251533485  # the lowest root of TUBE at ALPHA (N = 30)
+OMEGA = 0.7686116251533485  # the lowest root of TUBE at ALPHA (N = 30); a root at the default
+# discretisation too (Newton distance 6e-7 <= ROOT_RTOL), as group_velocity, mode_shape and
+# tunability require
 
 
 def _design():

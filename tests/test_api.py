@@ -1,6 +1,8 @@
 """Public API: implicit derivatives (g), batching without recompilation (h), bad inputs (i),
 status codes and root isolation."""
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -182,6 +184,77 @@ def test_locking_message_states_the_limit():
 def test_bad_arguments_raise_value_error(call, name):
     with pytest.raises(ValueError, match=name):
         call()
+
+
+def test_group_velocity_refuses_an_omega_that_is_no_root():
+    """Ω = 0.123 at α̂ = 0.4 is no root (a Newton step moves it by ~14 of itself): a concrete call
+    raises naming omega, the distance and the tolerance (−f_α̂/f_Ω there would be a plausible
+    number that means nothing)."""
+    with pytest.raises(ValueError, match=r"omega = 0\.123 is not a root .* above 0\.0001\): pass a "
+                                         r"root from jaxdea\.frequency"):
+        jd.group_velocity(jd.Tube(lambda_z=1.2), 0.4, 0.123)
+
+
+def test_group_velocity_of_a_traced_non_root_is_nan():
+    """Under jit and vmap a non-root gives NaN; a root gives the number of the un-jitted call."""
+    root = float(jd.frequencies(TUBE, ALPHA, n_roots=1)[0])
+    alone = float(jd.group_velocity(TUBE, ALPHA, root))
+    assert np.isfinite(alone)
+    jitted = jax.jit(lambda w: jd.group_velocity(TUBE, ALPHA, w))
+    assert float(jitted(root)) == alone
+    assert np.isnan(float(jitted(0.5)))
+    both = jax.vmap(lambda w: jd.group_velocity(TUBE, ALPHA, w))(jnp.array([root, 0.5]))
+    np.testing.assert_allclose(both[0], alone, rtol=1e-14)
+    assert np.isnan(float(both[1]))
+
+
+def test_group_velocity_tolerance_is_the_newton_distance():
+    """The root's neighbours are accepted or refused by their relative Newton distance |f/f_Ω|/|Ω|
+    (that of jaxdea.modes.root_distance, here ≈ the relative offset) against ROOT_RTOL = 1e-4:
+    1e-7 and 5e-5 off pass (with the velocity of the branch nearby), 2e-4 and 1e-2 off are
+    refused, concretely and under jit."""
+    from jaxdea.modes import root_distance
+    from jaxdea.params import canonical
+    from jaxdea.scalar import ROOT_RTOL
+    from jaxdea.transfer import laminate
+
+    root = float(jd.frequencies(TUBE, ALPHA, n_roots=1)[0])
+    at_root = float(jd.group_velocity(TUBE, ALPHA, root))
+    jitted = jax.jit(lambda w: jd.group_velocity(TUBE, ALPHA, w))
+    tube, alpha = canonical(TUBE, ALPHA)
+    distance_of = jax.jit(functools.partial(root_distance, tube, alpha, fluid=None,
+                                            n_layers=laminate(None, None, tube, alpha), order=0))
+    for offset, accepted in ((1e-7, True), (5e-5, True), (2e-4, False), (1e-2, False)):
+        omega = root * (1 + offset)
+        distance = float(distance_of(omega))
+        assert distance == pytest.approx(offset, rel=2e-2)
+        assert (distance <= ROOT_RTOL) == accepted
+        if accepted:
+            np.testing.assert_allclose(jd.group_velocity(TUBE, ALPHA, omega), at_root,
+                                       rtol=10 * offset)
+            assert np.isfinite(float(jitted(omega)))
+        else:
+            with pytest.raises(ValueError, match=r"omega = .* is not a root"):
+                jd.group_velocity(TUBE, ALPHA, omega)
+            assert np.isnan(float(jitted(omega)))
+
+
+def test_group_velocity_of_order_m_refuses_a_non_root():
+    """The order-m path (m = 1) checks the same distance: its root passes, 1e-2 off raises, and
+    the compiled program behind it (what runs traced) gives NaN there."""
+    from jaxdea.params import canonical
+    from jaxdea.transfer import laminate
+
+    root = float(jd.frequencies(TUBE, ALPHA, n_roots=1, m=1)[0])
+    assert np.isfinite(float(jd.group_velocity(TUBE, ALPHA, root, m=1)))
+    with pytest.raises(ValueError, match=r"omega = .* is not a root"):
+        jd.group_velocity(TUBE, ALPHA, root * 1.01, m=1)
+    tube, alpha, m = canonical(TUBE, ALPHA, 1)
+    layers = laminate(None, None, tube, alpha, m=m)
+    for omega, finite in ((root, True), (root * 1.01, False)):
+        velocity, distance = roots_module._group_velocity(tube, alpha, jnp.asarray(omega), None,
+                                                          layers, 0, m, "order_m")
+        assert np.isfinite(float(velocity)) == finite and (float(distance) <= 1e-4) == finite
 
 
 def test_paper_order_needs_concrete_alpha():

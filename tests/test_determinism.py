@@ -149,11 +149,13 @@ def _frequencies(v, li, a):
     return jd.frequencies(TUBE.replace(voltage=v, lambda_i=li), a)
 
 
-OMEGA = 0.75  # a fixed Ω for the group velocity formula (any Ω: the formula is what is batched)
+GUESS = 0.75  # Newton's start for the root of each point whose group velocity is batched
 
 
 def _group_velocity(v, li, a):
-    return jd.group_velocity(TUBE.replace(voltage=v, lambda_i=li), a, OMEGA)
+    """The group velocity at the root that Newton reaches from GUESS (a non-root gives NaN)."""
+    tube = TUBE.replace(voltage=v, lambda_i=li)
+    return jd.group_velocity(tube, a, jd.frequency(tube, a, GUESS))
 
 
 FUNCTIONS = {"characteristic": _characteristic, "frequencies": _frequencies,
@@ -170,6 +172,7 @@ def test_batch_positions_are_bit_identical(name):
     5, different neighbours each time): the same bits."""
     batched = jax.vmap(FUNCTIONS[name])
     got = [np.asarray(batched(*_batch(5, pos, seed))[pos]) for pos, seed in ((0, 1), (2, 2), (4, 3))]
+    assert np.all(np.isfinite(got[0])), got[0]  # numbers, not NaN compared with NaN
     for other in got[1:]:
         np.testing.assert_array_equal(other, got[0])
 
@@ -180,6 +183,7 @@ def test_alone_and_batched_agree_to_rounding(name):
     bit (module docstring; README "Numerics")."""
     fn = FUNCTIONS[name]
     alone = np.asarray(fn(*POINT))
+    assert np.all(np.isfinite(alone)), alone  # assert_allclose takes NaN as equal to NaN
     np.testing.assert_allclose(np.asarray(jax.vmap(fn)(*_batch(5, 2, 6))[2]), alone, rtol=RTOL, atol=0)
 
 
