@@ -337,7 +337,8 @@ def _intervals(x0, f0, df0, x, f, df):
     return xa, fa, dfa, jnp.where(ok & change, 1, jnp.where(ok & hidden, 2, 0)), finite
 
 
-def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None) -> Roots:
+def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None,
+                    continuous: bool = True) -> Roots:
     """Chunked scan with Hermite classification and refinement (module docstring).
 
     ``next_point(x)`` gives the grid point after x (default x + step); runs of plain steps are
@@ -348,6 +349,13 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None) -> Root
     call of :func:`~jaxdea.scalar.run_lanes` (a lane per root, ``n_roots + 1`` lanes); only if
     hidden pairs held no roots does a further round scan on. f and f' are evaluated at exactly two
     places (the grid chunk and the lanes), which keeps the compiled program small.
+
+    Consistency (``continuous``, static: f continuous in Ω, every coupling but the paper's, whose
+    poles change its sign): f changes sign at each simple root, so sign f'(Ω_k) = (−1)^k sign f(0)
+    for the k-th candidate (the check of :mod:`jaxdea.curves`). A root found with the other slope
+    sign means an odd number of roots below it was not found (or a lane took another root of its
+    interval than the one it bracketed): it and all above it are then SUSPECT (NaN), never
+    CONVERGED with a wrong index. Where f(0) = 0 the check is off.
     """
     fvals = jax.vmap(lambda x: value_and_slope(fun, x))
     head = _head(step)
@@ -378,9 +386,10 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None) -> Root
 
     def collect(c):
         """One chunk: classify its intervals and put the candidates into free lane slots."""
-        (left, f_left, df_left, blocked, chunk), slots, used, need = c
+        (left, f_left, df_left, blocked, chunk, f_zero), slots, used, need = c
         x = grid(left, chunk)
         f, df = fvals(x)
+        f_zero = jnp.where(chunk == 0, f[0], f_zero)  # the first chunk starts at Ω = 0
         start = chunk == 0  # the first interval [0, 0] is empty
         xa, fa, dfa, kind, finite = _intervals(
             *(jnp.where(start, v[0], v0) for v, v0 in ((x, left), (f, f_left), (df, df_left))), x, f, df)
@@ -396,32 +405,41 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None) -> Root
         end = jnp.where(full, jnp.max(jnp.where(take, jnp.arange(CHUNK), 0)), CHUNK - 1)
         blocked = jnp.any(~finite & (jnp.arange(CHUNK) <= end))
         used = used + jnp.sum(jnp.where(take, cost, 0))
-        return (x[end], f[end], df[end], blocked, chunk + 1), slots, used, need
+        return (x[end], f[end], df[end], blocked, chunk + 1, f_zero), slots, used, need
 
     def round_cond(r):
         scan, keys = r[0], r[1]
         return (jnp.sum(jnp.isfinite(keys)) < n_roots) & scanning(scan[0], scan[3], scan[4])
 
     def one_round(r):
-        scan, keys, roots, status = r
+        scan, keys, roots, status, slopes = r
         need = n_roots - jnp.sum(jnp.isfinite(keys))
         empty = tuple(jnp.zeros(n_lanes) for _ in range(6)) + (jnp.zeros(n_lanes, jnp.int32),) * 2
         scan, slots, _, _ = jax.lax.while_loop(
             lambda c: (c[2] < c[3]) & scanning(c[0][0], c[0][3], c[0][4]), collect,
             (scan, empty, 0, need))
-        new_roots, new_keys, new_status = run_lanes(fun, lanes_from_slots(*slots))
+        new_roots, new_keys, new_status, new_slopes = run_lanes(fun, lanes_from_slots(*slots),
+                                                                slopes=True)
         all_keys = jnp.concatenate([keys, new_keys])
         order = jnp.argsort(all_keys)[:n_roots]
         return (scan, all_keys[order], jnp.concatenate([roots, new_roots])[order],
-                jnp.concatenate([status, new_status])[order])
+                jnp.concatenate([status, new_status])[order],
+                jnp.concatenate([slopes, new_slopes])[order])
 
     zero = jnp.zeros_like(step)
     blocked = ~(jnp.isfinite(step) & jnp.isfinite(omega_end) & (step > 0))
-    init = ((zero, zero, zero, blocked, 0), jnp.full(n_roots, jnp.inf), jnp.full(n_roots, jnp.nan),
-            jnp.full(n_roots, Status.NO_ROOT, jnp.int32))
-    (_, _, _, blocked, _), keys, roots, status = jax.lax.while_loop(round_cond, one_round, init)
+    init = ((zero, zero, zero, blocked, 0, zero), jnp.full(n_roots, jnp.inf), jnp.full(n_roots, jnp.nan),
+            jnp.full(n_roots, Status.NO_ROOT, jnp.int32), jnp.zeros(n_roots))
+    (_, _, _, blocked, _, f_zero), keys, roots, status, slopes = jax.lax.while_loop(
+        round_cond, one_round, init)
     missing = ~jnp.isfinite(keys)
     status = jnp.where(missing, jnp.where(blocked, Status.NOT_FINITE, Status.NO_ROOT), status)
+    if continuous:  # sign f'(Ω_k) = (−1)^k sign f(0), k = 1, 2, … (the candidates in order)
+        converged = status == Status.CONVERGED
+        expected = -jnp.sign(f_zero) * (-1.0) ** jnp.arange(n_roots)
+        wrong = converged & (jnp.sign(slopes) * expected < 0)
+        suspect = jnp.cumsum(wrong) > 0
+        status = jnp.where(suspect & converged, Status.SUSPECT, status)
     return Roots(jnp.where(status == Status.CONVERGED, roots, jnp.nan), status.astype(jnp.int32))
 
 
@@ -562,9 +580,10 @@ def scan_roots(wall: Wall, fun, alpha, fluid, omega_max, n_roots: int, m=0.0,
     ok = jnp.isfinite(end) & (end > 0)
     step = jnp.minimum(scan_step(wall, fluid, family), end / CHUNK)
     next_point = cutoff_steps(wall, alpha, fluid, step, family)
-    if order is not None and fluid is not None and fluid.coupling == "paper":
+    paper = fluid is not None and fluid.coupling == "paper"
+    if order is not None and paper:
         next_point = pole_steps(next_point, *coupling_poles(wall, alpha, fluid, order))
-    return invalid_where(ok, _scan_for_roots(fun, step, end, n_roots, next_point))
+    return invalid_where(ok, _scan_for_roots(fun, step, end, n_roots, next_point, continuous=not paper))
 
 
 def _guard_order(tube, alpha, fluid, m, family):
@@ -664,7 +683,8 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
     """The ``n_roots`` lowest roots in (0, omega_max] with a status per root (module docstring).
 
     Returns:
-        :class:`Roots` (omega ascending, NaN-padded; status CONVERGED, NO_ROOT or NOT_FINITE).
+        :class:`Roots` (omega ascending, NaN-padded; status CONVERGED, NO_ROOT, NOT_FINITE, or
+        SUSPECT where a root's slope sign says that a root below it was not found).
     """
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     n_roots = validate_count("n_roots", n_roots)

@@ -32,6 +32,8 @@ class Status(enum.IntEnum):
     MAX_ITER = 3  # the iteration limit was reached before convergence
     INVALID = 4  # inputs outside their allowed range (what validation rejects, met under jit/vmap)
     INACCURATE = 5  # a requested tolerance was not reached (accuracy.frequencies_with_error)
+    SUSPECT = 6  # a root whose slope sign repeats that of the root below it: a root is missing
+    # between them (or one of them is not the root its interval held), so its index is unknown
 
 
 def value_and_slope(fun, x):
@@ -250,14 +252,15 @@ def lanes_from_slots(a, b, fa, fb, dfa, dfb, kind, side, max_step=None, curvatur
     return _enter_bracket(lanes, (kind == 1) & (side == 0), a, b, fa, fb, dfa, dfb)
 
 
-def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200):
+def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200, slopes: bool = False):
     """The roots of :func:`iterate_lanes`: ``(roots, keys, status)``, roots NaN unless converged;
-    keys order them (inf = no root)."""
+    keys order them (inf = no root). ``slopes``: also f' at each lane's last evaluated point (at a
+    converged lane, f' at the root to within its last step)."""
     lanes = iterate_lanes(fun, lanes, rtol, max_iter)
     roots = jnp.where(lanes.status == Status.CONVERGED, lanes.x, jnp.nan)
     fallback = jnp.where(jnp.isfinite(lanes.key), lanes.key, 0.5 * (lanes.a + lanes.b))
     keys = jnp.where(lanes.status == Status.NO_ROOT, jnp.inf, fallback)
-    return roots, keys, lanes.status
+    return (roots, keys, lanes.status) + ((lanes.dfx,) if slopes else ())
 
 
 def iterate_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200) -> Lanes:

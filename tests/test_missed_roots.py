@@ -239,3 +239,23 @@ def test_critical_voltage_scan_density(n_cases):
     assert np.isfinite(dense).sum() >= 10 * n_cases  # most (m, n) have a V̂_cr below pull-in
     np.testing.assert_array_equal(np.isnan(default), np.isnan(dense))
     np.testing.assert_allclose(default, dense, rtol=1e-11)
+
+
+def test_scan_marks_roots_whose_slope_sign_breaks_the_alternation_suspect():
+    """f changes sign at each simple root, so sign f'(Ω_k) = (−1)^k sign f(0). A function that turns
+    sign without a root (a jump, as the paper's poles do, or a solver failure) gives a "root" whose
+    slope has the wrong sign: it and every root above it (their index is unknown) are SUSPECT and
+    NaN, where the bare scan returned the jump at 1.449 as CONVERGED. With the check off (the
+    paper's coupling, whose poles turn the sign) the same roots come back CONVERGED, and on a
+    continuous f nothing changes."""
+    jump = lambda x: jnp.where(x < 1.5, -1.0 - x, 4.0 - x)  # noqa: E731  no root below 4, slope −1
+    flagged = roots._scan_for_roots(jump, 0.1, 6.0, 2)
+    np.testing.assert_array_equal(flagged.status, [Status.SUSPECT, Status.SUSPECT])
+    assert np.all(np.isnan(flagged.omega))
+    bare = roots._scan_for_roots(jump, 0.1, 6.0, 2, continuous=False)
+    np.testing.assert_array_equal(bare.status, [Status.CONVERGED, Status.CONVERGED])
+    assert 1.4 < float(bare.omega[0]) < 1.5 and float(bare.omega[1]) == pytest.approx(4.0, rel=1e-14)
+    quartic = lambda x: (x - 1.0) * (x - 2.0) * (x - 3.0) * (x + 1.0)  # noqa: E731
+    plain = roots._scan_for_roots(quartic, 0.1, 5.0, 3)
+    np.testing.assert_array_equal(plain.status, [Status.CONVERGED] * 3)
+    np.testing.assert_allclose(plain.omega, [1.0, 2.0, 3.0], rtol=1e-14)
