@@ -73,6 +73,17 @@ COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
 ``frequencies`` call 6.1 → 4.0 s, ``critical_voltage`` 12.8 → 8.1 s, ``characteristic`` 1.25 →
 0.78 s (caches off), while ``characteristic`` at batch 4096, the Fig. 3 sweep and the continuation
 curves ran as fast or 5–10 % faster (benchmarks/). Other backends ignore the option."""
+CPU_OPTIONS = {"xla_backend_optimization_level": 1}
+"""Added on the CPU backend only (:func:`compiler_options`): LLVM optimisation level 1 instead of 3
+compiled the order-m continuation program in 17.2 s instead of 19.0 s for the same run time
+(0.52 s) and the same ``characteristic`` rate at batch 4096 (108 k/s against 101 k/s, within the
+noise); ``jaxdea figures`` cold 60.8 → 58.7 s. Level 0 compiled in 13 s but ran 3.5× slower. GPU
+backends use the level for their kernels too, so it stays off there."""
+
+
+def compiler_options() -> dict:
+    """:data:`COMPILER_OPTIONS`, with :data:`CPU_OPTIONS` where the default backend is the CPU."""
+    return {**COMPILER_OPTIONS, **(CPU_OPTIONS if jax.default_backend() == "cpu" else {})}
 BYPASS_OPTIONS = ("jax_debug_nans", "jax_debug_infs", "jax_disable_jit", "jax_enable_checks",
                   "jax_check_tracer_leaks", "jax_default_device")
 """JAX options under which every call goes through ``jax.jit`` (they act at tracing or dispatch)."""
@@ -314,10 +325,10 @@ class CachedJit:
                 try:
                     payload = exported.serialize()
                 except Exception:  # noqa: BLE001 - an output type not registered (serializable)
-                    return jax.jit(exported.call, compiler_options=COMPILER_OPTIONS)
+                    return jax.jit(exported.call, compiler_options=compiler_options())
                 write_entry(path, payload)
                 self.counts["stored"] += 1
-        return jax.jit(exported.call, compiler_options=COMPILER_OPTIONS)
+        return jax.jit(exported.call, compiler_options=compiler_options())
 
     def __call__(self, *args, **kwargs):
         found = None if cache_off() else self._key(args, kwargs)
@@ -331,16 +342,24 @@ class CachedJit:
 
 
 class Jitted:
-    """``jax.jit(fun, ...)`` compiled with :data:`COMPILER_OPTIONS` where it is the top-level
+    """``jax.jit(fun, ...)`` compiled with :func:`compiler_options` where it is the top-level
     program; inside another trace (a caller's ``jit``, ``grad``, ``lax.map``...) it is the plain
     ``jax.jit``, since JAX accepts compiler options on top-level programs only (the enclosing
     program's options then apply). Other attributes (``lower``, ``trace``...) are the top-level
     function's."""
 
     def __init__(self, fun, **kwargs):
-        self._top = jax.jit(fun, compiler_options=COMPILER_OPTIONS, **kwargs)
+        self._fun, self._kwargs, self._top_jit = fun, kwargs, None
         self._nested = jax.jit(fun, **kwargs)
         functools.update_wrapper(self, fun)
+
+    @property
+    def _top(self):
+        """The top-level ``jax.jit``, made at first use (:func:`compiler_options` asks for the
+        default backend, which must not be started at import)."""
+        if self._top_jit is None:
+            self._top_jit = jax.jit(self._fun, compiler_options=compiler_options(), **self._kwargs)
+        return self._top_jit
 
     def __getattr__(self, name):
         return getattr(self._top, name)
@@ -360,11 +379,11 @@ class Jitted:
 
 
 def jit(fun=None, **kwargs):
-    """:class:`Jitted`: ``jax.jit`` with jaxdea's :data:`COMPILER_OPTIONS` (``@jit`` or
+    """:class:`Jitted`: ``jax.jit`` with jaxdea's :func:`compiler_options` (``@jit`` or
     ``@jit(static_argnames=...)``).
 
     A caller's own ``jax.jit`` around jaxdea functions compiles with the caller's options: pass
-    ``compiler_options=jaxdea.compiled.COMPILER_OPTIONS`` to it for the same compile times."""
+    ``compiler_options=jaxdea.compiled.compiler_options()`` to it for the same compile times."""
     if fun is None:
         return functools.partial(jit, **kwargs)
     return Jitted(fun, **kwargs)

@@ -27,6 +27,7 @@ parameters, ``coupling``, ``alpha_hat``, ``omega``, ``phase_velocity`` = Ω/α̂
 
 from __future__ import annotations
 
+import concurrent.futures
 import csv
 import dataclasses
 import math
@@ -39,7 +40,6 @@ import numpy as np
 
 from .base_state import _squared_voltage, pull_in, voltage_limit, with_thickness_ratio_unchecked
 from .compiled import cached_jit, jit
-from .curves import dispersion_curve
 from .leaves import apply_parameters
 from .modes import mode_shape
 from .params import Fluid, Tube, guard, mode_wavenumber
@@ -63,6 +63,7 @@ MAP_STRETCH_RANGE = (0.9, 1.4)  # below λ_i ≈ 0.9 the tube is unstable at V̂
 SHAPE_ORDERS = (1, 2, 3)
 CURVE_ORDERS = (0, 1, 2)
 CURVE_ROOTS = 3
+EMPTY_CURVE_ORDERS = tuple(sorted(set(CURVE_ORDERS) | set(SHAPE_ORDERS)))  # the empty tube's sweep
 
 
 @dataclasses.dataclass(frozen=True)
@@ -223,6 +224,8 @@ class Context:
     critical: dict = dataclasses.field(default_factory=dict)
     stability_of_tube: Stability | None = None
     curves: dict = dataclasses.field(default_factory=dict)
+    shapes: dict | None = None
+    static: tuple | None = None
     since: float = dataclasses.field(default_factory=time.perf_counter)  # when the last figure was saved
 
     def log(self, message: str) -> None:
@@ -556,32 +559,48 @@ def dispersion_grid(tube: Tube, max_mode: int, steps: int) -> np.ndarray:
     return alpha_1 * np.linspace(1.0, max_mode, (max_mode - 1) * steps + 1)
 
 
-@cached_jit(static_argnames=("n_roots", "n_layers"))
-def _order_m_curves(tube: Tube, alphas, fluid, orders, n_roots, n_layers):
-    """:func:`jaxdea.dispersion_curve` of each order m of ``orders`` (traced: one compiled program
-    for every m, the longitudinal family at m = 0); (Ω, status, scanned) stacked over the orders."""
-    def one(order):
-        curve = dispersion_curve(tube, alphas, fluid, n_roots, n_layers, m=order)
-        return curve.omega, curve.status, curve.scanned
-
-    return jax.lax.map(one, orders)
-
-
 def order_m_curves(ctx: Context, fluid: Fluid | None, orders) -> dict:
-    """{m: (Ω (M, K), status (M, K), scanned (M,))} along :func:`dispersion_grid` of the tube of
-    :func:`figure_dispersion_order_m`, solved once per fluid."""
+    """{m: (Ω (K, CURVE_ROOTS), status (K, CURVE_ROOTS))} along :func:`dispersion_grid` of the tube of
+    :func:`figure_dispersion_order_m`: a :func:`jaxdea.sweep` over the axes m (traced: one compiled
+    program for every order, the longitudinal family through the order-m system at m = 0) and α̂,
+    solved once per fluid."""
     key = (None if fluid is None else fluid.coupling, tuple(orders))
     if key not in ctx.curves:
         alphas = dispersion_grid(SHAPE_TUBE, ctx.res.max_mode, ctx.res.curve_steps)
-        out = _order_m_curves(SHAPE_TUBE, jnp.asarray(alphas), fluid, jnp.asarray(orders, float),
-                              CURVE_ROOTS, ctx.n_layers)
-        ctx.curves[key] = {m: tuple(np.asarray(x[k]) for x in out) for k, m in enumerate(orders)}
+        res = sweep(SHAPE_TUBE, fluid, n_roots=CURVE_ROOTS, n_layers=ctx.n_layers, progress=False,
+                    m=np.asarray(orders), alpha=alphas)
+        ctx.curves[key] = {m: (res.omega[k], res.status[k]) for k, m in enumerate(orders)}
     return ctx.curves[key]
+
+
+def cross_section_modes(ctx: Context) -> dict:
+    """{m: (α̂_1, Ω, r̂ (P,), fields)} of the lowest mode of each order of :data:`SHAPE_ORDERS` at
+    n = 1 (:func:`jaxdea.mode_shape` at the root of :func:`order_m_curves`), solved once."""
+    if ctx.shapes is None:
+        curves = order_m_curves(ctx, None, EMPTY_CURVE_ORDERS)
+        alpha = float(mode_wavenumber(SHAPE_TUBE, 1.0))
+        shapes = {}
+        for m in SHAPE_ORDERS:
+            omega = float(curves[m][0][0, 0])  # the curve's first α̂ is α̂_1
+            r, fields = mode_shape(SHAPE_TUBE, alpha, omega, n_layers=ctx.n_layers, m=m)
+            shapes[m] = (alpha, omega, np.asarray(r), [np.asarray(x) for x in fields])
+        ctx.shapes = shapes
+    return ctx.shapes
+
+
+def solve_order_m(ctx: Context) -> None:
+    """The solves of the last three figures (:func:`order_m_curves` of both fluids,
+    :func:`cross_section_modes`, :func:`static_response`): :func:`make_figures` runs them beside
+    Figs. 2–10 in a second thread (computations only; every figure is drawn in the main thread),
+    so that their programs compile while the first figures are solved and drawn."""
+    order_m_curves(ctx, Fluid(**PAPER_FLUID), CURVE_ORDERS)
+    cross_section_modes(ctx)
+    static_response(ctx)
 
 
 def figure_dispersion_order_m(ctx: Context) -> None:
     """Ω(α̂) of the lowest roots of m = 0, 1, 2, empty and filled with the acoustic fluid
-    (:func:`jaxdea.dispersion_curve`; the paper's coupling exists only at m = 0 and is not drawn)."""
+    (:func:`order_m_curves`; the paper's coupling exists only at m = 0 and is not drawn)."""
     name = "dispersion_order_m"
     ctx.log(f"[{name}] Ω(α̂) of the orders m = 0, 1, 2")
     alphas = dispersion_grid(SHAPE_TUBE, ctx.res.max_mode, ctx.res.curve_steps)
@@ -589,17 +608,16 @@ def figure_dispersion_order_m(ctx: Context) -> None:
     fig, panels = _figure(title=f"Lowest {CURVE_ROOTS} roots of order m (λ_i = {SHAPE_STRETCH}, "
                                 f"V̂ = {SHAPE_VOLTAGE}, η = 0.85, λ_z = 1.2): * the tube's modes α̂_n")
     table = Table(name)
-    orders = sorted(set(CURVE_ORDERS) | set(SHAPE_ORDERS))
     for ax, (label, fluid) in zip(panels, (("none", None), ("acoustic", Fluid(**PAPER_FLUID))),
                                   strict=True):
-        curves = order_m_curves(ctx, fluid, orders if fluid is None else CURVE_ORDERS)
+        curves = order_m_curves(ctx, fluid, EMPTY_CURVE_ORDERS if fluid is None else CURVE_ORDERS)
         for k, m in enumerate(CURVE_ORDERS):
-            omega, status, scanned = curves[m]
+            omega, status = curves[m]
             for i, a in enumerate(alphas):
                 for b in range(CURVE_ROOTS):
                     table.add(coupling=label, lambda_i=SHAPE_STRETCH, voltage=SHAPE_VOLTAGE, m=m,
                               branch=b + 1, alpha_hat=a, n=a / alpha_1, omega=omega[i, b],
-                              phase_velocity=omega[i, b] / a, scanned=bool(scanned[i]),
+                              phase_velocity=omega[i, b] / a,
                               status=Status(int(status[i, b])).name.lower())
             for b in range(CURVE_ROOTS):
                 ax.plot(alphas, omega[:, b], color=COLORS[k], lw=1.4 - 0.3 * b,
@@ -620,17 +638,16 @@ def figure_cross_sections(ctx: Context) -> None:
     order in ε (u_r = R_i ū cos mθ, :func:`jaxdea.mode_shape`; ε makes max |ε ū| of the faces 0.15)."""
     name = "cross_sections"
     ctx.log(f"[{name}] cross-sections of the modes m = 1, 2, 3")
-    curves = order_m_curves(ctx, None, sorted(set(CURVE_ORDERS) | set(SHAPE_ORDERS)))
-    alpha = float(mode_wavenumber(SHAPE_TUBE, 1.0))
+    shapes = cross_section_modes(ctx)
+    alpha = shapes[SHAPE_ORDERS[0]][0]
     theta = np.linspace(0.0, 2.0 * np.pi, ctx.res.outline_points)
     fig, panels = _figure(ncols=len(SHAPE_ORDERS),
                           title=f"Lowest modes of order m at n = 1 (α̂ = {alpha:.4f}), λ_i = "
                                 f"{SHAPE_STRETCH}, V̂ = {SHAPE_VOLTAGE}: cross-section, exaggerated")
     table = Table(name)
     for ax, m in zip(panels, SHAPE_ORDERS, strict=True):
-        omega = float(curves[m][0][0, 0])  # the curve's first α̂ is α̂_1
-        r, fields = mode_shape(SHAPE_TUBE, alpha, omega, n_layers=ctx.n_layers, m=m)
-        faces, u = np.asarray(r)[[0, -1]], np.asarray(fields[0])[[0, -1]]
+        _, omega, r, fields = shapes[m]
+        faces, u = r[[0, -1]], fields[0][[0, -1]]
         epsilon = 0.15 / np.max(np.abs(u))
         for face, r_face, u_face, color in zip(("inner", "outer"), faces, u, ("tab:blue", "tab:red"),
                                                strict=True):
@@ -695,6 +712,26 @@ def locking_stretch(tube: Tube) -> float:
     return lo
 
 
+STATIC_PRESSURES = (-0.05, 0.0, 0.05, 0.1)  # ΔP̂ of the static response
+
+
+def static_response(ctx: Context):
+    """(λ_i at locking, the λ_i grid, {ΔP̂: (V̂ on the grid, (λ_i, V̂, status) of pull_in)}) of the
+    paper's tube (:func:`figure_static_response`), solved once."""
+    if ctx.static is None:
+        tube = PAPER_TUBE
+        lock = locking_stretch(tube)
+        stretches = np.geomspace(0.6, lock, ctx.res.static_points)
+        v2 = jit(jax.vmap(lambda li, dp: _squared_voltage(tube, li, dp), (0, None)))
+        curves = {}
+        for dp in STATIC_PRESSURES:
+            vsq = np.asarray(v2(jnp.asarray(stretches), dp))
+            curves[dp] = (np.where(vsq >= 0, np.sqrt(np.abs(vsq)), np.nan),
+                          tuple(float(x) for x in pull_in(tube, dp)))
+        ctx.static = (lock, stretches, curves)
+    return ctx.static
+
+
 def figure_static_response(ctx: Context) -> None:
     """V̂ against λ_i at fixed ΔP̂ (theory.md Eq. 1.1 solved for V̂²), pull-in points marked.
 
@@ -707,17 +744,11 @@ def figure_static_response(ctx: Context) -> None:
     """
     name = "static_response"
     ctx.log(f"[{name}] V̂ against λ_i at fixed ΔP̂, pull-in marked")
-    tube = PAPER_TUBE
-    lock = locking_stretch(tube)
-    stretches = np.geomspace(0.6, lock, ctx.res.static_points)
+    lock, stretches, curves = static_response(ctx)
     fig, (ax,) = _figure(ncols=1)
     table = Table(name)
-    v2 = jit(jax.vmap(lambda li, dp: _squared_voltage(tube, li, dp), (0, None)))
     found = 0
-    for c, dp in enumerate((-0.05, 0.0, 0.05, 0.1)):
-        vsq = np.asarray(v2(jnp.asarray(stretches), dp))
-        volt = np.where(vsq >= 0, np.sqrt(np.abs(vsq)), np.nan)
-        li_pull, v_pull, status = (float(x) for x in pull_in(tube, dp))
+    for c, (dp, (volt, (li_pull, v_pull, status))) in enumerate(curves.items()):
         for li, v in zip(stretches, volt, strict=True):
             table.add(delta_p=dp, lambda_i=li, voltage=v, pull_in_lambda_i=li_pull, pull_in_voltage=v_pull,
                       locking_lambda_i=lock)
@@ -756,7 +787,19 @@ def make_figures(out="figures", *, quick: bool = False, progress: bool = True,
     out.mkdir(parents=True, exist_ok=True)
     ctx = Context(out, Resolution.pick(quick), int(n_layers), progress, [])
     start = time.perf_counter()
+    with concurrent.futures.ThreadPoolExecutor(1) as pool:  # :func:`solve_order_m` beside Figs. 2–10
+        order_m = pool.submit(solve_order_m, ctx)
+        _paper_figures(ctx)
+        order_m.result()
+    figure_cross_sections(ctx)
+    figure_dispersion_order_m(ctx)
     figure_static_response(ctx)
+    ctx.log(f"{len(ctx.written)} files in {out} ({time.perf_counter() - start:.0f} s)")
+    return ctx.written
+
+
+def _paper_figures(ctx: Context) -> None:
+    """Figs. 2–10, the model comparison and the stability map."""
     figure_voltage(ctx, fluid_filled=False)
     figure_modes(ctx, fluid_filled=False, critical_stretch=False)
     figure_modes(ctx, fluid_filled=False, critical_stretch=True)
@@ -768,7 +811,3 @@ def make_figures(out="figures", *, quick: bool = False, progress: bool = True,
     figure_fluid_parameter(ctx, "thickness_ratio")
     figure_comparison(ctx, {"modes": modes, "speed": speed})
     figure_stability_map(ctx)
-    figure_cross_sections(ctx)
-    figure_dispersion_order_m(ctx)
-    ctx.log(f"{len(ctx.written)} files in {out} ({time.perf_counter() - start:.0f} s)")
-    return ctx.written

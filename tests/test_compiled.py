@@ -241,7 +241,7 @@ def test_every_public_entry_point_in_three_processes(tmp_path):
 
 
 def test_compiler_options_on_top_level_programs_only():
-    """jaxdea.compiled.jit: a top-level call runs the program compiled with COMPILER_OPTIONS, a
+    """jaxdea.compiled.jit: a top-level call runs the program compiled with compiler_options(), a
     call inside a caller's trace (tracers, or concrete arguments staged into a jit) the plain
     jax.jit, as JAX requires (options on a nested jit raise); the values agree."""
     from jaxdea.compiled import jit
@@ -258,3 +258,19 @@ def test_compiler_options_on_top_level_programs_only():
     assert len(calls) == 3
     with pytest.raises(ValueError, match="compiler_options"):  # why the plain jit is needed
         jax.jit(lambda: fun._top(x, 3))()
+
+
+def test_cpu_options_only_on_the_cpu_backend():
+    """LLVM level 1 (CPU_OPTIONS) joins COMPILER_OPTIONS on the CPU backend only, and the top-level
+    program is built with them at first use."""
+    from jaxdea import compiled
+
+    expected = dict(compiled.COMPILER_OPTIONS)
+    if jax.default_backend() == "cpu":
+        expected.update(compiled.CPU_OPTIONS)
+    assert compiled.compiler_options() == expected
+    assert compiled.CPU_OPTIONS == {"xla_backend_optimization_level": 1}
+    fun = compiled.jit(_scaled, static_argnames="n")
+    assert fun._top_jit is None
+    np.testing.assert_array_equal(fun(jnp.arange(2.0), 4), [0.0, 4.0])
+    assert fun._top_jit is not None
