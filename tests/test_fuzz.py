@@ -665,10 +665,10 @@ def mode(case):
         elif isinstance(fluid.coupling, str) and fluid.coupling == "paper":
             problems.add("paper")
         out = run(lambda: _not_a_root(lambda: jd.fluid_pressure(tube, alpha, omega, fluid, n_points, N_LAYERS),
-                                      tube, alpha, omega, fluid), problems, ambiguous)
+                                      tube, alpha, omega, fluid, values), problems, ambiguous)
     else:
         out = run(lambda: _not_a_root(lambda: jd.mode_shape(tube, alpha, omega, fluid, n_points, N_LAYERS),
-                                      tube, alpha, omega, fluid), problems, ambiguous)
+                                      tube, alpha, omega, fluid, values), problems, ambiguous)
     if out is REJECTED or out is NOT_A_ROOT:
         return
     assert not problems or ambiguous, f"invalid input {problems} accepted"
