@@ -568,7 +568,7 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
     # and modes of the bound (the run solves and differentiates on this one wall model)
     thickest = tube.replace(eta=1.0 / (1.0 + h_hi))
     layers = laminate(n_layers, scheme, thickest, mode_wavenumber(thickest, max(int(n), int(n_max))),
-                      m=int(m_max))
+                      m=int(m_max), at_rest=True)  # at rest: the bound is a critical voltage
     guess, bound = _seed(x0, setting, "frequency", s0, layers, None, int(m_max), int(n_max),
                          "thickness")
 
@@ -674,7 +674,7 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
     x0 = [_cosine_inverse(s0, 0.0, 1.0)] + ([_cosine_inverse(li0, li_lo, li_hi)] if free else [])
     start = setting["tube"]
     layers = laminate(n_layers, scheme, start, mode_wavenumber(start, max(int(n), int(n_max))),
-                      m=int(m_max))  # one discretisation for the whole run
+                      m=int(m_max), at_rest=True)  # one discretisation for the whole run, the bound's
     guess, bound = _seed(x0, setting, kind, s0, layers, None, int(m_max), int(n_max), "lambda_i")
 
     recent = []

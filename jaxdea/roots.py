@@ -878,7 +878,7 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
     """(V̂_cr, status): the smallest V̂ > 0 with f(Ω = 0; V̂) = 0 (see :func:`critical_voltage`)."""
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
-    layers = laminate(n_layers, scheme, tube, alpha, m=m)
+    layers = laminate(n_layers, scheme, tube, alpha, m=m, at_rest=True)
     values = jax.lax.stop_gradient((tube, alpha, fluid))
     if family == LONGITUDINAL:
         roots = Roots(*_solve_critical_voltage(*values, layers, order))
@@ -957,7 +957,8 @@ def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
     check_inputs(tube, 1.0, fluid, n_layers, scheme)
     family = mode_family(m, False, fluid)
     n_max = _validate_max("n_max", n_max, 1)
-    layers = laminate(n_layers, scheme, tube, mode_wavenumber(canonical(tube), n_max), m=m)
+    layers = laminate(n_layers, scheme, tube, mode_wavenumber(canonical(tube), n_max), m=m,
+                      at_rest=True)
     if family == LONGITUDINAL:
         return _critical_voltages(canonical(tube), n_max, layers)
     return _critical_voltages(canonical(tube), n_max, layers, as_float(m), family)
@@ -1078,7 +1079,7 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
     n_max = _validate_max("n_max", n_max, 1)
     m_max = _validate_max("m_max", m_max, 0)
     tube = canonical(tube)
-    layers = laminate(n_layers, scheme, tube, mode_wavenumber(tube, n_max), m=m_max)
+    layers = laminate(n_layers, scheme, tube, mode_wavenumber(tube, n_max), m=m_max, at_rest=True)
     voltage, status, growth = _instability_grid(jax.lax.stop_gradient(tube), n_max, m_max, layers)
     # the order: the modes unstable at V̂ = 0, fastest first (key −s₀ < 0), then the critical voltages
     key = jnp.where(voltage == 0.0, -growth, jnp.where(jnp.isnan(voltage), jnp.inf, voltage)).ravel()

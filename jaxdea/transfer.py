@@ -95,7 +95,8 @@ PAPER_LAYERS = 30
 ``n_layers``."""
 
 
-def auto_layer_count(thickness, r_inner, locking, alpha, n_roots: int = 3, m=0) -> int:
+def auto_layer_count(thickness, r_inner, locking, alpha, n_roots: int = 3, m=0,
+                     at_rest: bool = False) -> int:
     """N of the accurate discretisation (graded sixth-order Magnus) for roots to ≤ 1e-8 relative.
 
     N ≥ 4 + 1.5 max(K, 3) + 2 α̂ĥ + 2 m ĥ/r̂_i + 4 ln(1 + ĥ/r̂_i) + 9 ln(1 + ĥ/ℓ), rounded up to
@@ -104,9 +105,19 @@ def auto_layer_count(thickness, r_inner, locking, alpha, n_roots: int = 3, m=0) 
     the axial and circumferential wavenumbers α̂, m/r̂ add phase across ĥ, a thick wall adds the
     variation of 1/r̂ and a face near Gent locking (length ℓ, :func:`grading_length`) that of
     W_1. Calibrated on the measured errors (paper's tube, unstretched, η = 0.3 up to α̂ĥ = 86, 99 %
-    of locking at G = 2 and 4) with a margin of about 10 (tests/test_accuracy_default.py)."""
+    of locking at G = 2 and 4) with a margin of about 10 (tests/test_accuracy_default.py).
+
+    ``at_rest``: for the critical voltage, a root in V̂ of f(Ω = 0; V̂) (:func:`jaxdea.critical_voltage`,
+    :func:`jaxdea.first_instability`), also N ≥ 18 m L^1.25 with L = ln(1 + ĥ/r̂_i) = ln(r̂_o/r̂_i):
+    the static fields of order m vary like r̂^{±m} across the wall, and V̂_cr is less sensitive than
+    Ω to the wall, so it needs more sublayers than the roots in Ω there. Measured: V̂_cr of m = 8 at
+    η = 0.6 was 8.4e-7 off at N = 16 and of m = 6 at η = 0.3 1.1e-7 at N = 48 (the rule above);
+    the error is (q/N)⁶ with q/(m L^1.25) ≤ 0.54 over the paper's tube, η = 0.3 … 0.6 and 99 % of
+    locking (m ≤ 8), so the term leaves ≤ 7e-10."""
     need = (4.0 + 1.5 * max(n_roots, 3) + 2.0 * alpha * thickness + 2.0 * m * thickness / r_inner
             + 4.0 * math.log1p(thickness / r_inner) + 9.0 * math.log1p(thickness / locking))
+    if at_rest:
+        need = max(need, 18.0 * m * math.log1p(thickness / r_inner) ** 1.25)
     return next((c for c in LAYER_COUNTS if c >= need), LAYER_COUNTS[-1])
 
 
@@ -153,7 +164,7 @@ def wall_lengths(tube: Tube):
 
 
 def laminate(n_layers=None, scheme=None, tube: Tube | None = None, alpha=None, n_roots: int = 3,
-             m=0):
+             m=0, at_rest: bool = False):
     """The static discretisation passed to the solvers.
 
     ``n_layers=None`` with ``scheme`` None or ``"magnus6"``: the accurate discretisation, graded
@@ -162,24 +173,25 @@ def laminate(n_layers=None, scheme=None, tube: Tube | None = None, alpha=None, n
     ``Layers(N, "magnus6", graded=True)``. An explicit ``n_layers`` keeps its meaning: the
     equal-thickness laminate of that ``scheme`` (``"midpoint"`` if None; N itself, the historical
     form, so compiled programs and their cache keys are unchanged), and ``"midpoint"``/``"magnus4"``
-    without ``n_layers`` take the paper's N = 30. Validation is the caller's
-    (:func:`jaxdea.params.validate_layers`, ``validate_scheme``)."""
+    without ``n_layers`` take the paper's N = 30. ``at_rest``: the N of a critical-voltage search
+    (:func:`auto_layer_count`). Validation is the caller's (:func:`jaxdea.params.validate_layers`,
+    ``validate_scheme``)."""
     if isinstance(n_layers, Layers):  # already resolved (e.g. once for a whole design run)
         return n_layers
     if n_layers is None and scheme in (None, AUTO_SCHEME):
-        return Layers(default_count(tube, alpha, n_roots, m), AUTO_SCHEME, True)
+        return Layers(default_count(tube, alpha, n_roots, m, at_rest), AUTO_SCHEME, True)
     n_layers = PAPER_LAYERS if n_layers is None else int(n_layers)
     scheme = "midpoint" if scheme is None else scheme
     return n_layers if scheme == "midpoint" else Layers(n_layers, scheme)
 
 
-def default_count(tube, alpha, n_roots: int = 3, m=0) -> int:
+def default_count(tube, alpha, n_roots: int = 3, m=0, at_rest: bool = False) -> int:
     """N of the accurate discretisation (:func:`laminate`)."""
     alpha, m = _concrete_max(alpha), _concrete_max(m)
     lengths = None if tube is None or alpha is None or m is None else wall_lengths(tube)
     if lengths is None:
         return TRACED_LAYERS
-    return auto_layer_count(*lengths, alpha, int(n_roots), m)
+    return auto_layer_count(*lengths, alpha, int(n_roots), m, at_rest)
 
 
 def validate_scheme(scheme) -> None:

@@ -130,6 +130,25 @@ def test_breakpoints_are_differentiable():
     np.testing.assert_allclose(float(jax.grad(edge)(li)), fd_derivative(edge, li, 1e-7), rtol=1e-6)
 
 
+@pytest.mark.parametrize("tube, m", [(jd.Tube(lambda_i=0.9, lambda_z=1.2, eta=0.6), 8),
+                                     (jd.Tube(lambda_i=1.3, lambda_z=1.1, eta=0.4, gent=10.0), 5)])
+def test_accurate_critical_voltage_of_order_m_on_thick_walls(tube, m):
+    """V̂_cr of a high order on a thick wall needs more sublayers than the roots in Ω there (the
+    at-rest term of auto_layer_count): on the N of the roots in Ω it is above the tolerance
+    (7.4e-8 at η = 0.6, m = 8, N = 24), with the term ≤ 1e-8 against an equal wall 4 times finer."""
+    alpha = jd.axial_wavenumber(tube, 1)
+    at_rest = laminate(None, None, tube, alpha, m=m, at_rest=True)
+    for_omega = laminate(None, None, tube, alpha, m=m)
+    assert at_rest.count > for_omega.count
+    ref = float(jd.critical_voltage(tube, alpha, m=m, n_layers=4 * at_rest.count, scheme="magnus6"))
+    got = float(jd.critical_voltage(tube, alpha, m=m))
+    assert abs(got - ref) <= TOL * ref, (got, ref)
+    coarse = float(jd.critical_voltage(tube, alpha, m=m, n_layers=for_omega))
+    assert abs(coarse - ref) > TOL * ref  # the term is needed
+    first = jd.first_instability(tube, n_max=1, m_max=m)  # resolves the same N for its grid
+    assert float(first.voltage) <= got * (1 + 1e-12)
+
+
 def test_layer_count_rule():
     # the paper's tube needs few sublayers, a thick wall at large α̂ĥ and locking many
     assert auto_layer_count(0.163, 0.9, math.inf, 0.445) == TRACED_LAYERS == 16
@@ -137,6 +156,12 @@ def test_layer_count_rule():
     assert auto_layer_count(0.52, 0.359, 1.6e-3, 1.0) >= 64
     assert auto_layer_count(1e3, 1.0, 1e-9, 1e6) == LAYER_COUNTS[-1]
     assert laminate(None, None, PAPER, 0.445) == Layers(16, "magnus6", True)
+    # a critical voltage (at rest): 18 m ln(1 + ĥ/r̂_i)^1.25 more, none at m = 0 or on thin walls
+    assert auto_layer_count(2.14, 0.9, math.inf, 0.445, m=5, at_rest=True) == 128
+    assert auto_layer_count(2.14, 0.9, math.inf, 0.445, m=5) == 48
+    assert auto_layer_count(2.14, 0.9, math.inf, 0.445, at_rest=True) == auto_layer_count(
+        2.14, 0.9, math.inf, 0.445)
+    assert laminate(None, None, PAPER, 0.445, m=8, at_rest=True) == Layers(16, "magnus6", True)
     # an explicit count keeps its meaning: the paper's laminate (the solvers' default), or the
     # equal Magnus wall
     assert laminate(30, None) == 30 and laminate(None, "midpoint") == 30
