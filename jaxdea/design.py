@@ -63,7 +63,7 @@ from .dispersion import characteristic, check_inputs
 from .modes import ROOT_RTOL, root_distance
 from .params import Fluid, Tube, as_float, canonical, mode_wavenumber, require_x64, validate_layers
 from .roots import first_instability, frequencies, solve_critical_voltage, solve_frequency
-from .scalar import Status, implicit_root
+from .scalar import Status, implicit_root, refuse_non_root
 from .transfer import laminate, validate_scheme
 
 DECAY = 0.97  # learning-rate factor per step
@@ -152,7 +152,6 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
     """
     require_x64()
     order = check_inputs(tube, alpha, fluid, n_layers, scheme)
-    concrete = not isinstance(omega, jax.core.Tracer)
     tube, alpha, omega = canonical(tube, alpha, omega)
     voltage = as_float(tube.voltage)
 
@@ -163,10 +162,7 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
     f_voltage = jax.jvp(lambda v: f(omega, v), (voltage,), (jnp.ones_like(voltage),))[1]
     distance = root_distance(*jax.lax.stop_gradient((tube, alpha, omega, fluid)),
                              laminate(n_layers, scheme, tube, alpha), order)
-    if concrete and not isinstance(distance, jax.core.Tracer) and not float(distance) <= ROOT_RTOL:
-        raise ValueError(f"omega = {float(omega)!r} is not a root of the characteristic function "
-                         f"(a Newton step moves it by {float(distance):.2g} of itself, above "
-                         f"{ROOT_RTOL:g}): pass a root from jaxdea.frequency or jaxdea.frequencies")
+    refuse_non_root(omega, distance)
     return jnp.where(distance <= ROOT_RTOL, -f_voltage / f_omega, jnp.nan)
 
 

@@ -574,8 +574,8 @@ def order_m_curves(ctx: Context, fluid: Fluid | None, orders) -> dict:
 
 
 def cross_section_modes(ctx: Context) -> dict:
-    """{m: (α̂_1, Ω, r̂ (P,), fields)} of the lowest mode of each order of :data:`SHAPE_ORDERS` at
-    n = 1 (:func:`jaxdea.mode_shape` at the root of :func:`order_m_curves`), solved once."""
+    """{m: (Ω, r̂ (P,), fields)} of the lowest mode of each order of :data:`SHAPE_ORDERS` at n = 1,
+    α̂ = α̂_1 (:func:`jaxdea.mode_shape` at the root of :func:`order_m_curves`), solved once."""
     if ctx.shapes is None:
         curves = order_m_curves(ctx, None, EMPTY_CURVE_ORDERS)
         alpha = float(mode_wavenumber(SHAPE_TUBE, 1.0))
@@ -583,7 +583,7 @@ def cross_section_modes(ctx: Context) -> dict:
         for m in SHAPE_ORDERS:
             omega = float(curves[m][0][0, 0])  # the curve's first α̂ is α̂_1
             r, fields = mode_shape(SHAPE_TUBE, alpha, omega, n_layers=ctx.n_layers, m=m)
-            shapes[m] = (alpha, omega, np.asarray(r), [np.asarray(x) for x in fields])
+            shapes[m] = (omega, np.asarray(r), [np.asarray(x) for x in fields])
         ctx.shapes = shapes
     return ctx.shapes
 
@@ -639,14 +639,14 @@ def figure_cross_sections(ctx: Context) -> None:
     name = "cross_sections"
     ctx.log(f"[{name}] cross-sections of the modes m = 1, 2, 3")
     shapes = cross_section_modes(ctx)
-    alpha = shapes[SHAPE_ORDERS[0]][0]
+    alpha = float(mode_wavenumber(SHAPE_TUBE, 1.0))
     theta = np.linspace(0.0, 2.0 * np.pi, ctx.res.outline_points)
     fig, panels = _figure(ncols=len(SHAPE_ORDERS),
                           title=f"Lowest modes of order m at n = 1 (α̂ = {alpha:.4f}), λ_i = "
                                 f"{SHAPE_STRETCH}, V̂ = {SHAPE_VOLTAGE}: cross-section, exaggerated")
     table = Table(name)
     for ax, m in zip(panels, SHAPE_ORDERS, strict=True):
-        _, omega, r, fields = shapes[m]
+        omega, r, fields = shapes[m]
         faces, u = r[[0, -1]], fields[0][[0, -1]]
         epsilon = 0.15 / np.max(np.abs(u))
         for face, r_face, u_face, color in zip(("inner", "outer"), faces, u, ("tab:blue", "tab:red"),

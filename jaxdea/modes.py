@@ -39,7 +39,7 @@ from .dispersion import (
     problem_function,
 )
 from .params import Fluid, Tube, admissible, as_float, canonical, validate_count, validate_real
-from .scalar import ROOT_RTOL, value_and_slope
+from .scalar import ROOT_RTOL, newton_distance, refuse_non_root, value_and_slope
 from .state_matrix import LONGITUDINAL, ORDER_M, TORSIONAL, family_matrix, state_matrix
 from .transfer import (
     Wall,
@@ -62,11 +62,7 @@ def root_distance(tube, alpha, omega, fluid, n_layers, order, m=0.0, family=LONG
     root; at Ω = 0, where f' = 0 by symmetry, 0 if |f| ≤ 1e-12 (f is normalised, |f| ≤ 1), else
     inf)."""
     _, f = problem_function(tube, alpha, fluid, n_layers, order, m, family)
-    value, slope = value_and_slope(f, omega)
-    size = jnp.abs(slope) * jnp.abs(omega)
-    at_zero = jnp.where(jnp.abs(value) <= 1e-12, 0.0, jnp.inf)
-    return jnp.where(omega == 0.0, at_zero, jnp.abs(value) / jnp.where(size > 0, size, 1.0)
-                     + jnp.where(size > 0, 0.0, jnp.inf))
+    return newton_distance(*value_and_slope(f, omega), omega)
 
 
 def _interface_solution(wall: Wall, omega, alpha, fluid, order, m=0.0, family=LONGITUDINAL):
@@ -232,7 +228,6 @@ def _solve(tube, alpha, omega, fluid, n_points, n_layers, scheme, m, torsional):
     order = check_inputs(tube, alpha, fluid, n_layers, scheme)
     family = mode_family(m, torsional, fluid)
     _check_mode_arguments(omega, n_points)
-    concrete = not isinstance(omega, jax.core.Tracer)
     tube, alpha, omega, fluid, m = canonical(tube, alpha, omega, fluid, m)
     layers = laminate(n_layers, scheme, tube, alpha, m=m)
     if family == LONGITUDINAL:
@@ -240,13 +235,8 @@ def _solve(tube, alpha, omega, fluid, n_points, n_layers, scheme, m, torsional):
     else:
         out = _solve_mode(tube, alpha, omega, fluid, int(n_points), layers, order, as_float(m),
                           family)
-    distance = out[-1]
-    if concrete and not isinstance(distance, jax.core.Tracer) and not float(distance) <= ROOT_RTOL:
-        raise ValueError(
-            f"omega = {float(omega)!r} is not a root of the characteristic function of this case "
-            f"(order m = {m if family == ORDER_M else 0}, {_describe(layers)}): a Newton step moves it "
-            f"by {float(distance):.2g} of itself, above the tolerance {ROOT_RTOL:g}; pass a root "
-            "from jaxdea.frequencies (or frequency) of the same tube, α̂, fluid and order")
+    refuse_non_root(omega, out[-1], f" of this case (order m = {m if family == ORDER_M else 0}, "
+                    f"{_describe(layers)})", " of the same tube, α̂, fluid and order")
     return out[:-1]
 
 

@@ -75,6 +75,8 @@ from .scalar import (
     hermite_extremum,
     hermite_root,
     lanes_from_slots,
+    newton_distance,
+    refuse_non_root,
     run_lanes,
     start_lanes,
     value_and_slope,
@@ -834,17 +836,13 @@ def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layer
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_range("omega", omega, "a finite real number > 0 (a root of the characteristic function)",
                    lambda v: v > 0)
-    concrete = not isinstance(omega, jax.core.Tracer)
     tube, alpha, omega, fluid, m = canonical(tube, alpha, omega, fluid, m)
     layers = laminate(n_layers, scheme, tube, alpha, m=m)
     if family == LONGITUDINAL:
         velocity, distance = _group_velocity(tube, alpha, omega, fluid, layers, order)
     else:
         velocity, distance = _group_velocity(tube, alpha, omega, fluid, layers, order, m, family)
-    if concrete and not isinstance(distance, jax.core.Tracer) and not float(distance) <= ROOT_RTOL:
-        raise ValueError(f"omega = {float(omega)!r} is not a root of the characteristic function "
-                         f"(a Newton step moves it by {float(distance):.2g} of itself, above "
-                         f"{ROOT_RTOL:g}): pass a root from jaxdea.frequency or jaxdea.frequencies")
+    refuse_non_root(omega, distance)
     return velocity
 
 
@@ -864,11 +862,8 @@ def _group_velocity(tube, alpha, omega, fluid, n_layers, order, m=0.0, family=LO
         f = lambda om, al: _residual(om, tube, al, fluid, m, n_layers, order, "omega",  # noqa: E731
                                      family)
     value, (f_omega, f_alpha) = jax.value_and_grad(f, argnums=(0, 1))(omega, alpha)
-    # as jaxdea.modes.root_distance (omega > 0 here): inf where f_Ω = 0, NaN where f is not finite
-    size = jax.lax.stop_gradient(jnp.abs(f_omega) * omega)
-    distance = jnp.abs(jax.lax.stop_gradient(value)) / jnp.where(size > 0, size, 1.0) \
-        + jnp.where(size > 0, 0.0, jnp.inf)
-    distance = jnp.where(ok, distance, jnp.nan)
+    distance = jnp.where(ok, newton_distance(*jax.lax.stop_gradient((value, f_omega, omega))),
+                         jnp.nan)
     return jnp.where(ok & (distance <= ROOT_RTOL), -f_alpha / f_omega, jnp.nan), distance
 
 

@@ -23,6 +23,28 @@ resolves the tube to better than 1e-4 (the paper's midpoint N = 30: about 1e-5) 
 α̂ = 0.4 (no root nearby) is ≈ 0.3 away."""
 
 
+def newton_distance(value, slope, x):
+    """|f(x)|/(|f'(x)| |x|): the relative size of the Newton step from x to the nearest root (0 at a
+    root; inf where f'x = 0; at x = 0, where f' = 0 by symmetry, 0 if |f| ≤ 1e-12 (f is normalised,
+    |f| ≤ 1), else inf; NaN where f is not finite). Compared with :data:`ROOT_RTOL`."""
+    size = jnp.abs(slope) * jnp.abs(x)
+    at_zero = jnp.where(jnp.abs(value) <= 1e-12, 0.0, jnp.inf)
+    return jnp.where(x == 0.0, at_zero, jnp.abs(value) / jnp.where(size > 0, size, 1.0)
+                     + jnp.where(size > 0, 0.0, jnp.inf))
+
+
+def refuse_non_root(omega, distance, case: str = "", advice: str = "") -> None:
+    """ValueError where a concrete ``omega`` is farther than :data:`ROOT_RTOL` from a root
+    (``distance`` of :func:`newton_distance`); nothing for traced values (the callers give NaN)."""
+    if isinstance(omega, jax.core.Tracer) or isinstance(distance, jax.core.Tracer):
+        return
+    if not float(distance) <= ROOT_RTOL:
+        raise ValueError(f"omega = {float(omega)!r} is not a root of the characteristic "
+                         f"function{case} (a Newton step moves it by {float(distance):.2g} of itself, above "
+                         f"{ROOT_RTOL:g}): pass a root from jaxdea.frequency or jaxdea.frequencies"
+                         f"{advice}")
+
+
 class Status(enum.IntEnum):
     """Status code of a solve (stored as int32 arrays)."""
 

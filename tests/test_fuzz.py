@@ -496,11 +496,11 @@ test_newton, test_newton_slow = fuzz(newton_cases())(newton)
 NOT_A_ROOT = object()
 
 
-def _not_a_root(call, tube, alpha, omega, fluid, values=None):
+def _not_a_root(call, tube, alpha, omega, fluid, values=None, fluid_values=None):
     """``call()``, or NOT_A_ROOT where it refuses ``omega`` as no root; the refusal is checked
     independently: f changes sign nowhere within half the tolerance (5e-5 relative) of omega.
-    With the drawn ``values``, a refusal where f itself is not finite there is accepted beyond the
-    moderate range only (where NaN is allowed)."""
+    With the drawn ``values`` (and ``fluid_values``), a refusal where f itself is not finite there
+    is accepted beyond the moderate range of the tube or the fluid only (where NaN is allowed)."""
     try:
         return call()
     except ValueError as exc:
@@ -508,8 +508,9 @@ def _not_a_root(call, tube, alpha, omega, fluid, values=None):
             raise
         ends = [float(jd.characteristic(tube, omega * (1 + e), alpha, fluid, N_LAYERS)) for e in (-5e-5, 5e-5)]
         if values is not None and not all(map(math.isfinite, ends)):
-            assert not _moderate(values, "omega", "alpha", "voltage"), \
-                f"f = {ends} for moderate inputs {values}"
+            at = dict(values, omega=omega)
+            assert not (_moderate(at, "omega", "alpha", "voltage") and _moderate_fluid(at, fluid_values)), \
+                f"f = {ends} for moderate inputs {at}, fluid {fluid_values}"
             return NOT_A_ROOT
         assert ends[0] * ends[1] > 0, f"a root within 5e-5 of omega = {omega} was refused: {exc}"
         return NOT_A_ROOT
@@ -527,8 +528,8 @@ def group_velocity(case):
     values, at_root, k = case
     problems, ambiguous = _problems(values)
     w = _scalar(values["omega"])
-    if w is not None and not w > 0:
-        problems.add("omega")  # a root Ω > 0 (∂f/∂Ω = 0 at Ω = 0)
+    if w is not None and not POSITIVE(w):
+        problems.add("omega")  # a root Ω > 0 as XLA sees it (∂f/∂Ω = 0 at Ω = 0)
     tube, alpha, omega = _tube(values), values["alpha"], values["omega"]
     at_root = at_root and not problems and not ambiguous
     if at_root:  # a root (else Ω is almost surely none)
@@ -665,10 +666,10 @@ def mode(case):
         elif isinstance(fluid.coupling, str) and fluid.coupling == "paper":
             problems.add("paper")
         out = run(lambda: _not_a_root(lambda: jd.fluid_pressure(tube, alpha, omega, fluid, n_points, N_LAYERS),
-                                      tube, alpha, omega, fluid, values), problems, ambiguous)
+                                      tube, alpha, omega, fluid, values, fluid_values), problems, ambiguous)
     else:
         out = run(lambda: _not_a_root(lambda: jd.mode_shape(tube, alpha, omega, fluid, n_points, N_LAYERS),
-                                      tube, alpha, omega, fluid, values), problems, ambiguous)
+                                      tube, alpha, omega, fluid, values, fluid_values), problems, ambiguous)
     if out is REJECTED or out is NOT_A_ROOT:
         return
     assert not problems or ambiguous, f"invalid input {problems} accepted"
