@@ -161,10 +161,10 @@ def _cavity_pressure(wall: Wall, omega, alpha, fluid: Fluid, c_u, n_points: int,
     s = chi2 * r**2
     if m is None:
         n = jax.vmap(lambda x: coupling_pair(x, 0)[0])(s)
-        ratio = jnp.exp(coupling_log_factor(chi2 * ri**2, 0) - coupling_log_factor(s, 0))
+        ratio = jnp.exp(coupling_log_factor(chi2 * ri**2) - coupling_log_factor(s))
         return r, omega**2 * rho * ri * c_u * n * ratio
     n = jax.vmap(lambda x: coupling_pair(x, m)[0])(s)
-    ratio = jnp.exp(coupling_log_factor(chi2 * ri**2, m) - coupling_log_factor(s, m))
+    ratio = jnp.exp(coupling_log_factor(chi2 * ri**2) - coupling_log_factor(s))
     return r, omega**2 * rho * ri * c_u * n * ratio * (r / ri) ** m
 
 

@@ -43,7 +43,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base_state import voltage_limit
-from .bessel import NODES
+from .bessel import NODES, RANGE
 from .compiled import cached_jit, serializable
 from .dispersion import (
     characteristic_and_scale,
@@ -157,9 +157,9 @@ def cutoff_steps(wall: Wall, alpha, fluid: Fluid | None, step, family: str = LON
 
 @functools.lru_cache(maxsize=None)
 def bessel_derivative_zeros(order: int) -> np.ndarray:
-    """The zeros j'_{ν,k} of J'_ν in [0, NODES − 40 − ν), ascending (NumPy, computed once per ν).
+    """The zeros j'_{ν,k} of J'_ν in [0, RANGE − ν), ascending (NumPy, computed once per ν).
 
-    Where :func:`jaxdea.bessel.coupling_pair` is finite (x + ν < NODES − 40). J'_ν(x) =
+    Where :func:`jaxdea.bessel.coupling_pair` is finite (x + ν < RANGE). J'_ν(x) =
     (1/2π)∫₀^{2π} sin(νt − x sin t) sin t dt and J''_ν(x) = −(1/2π)∫₀^{2π} cos(νt − x sin t) sin²t dt
     by the trapezoidal rule on 2·NODES points (exact to rounding there), sign changes on a grid of
     ``BESSEL_GRID`` from x = ν, 4 bisections (to 0.06), then Newton steps kept inside the bracket
@@ -176,7 +176,7 @@ def bessel_derivative_zeros(order: int) -> np.ndarray:
         return -np.mean(np.cos(order * theta - x[:, None] * sin_theta) * sin_theta**2, axis=1)
 
     start = max(float(order), BESSEL_GRID)  # j'_{ν,1} > ν for ν > 0; below it J'_ν is rounding noise
-    limit = NODES - 40 - order
+    limit = RANGE - order
     grid = np.append(np.arange(start, limit, BESSEL_GRID), limit)
     values = derivative(grid)
     change = np.flatnonzero(values[:-1] * values[1:] < 0)

@@ -1,5 +1,7 @@
 """Pipeline stages against closed forms and independent computations."""
 
+import math
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -9,8 +11,8 @@ from scipy import integrate, special
 
 import jaxdea as jd
 from jaxdea import base_state as bs
-from jaxdea import transfer
-from jaxdea.bessel import _switch, coupling_pair
+from jaxdea import bessel, transfer
+from jaxdea.bessel import RANGE, _switch, coupling_log_factor, coupling_pair
 from jaxdea.dispersion import characteristic_and_scale, reference_determinant
 from jaxdea.moduli import closed_form_coefficients, coefficients, push_forward_moduli
 from jaxdea.state_matrix import state_matrix
@@ -53,27 +55,102 @@ def test_linear_elastic_coefficients():
     np.testing.assert_allclose([c.a, c.b, c.c, c.q, c.g, c.d], [1, 1, 1, 1, 0, 0], atol=1e-14)
 
 
-@pytest.mark.parametrize("order", [0, 1, 3, 10, 25])
+def _bessel_reference(order, s):
+    """(J_ν, x J_ν') (s > 0) or e^{−x̃}(I_ν, x̃ I_ν') (s < 0) from scipy, x = sqrt(|s|)."""
+    x = np.sqrt(abs(s))
+    if s > 0:
+        return np.array([special.jv(order, x), x * special.jvp(order, x)])
+    return np.array([special.ive(order, x),
+                     x * 0.5 * (special.ive(order - 1, x) + special.ive(order + 1, x))])
+
+
+def _tier_edges(order):
+    """s just below and above each quadrature's reach (x + ν + 2 = K − 12 K^{1/3}), both signs."""
+    x = np.array([bessel._tier_limit(k) for k in bessel.TIERS]) - order - 2.0
+    x = np.concatenate([x - 1e-9, x + 1e-9, [90.0 - 1e-9, 90.0 + 1e-9]])
+    x = x[(x > 0) & (x + order < RANGE)]
+    return np.concatenate([x**2, -(x**2)])
+
+
+@pytest.mark.parametrize("order", [0, 1, 3, 10, 25, 32, 40])
 def test_bessel_pair_matches_scipy(order):
     """(N_ν, D_ν) has the direction of (J_ν, x J_ν') / (I_ν, x I_ν') from scipy on both sides of
-    the series/integral switch; sin(angle) ≤ 1e-10 (series cancellation ≲ 1e4·eps)."""
+    the series/integral switch, at every quadrature's edge and up to the end of the range;
+    sin(angle) ≤ 1e-10 (series cancellation ≲ 1e4·eps)."""
     sw = float(_switch(order))
+    top = (RANGE - order - 0.5) ** 2
     s_values = np.concatenate([np.linspace(-4000, 4000, 401), sw * np.array([0.99, 1.01]),
-                               -sw * np.array([0.99, 1.01]), [1e-6, -1e-6]])
-    for s in s_values:
-        n, d = (float(v) for v in coupling_pair(jnp.asarray(s), order))
-        x = np.sqrt(abs(s))
+                               -sw * np.array([0.99, 1.01]), [1e-6, -1e-6], _tier_edges(order),
+                               np.linspace(-top, top, 41)])
+    got = jax.jit(jax.vmap(lambda s: coupling_pair(s, order)))(s_values)
+    for s, n, d in zip(s_values, *(np.asarray(g) for g in got), strict=True):
         if s == 0:
             continue
-        if s > 0:
-            ref = np.array([special.jv(order, x), x * special.jvp(order, x)])
-        else:  # e^{-x} I_ν and e^{-x} x I_ν' (a common positive factor)
-            ref = np.array([special.ive(order, x),
-                            x * 0.5 * (special.ive(order - 1, x) + special.ive(order + 1, x))])
+        ref = _bessel_reference(order, s)
         ref = ref / np.hypot(*ref)
         got = np.array([n, d]) / np.hypot(n, d)
         assert abs(got[0] * ref[1] - got[1] * ref[0]) < 1e-10, (order, s)
         assert got @ ref > 0  # the same positive factor: no flipped sign
+
+
+def test_bessel_pair_nan_beyond_its_range():
+    """x + ν ≥ RANGE: NaN (the largest quadrature is no longer exact), finite just below."""
+    for order in (0, 7):
+        x = np.array([RANGE - order - 1e-6, RANGE - order + 1e-6])
+        n, d = (np.asarray(v) for v in
+                jax.vmap(lambda s, order=order: coupling_pair(s, order))(np.concatenate([x**2, -(x**2)])))
+        assert np.all(np.isfinite(n[[0, 2]])) and np.all(np.isfinite(d[[0, 2]]))
+        assert np.all(np.isnan(n[[1, 3]])) and np.all(np.isnan(d[[1, 3]]))
+    assert np.isnan(coupling_pair(jnp.asarray(RANGE**2 + 1.0), 0)[0])  # a scalar alike
+
+
+@pytest.mark.parametrize("order", [0, 2])
+def test_bessel_pair_derivatives(order):
+    """d/ds and d²/ds² of the true values e^{−g}(N_ν, D_ν) (custom JVP: dF_ν/ds = −F_{ν+1}/(4(ν+1)))
+    against scipy: N = 2^ν ν! J_ν(x)/x^ν gives dN/ds = −2^ν ν! J_{ν+1}(x)/(2 x^{ν+1}) and
+    d²N/ds² = 2^ν ν! J_{ν+2}(x)/(4 x^{ν+2}) (I for s < 0), on the series, the quadratures and the
+    e^{−x̃}-scaled branch."""
+    c = 2.0**order * math.factorial(order)
+
+    def true_pair(s):
+        n, d = coupling_pair(s, order)
+        return jnp.stack([n, d]) * jnp.exp(-coupling_log_factor(s))
+
+    for s in (-9000.0, -300.0, -70.0, -30.0, 5.0, 70.0, 2000.0, 60000.0):
+        x = math.sqrt(abs(s))
+        if s > 0:
+            slope_n = -c * special.jv(order + 1, x) / (2 * x ** (order + 1))
+            curvature_n = c * special.jv(order + 2, x) / (4 * x ** (order + 2))
+        else:
+            slope_n = -c * special.iv(order + 1, x) / (2 * x ** (order + 1))
+            curvature_n = c * special.iv(order + 2, x) / (4 * x ** (order + 2))
+        jac = jax.jacfwd(true_pair)(s)
+        np.testing.assert_allclose(jac[0], slope_n, rtol=1e-11, err_msg=str(s))
+        np.testing.assert_allclose(jax.grad(jax.grad(lambda s: true_pair(s)[0]))(s), curvature_n,
+                                   rtol=1e-10, err_msg=str(s))
+        # D = ν F_ν − (s/2) F_{ν+1}/(ν+1), F_μ = 2^μ μ! J_μ(x)/x^μ (I_μ for s < 0), F_μ' = −F_{μ+1}/(4(μ+1))
+        bessel_fn = special.jv if s > 0 else special.iv
+        f = [2.0**mu * math.factorial(mu) * bessel_fn(mu, x) / x**mu for mu in (order, order + 1,
+                                                                                order + 2)]
+        slope_d = (-order * f[1] / (4 * (order + 1)) - f[1] / (2 * (order + 1))
+                   + s * f[2] / (8 * (order + 1) * (order + 2)))
+        np.testing.assert_allclose(jac[1], slope_d, rtol=1e-10, err_msg=str(s))
+
+
+def test_bessel_pair_does_not_depend_on_its_batch():
+    """Each element takes its own quadrature: an element's bits are the same whatever the other
+    elements of its batch need (series only, or up to the largest rule), also one vmap level up."""
+    fn = jax.jit(jax.vmap(lambda s: coupling_pair(s, 1)))
+    probe = np.array([30.0, 900.0, -200.0])
+    neighbours = ([1.0, 2.0, 3.0], [-9000.0, 1e5, 4.0e3], [150.0**2, -50.0, 60.0])
+    runs = [np.asarray(fn(np.concatenate([probe, n]))) [:, :3] for n in neighbours]
+    assert np.all(np.isfinite(runs[0]))
+    for other in runs[1:]:
+        np.testing.assert_array_equal(other, runs[0])
+    nested = jax.jit(jax.vmap(jax.vmap(lambda s: coupling_pair(s, 1))))(
+        np.stack([np.concatenate([probe, n]) for n in neighbours]))
+    for row in np.asarray(nested).transpose(1, 0, 2):
+        np.testing.assert_allclose(row[:, :3], runs[0], rtol=1e-15, atol=0)
 
 
 def test_bessel_pair_entire_through_zero():
