@@ -549,6 +549,51 @@ class Residual(NamedTuple):
         return _residual(x, *params, self.n_layers, self.order, self.unknown, self.family)
 
 
+def one_point_at_a_time(solve, *args):
+    """``solve(*args)`` (a solver of one case, values only), whose ``jax.vmap`` on the CPU solves the
+    points of the batch one after another (``lax.map``, like :func:`jaxdea.sweep`) instead of
+    vectorising its while loops.
+
+    A vectorised root search runs every point of the batch for as many chunks and iterations as
+    the slowest one needs: over 200 α̂ the vectorised scan took 1.8–2.7 times as long as the same
+    points one by one, and the critical voltages 1.6 times (benchmarks/vmap_idiom.py). The Newton
+    of :func:`frequency` stays vectorised (its points take alike few iterations, and the
+    vectorised batch was twice as fast as the points one by one). A batch of points is mapped, the
+    arguments that are not batched held fixed; nested vmaps map again (the body holds the same
+    function). On other backends, whose vector units a batch fills, the batch is vectorised
+    (``jax.vmap`` of ``solve``), as the sweep does there. ``jax.custom_batching.custom_vmap`` has
+    no reverse mode: it holds the values only, inside the implicit derivatives' ``custom_jvp``
+    (:func:`_with_derivatives`). Concrete arguments call ``solve`` itself (its cached program)."""
+    if not any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(args)):
+        return solve(*args)
+    return _mapped_over_batches(solve)(*args)
+
+
+def _mapped_over_batches(solve):
+    """``custom_vmap`` of ``solve`` whose rule maps it over the batch (:func:`one_point_at_a_time`)."""
+    mapped = jax.custom_batching.custom_vmap(lambda *args: solve(*args))
+
+    @mapped.def_vmap
+    def rule(axis_size, in_batched, *args):
+        del axis_size
+        if jax.default_backend() != "cpu":
+            axes = jax.tree_util.tree_map(lambda b: 0 if b else None, list(in_batched))
+            out = jax.vmap(solve, in_axes=tuple(axes))(*args)
+        else:
+            leaves, tree = jax.tree_util.tree_flatten(list(args))
+            flags = jax.tree_util.tree_leaves(list(in_batched))
+
+            def one(batched):
+                it = iter(batched)
+                point = [next(it) if flag else leaf for leaf, flag in zip(leaves, flags, strict=True)]
+                return mapped(*jax.tree_util.tree_unflatten(tree, point))
+
+            out = jax.lax.map(one, [leaf for leaf, flag in zip(leaves, flags, strict=True) if flag])
+        return out, jax.tree_util.tree_map(lambda _: True, out)
+
+    return mapped
+
+
 def _with_derivatives(roots: Roots, params, n_layers, order, unknown="omega",
                       family=LONGITUDINAL) -> Roots:
     """``roots`` with implicit derivatives with respect to ``params`` = (tube, α̂, fluid[, m])."""
@@ -668,8 +713,10 @@ def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3
         validate_positive("s_max", s_max)
     tube, alpha, fluid, s_max, m = canonical(tube, alpha, fluid, s_max, m)
     layers = laminate(n_layers, scheme, tube, alpha, n_roots, m)
-    roots = _solve_growth_rates(*jax.lax.stop_gradient((tube, alpha, fluid, s_max)), n_roots, layers,
-                                order, jax.lax.stop_gradient(m), family)
+    def solve(tube, alpha, fluid, s_max, m):
+        return _solve_growth_rates(tube, alpha, fluid, s_max, n_roots, layers, order, m, family)
+
+    roots = one_point_at_a_time(solve, *jax.lax.stop_gradient((tube, alpha, fluid, s_max, m)))
     return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "growth", family).omega
 
 
@@ -694,12 +741,16 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
         validate_positive("omega_max", omega_max)
     tube, alpha, fluid, omega_max, m = canonical(tube, alpha, fluid, omega_max, m)
     layers = laminate(n_layers, scheme, tube, alpha, n_roots, m)
+    values = jax.lax.stop_gradient((tube, alpha, fluid, omega_max))
     if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
-        roots = _solve_frequencies(*jax.lax.stop_gradient((tube, alpha, fluid, omega_max)),
-                                   n_roots, layers, order)
+        solve = functools.partial(_solve_frequencies, n_roots=n_roots, n_layers=layers, order=order)
+        roots = one_point_at_a_time(solve, *values)
     else:
-        roots = _solve_frequencies(*jax.lax.stop_gradient((tube, alpha, fluid, omega_max)),
-                                   n_roots, layers, order, jax.lax.stop_gradient(m), family)
+        def solve(tube, alpha, fluid, omega_max, m):
+            return _solve_frequencies(tube, alpha, fluid, omega_max, n_roots, layers, order, m,
+                                      family)
+
+        roots = one_point_at_a_time(solve, *values, jax.lax.stop_gradient(m))
     return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "omega", family)
 
 
@@ -876,10 +927,13 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
     layers = laminate(n_layers, scheme, tube, alpha, m=m, at_rest=True)
     values = jax.lax.stop_gradient((tube, alpha, fluid))
     if family == LONGITUDINAL:
-        roots = Roots(*_solve_critical_voltage(*values, layers, order))
+        solve = functools.partial(_solve_critical_voltage, n_layers=layers, order=order)
+        roots = Roots(*one_point_at_a_time(solve, *values))
     else:
-        roots = Roots(*_solve_critical_voltage(*values, layers, order, m=jax.lax.stop_gradient(m),
-                                               family=family))
+        def solve(tube, alpha, fluid, m):
+            return _solve_critical_voltage(tube, alpha, fluid, layers, order, m=m, family=family)
+
+        roots = Roots(*one_point_at_a_time(solve, *values, jax.lax.stop_gradient(m)))
     return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "voltage", family)
 
 

@@ -1,0 +1,176 @@
+"""``jax.vmap`` of the solvers (jaxdea.roots.one_point_at_a_time): on the CPU a batch of points is
+mapped one point after another, the values equal the points solved alone (to rounding, the
+standard of tests/test_determinism.py), statuses equal, and implicit derivatives pass through the
+vmapped call (forward and reverse mode), also over tube parameters, some arguments batched only,
+and nested vmaps. The default run checks the frequencies and the critical voltages' values; the
+derivatives of ``frequency`` and ``critical_voltage`` and forward mode are marked slow."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from conftest import fd_derivative
+
+import jaxdea as jd
+from jaxdea.scalar import Status
+
+TUBE = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
+ALPHA = np.array([0.2, 0.7, 1.5, 3.0])
+N = 30  # the paper's laminate, as the other tests (one compiled program each)
+RTOL = 1e-13  # alone against inside a batch: equal to rounding (tests/test_determinism.py)
+
+
+def _roots(tube, alpha, **kwargs):
+    return jd.solve_frequencies(tube, alpha, n_roots=2, n_layers=N, **kwargs)
+
+
+def _assert_roots_equal(batched, alone):
+    np.testing.assert_array_equal(np.asarray(batched.status), np.asarray(alone.status))
+    np.testing.assert_allclose(np.asarray(batched.omega), np.asarray(alone.omega), rtol=RTOL, atol=0)
+
+
+def _stacked(results):
+    return jax.tree_util.tree_map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *results)
+
+
+def test_vmapped_frequencies_equal_the_points_alone():
+    """Over α̂, with an invalid point (NaN α̂) in the batch: its NaN and status stay its own."""
+    alpha = np.append(ALPHA, np.nan)
+    batched = jax.jit(jax.vmap(lambda a: _roots(TUBE, a)))(jnp.asarray(alpha))
+    alone = _stacked([_roots(TUBE, float(a)) for a in ALPHA])  # (a NaN α̂ alone raises)
+    assert np.all(np.asarray(batched.status[:-1]) == Status.CONVERGED)
+    assert np.all(np.asarray(batched.status[-1]) == Status.INVALID)
+    assert np.all(np.isnan(np.asarray(batched.omega[-1])))
+    _assert_roots_equal(jax.tree_util.tree_map(lambda x: x[:-1], batched), alone)
+
+
+def test_the_batch_is_mapped_not_vectorised():
+    """The vmapped scan is a loop over the points (a scan of the batch's length) around the
+    one-point solver, not a vectorised copy of its while loops."""
+    jaxpr = jax.make_jaxpr(jax.vmap(lambda a: jd.frequencies(TUBE, a, n_roots=2, n_layers=N)))(
+        jnp.asarray(ALPHA))
+    scans = [e for e in jaxpr.jaxpr.eqns if e.primitive.name == "scan"]
+    assert [e.params["length"] for e in scans] == [len(ALPHA)]
+    assert all(v.aval.shape[:1] == (len(ALPHA),) for v in scans[0].outvars)
+
+
+def test_vmap_over_tube_parameters_with_some_arguments_batched():
+    """in_axes over the tube's voltage and λ_i only (α̂ held), and over α̂ with a batched λ_i."""
+    voltages, stretches = jnp.array([0.0, 0.05, 0.12]), jnp.array([0.9, 0.95, 1.05])
+    axes = jd.Tube(voltage=0, lambda_i=0, lambda_z=None, eta=None, gent=None, length_ratio=None)
+    tubes = TUBE.replace(voltage=voltages, lambda_i=stretches)
+    batched = jax.vmap(lambda t: _roots(t, 0.7), in_axes=(axes,))(tubes)
+    alone = _stacked([_roots(TUBE.replace(voltage=float(v), lambda_i=float(li)), 0.7)
+                      for v, li in zip(voltages, stretches, strict=True)])
+    _assert_roots_equal(batched, alone)
+    both = jax.vmap(lambda li, a: _roots(TUBE.replace(lambda_i=li), a))(stretches, jnp.asarray(ALPHA[:3]))
+    alone = _stacked([_roots(TUBE.replace(lambda_i=float(li)), float(a))
+                      for li, a in zip(stretches, ALPHA[:3], strict=True)])
+    _assert_roots_equal(both, alone)
+
+
+def test_nested_vmap():
+    """vmap over V̂ of vmap over α̂: a (3, 4) grid, each point as alone."""
+    voltages = jnp.array([0.0, 0.05, 0.12])
+    grid = jax.jit(jax.vmap(jax.vmap(lambda v, a: _roots(TUBE.replace(voltage=v), a), (None, 0)),
+                            (0, None)))(voltages, jnp.asarray(ALPHA))
+    alone = _stacked([_stacked([_roots(TUBE.replace(voltage=float(v)), float(a)) for a in ALPHA])
+                      for v in voltages])
+    assert grid.omega.shape == (3, len(ALPHA), 2)
+    _assert_roots_equal(grid, alone)
+
+
+def test_gradient_through_vmapped_frequencies():
+    """jax.grad of a sum over a vmapped frequencies call with respect to V̂ and λ_i: the sum of
+    the points' gradients and central finite differences."""
+    alpha = jnp.asarray(ALPHA[:3])
+
+    @jax.jit
+    def total(voltage, lambda_i):
+        tube = TUBE.replace(voltage=voltage, lambda_i=lambda_i)
+        return jnp.sum(jax.vmap(lambda a: jd.frequencies(tube, a, n_roots=2, n_layers=N))(alpha))
+
+    def total_alone(voltage, lambda_i):
+        tube = TUBE.replace(voltage=voltage, lambda_i=lambda_i)
+        return sum(jnp.sum(jd.frequencies(tube, float(a), n_roots=2, n_layers=N)) for a in ALPHA[:3])
+
+    grad = jax.jit(jax.grad(total, argnums=(0, 1)))(0.1, 0.9)
+    grad_alone = jax.grad(total_alone, argnums=(0, 1))(0.1, 0.9)
+    np.testing.assert_allclose(np.asarray(grad), np.asarray(grad_alone), rtol=1e-12)
+    assert float(grad[0]) == pytest.approx(fd_derivative(lambda v: total(v, 0.9), 0.1), rel=1e-6)
+    assert float(grad[1]) == pytest.approx(fd_derivative(lambda li: total(0.1, li), 0.9), rel=1e-6)
+
+
+@pytest.mark.slow
+def test_forward_mode_and_vmap_of_the_gradient():
+    """jacfwd through the vmapped call (against finite differences), and vmap over V̂ of
+    jax.grad of a root (against the gradients of the points alone)."""
+    alpha = jnp.asarray(ALPHA[:3])
+
+    def roots_of(lambda_i):
+        tube = TUBE.replace(lambda_i=lambda_i)
+        return jax.vmap(lambda a: jd.frequencies(tube, a, n_roots=2, n_layers=N))(alpha)
+
+    slope = jax.jit(jax.jacfwd(roots_of))(0.9)
+    total = jax.jit(lambda li: jnp.sum(roots_of(li)))
+    assert float(jnp.sum(slope)) == pytest.approx(fd_derivative(total, 0.9), rel=1e-6)
+
+    def lowest(v):
+        return jd.frequencies(TUBE.replace(voltage=v), 0.7, n_roots=2, n_layers=N)[0]
+
+    voltages = jnp.array([0.0, 0.05, 0.12])
+    np.testing.assert_allclose(jax.jit(jax.vmap(jax.grad(lowest)))(voltages),
+                               [float(jax.grad(lowest)(float(v))) for v in voltages], rtol=1e-12)
+
+
+@pytest.mark.slow
+def test_vmapped_frequency_equals_the_points_alone_and_differentiates():
+    """Newton from a guess per point (vectorised: Newton's lanes are alike, so the vectorised
+    batch is the fastest path); values, statuses and the gradient through the batch."""
+    guesses = np.asarray(jd.frequencies(TUBE, 0.7, n_roots=1, n_layers=N))[0] * np.array([1.0, 1.02, 0.97])
+
+    @jax.jit
+    def batched(voltage):
+        tube = TUBE.replace(voltage=voltage)
+        return jax.vmap(lambda g: jd.solve_frequency(tube, 0.7, g, n_layers=N))(jnp.asarray(guesses))
+
+    roots = batched(0.1)
+    alone = _stacked([jd.solve_frequency(TUBE, 0.7, float(g), n_layers=N) for g in guesses])
+    _assert_roots_equal(roots, alone)
+    total = lambda v: jnp.sum(batched(v).omega)  # noqa: E731
+    assert float(jax.grad(total)(0.1)) == pytest.approx(fd_derivative(total, 0.1), rel=1e-6)
+
+
+def test_vmapped_critical_voltages_equal_the_points_alone():
+    """Over α̂ and a batched λ_i (under jit)."""
+    stretches = jnp.array([0.9, 0.95, 1.05])
+    batched = jax.jit(jax.vmap(lambda li, a: jd.solve_critical_voltage(
+        TUBE.replace(lambda_i=li), a, n_layers=N)))(stretches, jnp.asarray(ALPHA[:3]))
+    alone = _stacked([jd.solve_critical_voltage(TUBE.replace(lambda_i=float(li)), float(a), n_layers=N)
+                      for li, a in zip(stretches, ALPHA[:3], strict=True)])
+    assert np.all(np.asarray(batched.status) == Status.CONVERGED)
+    _assert_roots_equal(batched, alone)
+
+
+@pytest.mark.slow
+def test_vmapped_critical_voltage_equals_the_points_alone_and_differentiates():
+    """Over α̂ (mapped as the frequencies are): values, statuses and the gradient with respect to
+    λ_i through the batch, against the points alone and finite differences."""
+    alpha = jnp.asarray(ALPHA[:3])
+
+    @jax.jit
+    def batched(lambda_i):
+        tube = TUBE.replace(lambda_i=lambda_i)
+        return jax.vmap(lambda a: jd.solve_critical_voltage(tube, a, n_layers=N))(alpha)
+
+    roots = batched(0.9)
+    alone = _stacked([jd.solve_critical_voltage(TUBE, float(a), n_layers=N) for a in ALPHA[:3]])
+    assert np.all(np.asarray(roots.status) == Status.CONVERGED)
+    _assert_roots_equal(roots, alone)
+    total = lambda li: jnp.sum(batched(li).omega)  # noqa: E731
+    grad = float(jax.grad(total)(0.9))
+    alone_grad = sum(float(jax.grad(lambda li, a=a: jd.critical_voltage(TUBE.replace(lambda_i=li), a,
+                                                                        n_layers=N))(0.9))
+                     for a in ALPHA[:3])
+    assert grad == pytest.approx(alone_grad, rel=1e-12)
+    assert grad == pytest.approx(fd_derivative(total, 0.9), rel=1e-6)
