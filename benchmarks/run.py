@@ -611,6 +611,105 @@ def work_defaults(cfg: dict) -> dict:
     return dict(rows=rows, first_instability_s=first, load_average=list(os.getloadavg()))
 
 
+def _fixed_quintic(hist_alpha, hist_omega, n_hist, alpha, slope=None):
+    """The continuation's predictor before the adaptive order (section k): the Lagrange polynomial
+    through the newest min(n, 6) rows, the tangent line after a scan."""
+    import jax.numpy as jnp
+
+    if slope is not None:
+        tangent = jnp.isfinite(slope) & (n_hist <= 1)
+        line = hist_omega[-1] + jnp.where(tangent, slope, 0.0) * (alpha - hist_alpha[-1])
+        return jnp.where(tangent, line, _fixed_quintic(hist_alpha, hist_omega, n_hist, alpha))
+    size = hist_alpha.shape[0]
+    row = jnp.arange(size)
+    used = row >= size - jnp.clip(n_hist, 1, 6)
+    w = jnp.where(used, 1.0, 0.0)
+    for j in range(size):
+        w = jnp.where(used & used[j] & (row != j),
+                      w * (alpha - hist_alpha[j]) / (hist_alpha - hist_alpha[j]), w)
+    return w @ jnp.where(jnp.isfinite(hist_omega), hist_omega, 0.0)
+
+
+def work_gewtool(cfg: dict) -> dict:
+    """(k) The GEWtool-shaped curve: the unstretched tube (η = 0.85, G = 97.2), 200 α̂ in 0.01–5,
+    the 4 lowest roots, ``jaxdea.dispersion_curve`` at the default discretisation (no accuracy
+    arguments). Timed warm: the public call, and its compiled program side by side (alternating
+    repeats, best of each) with the continuation before the adaptive predictor and the shared
+    curvature refresh, with the adaptive predictor alone, and the current one on the magnus6
+    N = 5 wall; the derivative attachment the public call skips on concrete inputs is timed
+    alone. Accuracy: every root against the exact incompressible cylinder
+    (``tests/exact_cylinder.py``; every 4th α̂ with --quick)."""
+    jax, jaxdea = _jax()
+    import numpy as np
+
+    sys.path.insert(0, os.path.join(ROOT, "tests"))
+    import exact_cylinder
+
+    from jaxdea import curves
+    from jaxdea.compiled import compiler_options
+    from jaxdea.params import canonical
+    from jaxdea.roots import Roots, _with_derivatives
+    from jaxdea.transfer import Layers, laminate
+
+    tube = jaxdea.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, eta=0.85)
+    alpha = np.linspace(0.01, 5.0, 200)
+    n_roots = 4
+    public = best_time(lambda: jaxdea.dispersion_curve(tube, alpha, n_roots=n_roots),
+                       cfg["solve_repeats"], cfg["min_time"])
+    curve = public[2]
+    omega = np.asarray(curve.omega)
+    t, a, m = canonical(tube, alpha, 0.0)
+    layers = laminate(None, None, t, a, n_roots, m)
+    statics = ("n_roots", "n_layers", "order", "family")
+    saved = curves._extrapolate, curves._refresh
+    programs = {}
+    for key, patch in (("before", (_fixed_quintic, lambda k, age: jax.numpy.array(False))),
+                       ("adaptive_predictor", (curves._extrapolate,
+                                               lambda k, age: jax.numpy.array(False))),
+                       ("current", saved)):
+        curves._extrapolate, curves._refresh = patch
+
+        def variant(tube, alpha, fluid, n_roots, n_layers, order):  # its own trace cache
+            return curves.curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order)
+
+        program = jax.jit(variant, static_argnames=statics[:3], compiler_options=compiler_options())
+        jax.block_until_ready(program(t, a, None, n_roots, layers, 0))  # traced with the patch
+        programs[key] = (program, layers)
+    curves._extrapolate, curves._refresh = saved
+    programs["current_magnus6_n5"] = (programs["current"][0], Layers(5, "magnus6"))
+    outputs = {k: jax.block_until_ready(p(t, a, None, n_roots, lay, 0))
+               for k, (p, lay) in programs.items()}
+    calls = {k: (lambda p=p, lay=lay: p(t, a, None, n_roots, lay, 0))
+             for k, (p, lay) in programs.items()}
+    calls["public"] = lambda: jaxdea.dispersion_curve(tube, alpha, n_roots=n_roots)
+    best = dict.fromkeys(calls, math.inf)
+    for _ in range(3 * cfg["solve_repeats"]):
+        for k, call in calls.items():
+            start = time.perf_counter()
+            jax.block_until_ready(call())
+            best[k] = min(best[k], time.perf_counter() - start)
+    attach = jax.vmap(lambda w, s, x: _with_derivatives(Roots(w, s), (t, x, None, m), layers, 0,
+                                                        "omega").omega)
+    attach_s = best_time(lambda: attach(curve.omega, curve.status, a), cfg["solve_repeats"],
+                         cfg["min_time"])[0]
+    rows = range(0, 200, 4 if cfg["quick"] else 1)
+    exact = np.array([exact_cylinder.roots(alpha[i], 1.0, 1 / 0.85, n_roots,
+                                           1.3 * omega[i, -1] + 0.5, 2000) for i in rows])
+    return dict(
+        n_layers=layers.count, scheme=layers.scheme, seconds=min(public[0], best["public"]),
+        first_call_s=public[1],
+        scanned=int(np.sum(np.asarray(curve.scanned))),
+        converged=bool(np.all(np.asarray(curve.status) == jaxdea.Status.CONVERGED)),
+        exact_rel_error=float(np.max(np.abs(omega[list(rows)] / exact - 1.0))),
+        exact_points=len(rows),
+        program_s={k: v for k, v in best.items() if k != "public"},
+        vs_current={k: float(np.nanmax(np.abs(np.asarray(o.omega) / omega - 1.0)))
+                    for k, o in outputs.items() if k != "current_magnus6_n5"},
+        magnus6_n5_exact_rel_error=float(np.max(np.abs(
+            np.asarray(outputs["current_magnus6_n5"].omega)[list(rows)] / exact - 1.0))),
+        attach_s=attach_s, load_average=list(os.getloadavg()))
+
+
 def worker(name: str, params: dict) -> None:
     """Run one workload and print its result as JSON (last line of stdout)."""
     cfg = params["cfg"]
@@ -633,6 +732,8 @@ def worker(name: str, params: dict) -> None:
         result = work_fit(cfg)
     elif name == "defaults":
         result = work_defaults(cfg)
+    elif name == "gewtool":
+        result = work_gewtool(cfg)
     else:
         raise ValueError(f"unknown worker {name!r}")
     result.update(rss_start_mb=rss0, rss_peak_mb=peak_rss_mb())
@@ -731,6 +832,8 @@ def run_all(cfg: dict, partial: str, reuse: bool) -> dict:
     spawn("explore", "explore", dict(cfg=cfg))
     print("fit (h) ...", flush=True)
     spawn("fit", "fit", dict(cfg=cfg))
+    print("GEWtool-shaped curve at the default discretisation (k) ...", flush=True)
+    spawn("gewtool", "gewtool", dict(cfg=cfg))
     print("first-call compile, no persistent cache (d) ...", flush=True)
     for what in FIRST_CALLS:
         spawn(f"compile_{what}", "compile", dict(what=what, cfg=cfg),
@@ -766,7 +869,7 @@ def render(res: dict, provisional: bool) -> str:
     lines = ["# jaxdea benchmarks", ""]
     if provisional:
         lines += ["**PROVISIONAL** (`--quick` run while the core is being optimised and the 2-core "
-                  "machine is shared with other agents: absolute numbers are noisy and low; only the "
+                  "machine is shared with other jobs: absolute numbers are noisy and low; only the "
                   "ratios measured in the same run mean something; the final table is regenerated "
                   "at the end).", ""]
     load = ", ".join(f"{x:.1f}" for x in m["load_average"])
@@ -925,6 +1028,8 @@ def render(res: dict, provisional: bool) -> str:
         lines += render_explore(res["explore"])
     if "defaults" in res:
         lines += render_defaults(res["defaults"])
+    if "gewtool" in res:
+        lines += render_gewtool(res["gewtool"])
     lines += ["", "## (e) Peak memory (ru_maxrss of the worker process)", "",
               "| workload | after imports (MiB) | peak (MiB) |", "|---|---:|---:|"]
     names = [("char_jaxdea", f"jaxdea characteristic, N = 30, batches {cfg['batches']}"),
@@ -1012,17 +1117,47 @@ def render_defaults(r: dict) -> list:
     return lines
 
 
+def render_gewtool(r: dict) -> list:
+    """Section (k): the GEWtool-shaped curve at the default discretisation."""
+    p = r["program_s"]
+    ms = lambda s: fmt(1e3 * s)  # noqa: E731
+    lines = ["", "## (k) GEWtool-shaped curve: `dispersion_curve` at the default discretisation", "",
+             f"The unstretched tube (η = 0.85, G = 97.2), 200 α̂ in 0.01–5, the 4 lowest roots, "
+             f"`jaxdea.dispersion_curve(tube, alpha, n_roots=4)` with no accuracy arguments "
+             f"(graded {r['scheme']}, N = {r['n_layers']}); {r['scanned']} of 200 α̂ scanned, "
+             f"{'every root CONVERGED' if r['converged'] else 'NOT every root converged'}; max "
+             f"relative error against the exact incompressible cylinder "
+             f"{r['exact_rel_error']:.1e} ({r['exact_points']} α̂ × 4 roots).", "",
+             "| variant (warm, best of the alternating repeats) | ms | max rel. difference from "
+             "the public call's roots |", "|---|---:|---:|",
+             f"| public call `dispersion_curve` | {ms(r['seconds'])} | 0 |"]
+    labels = {"before": "program before: fixed quintic predictor, each branch's curvature "
+                        "measured anew at its own step",
+              "adaptive_predictor": "+ adaptive predictor order (12 rows)",
+              "current": "+ shared curvature refresh (current program)"}
+    for key, label in labels.items():
+        lines.append(f"| {label} | {ms(p[key])} | {r['vs_current'][key]:.1e} |")
+    lines += [f"| current program on the magnus6 N = 5 wall (max rel. error against the exact "
+              f"cylinder {r['magnus6_n5_exact_rel_error']:.1e}) | {ms(p['current_magnus6_n5'])} | "
+              f"– |", "",
+              f"Attaching implicit derivatives to the 200 rows, which the public call now skips on "
+              f"concrete inputs: {ms(r['attach_s'])} ms. First call {fmt(r['first_call_s'])} s. "
+              "Load average at the end: " + ", ".join(f"{x:.1f}" for x in r["load_average"]) + "."]
+    return lines
+
+
 def run_only(what: str, cfg: dict, out: str, provisional: bool) -> dict:
     """Run one workload (``--only``) and merge it into the results.json next to ``out``; the
     markdown is rewritten from the merged results."""
     path = os.path.splitext(out)[0] + ".json"
     with open(path) as f:
         res = json.load(f)
-    if what in ("order_m", "fit", "explore", "defaults"):
+    if what in ("order_m", "fit", "explore", "defaults", "gewtool"):
         res[what] = spawn_worker(what, dict(cfg=cfg))
         res[what]["settings"] = cfg
     else:
-        raise ValueError(f"--only supports 'order_m', 'fit', 'explore' and 'defaults', got {what!r}")
+        raise ValueError(f"--only supports 'order_m', 'fit', 'explore', 'defaults' and 'gewtool', "
+                         f"got {what!r}")
     with open(path, "w") as f:
         json.dump(res, f, indent=1)
     with open(out, "w") as f:
@@ -1044,7 +1179,7 @@ def main(argv=None):
                              "run with the same settings")
     parser.add_argument("--render", metavar="JSON",
                         help="only rewrite the markdown from the results.json of an earlier run")
-    parser.add_argument("--only", choices=["order_m", "fit", "explore", "defaults"],
+    parser.add_argument("--only", choices=["order_m", "fit", "explore", "defaults", "gewtool"],
                         help="run only this workload, merge it into OUT's .json and rewrite OUT")
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     parser.add_argument("--params", help=argparse.SUPPRESS)

@@ -1,13 +1,14 @@
 """Dispersion curves by certified continuation (jaxdea.curves): the same roots as jd.frequencies at
 every α̂, continuation where it is safe, the scan where a check fails."""
 
+import exact_cylinder
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea.curves import _extrapolate, _track
+from jaxdea.curves import PRIOR_AGE, _aged, _extrapolate, _refresh, _track
 from jaxdea.dispersion import characteristic_on_wall
 from jaxdea.scalar import iterate_lanes, lanes_from_slots
 from jaxdea.transfer import discretize
@@ -254,3 +255,59 @@ def test_root_entering_and_leaving_through_zero():
         curve = jd.dispersion_curve(tube, alphas[order], n_roots=3)
         assert_same_roots(curve, reference[order], rtol=1e-11)
         assert np.asarray(curve.scanned).sum() < 35
+
+
+def test_benchmark_curve_meets_the_exact_cylinder_and_the_scan():
+    """The benchmark's GEWtool-shaped curve (the unstretched tube η = 0.85, 200 α̂ in 0.01–5, the 4
+    lowest roots, default discretisation, no accuracy arguments): every root CONVERGED, the scan
+    at the first α̂ only, the roots those of jd.frequencies (the scan) at every 4th α̂ to 1e-12,
+    and those of the exact incompressible cylinder at every 10th α̂ to 2e-8 (measured 9.7e-12)."""
+    tube = jd.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, eta=0.85)
+    alphas = np.linspace(0.01, 5.0, 200)
+    curve = jd.dispersion_curve(tube, alphas, n_roots=4)
+    assert np.all(np.asarray(curve.status) == jd.Status.CONVERGED)
+    scanned = np.asarray(curve.scanned)
+    assert scanned[0] and scanned.sum() == 1
+    assert_same_roots(curve._replace(omega=curve.omega[::4]),
+                      per_alpha(tube, alphas[::4], None, 4, None))
+    omega = np.asarray(curve.omega)
+    for alpha, row in zip(alphas[::10], omega[::10], strict=True):
+        exact = exact_cylinder.roots(alpha, 1.0, 1 / 0.85, 4, 1.3 * row[-1] + 0.5, 2000)
+        np.testing.assert_allclose(row, exact, rtol=2e-8)
+
+
+def test_predictor_order_adapts_to_each_branch():
+    """_extrapolate one step ahead of 12 rows (step 0.25): sin α̂ takes the highest order (5.8e-8
+    off, the fixed quintic 1.9e-4); a cubic is reproduced to rounding; |α̂ − 2.1|, linear on the
+    newest rows, is extrapolated exactly (order 12 through the kink: 27 off); ``n_hist`` caps
+    the order (6 rows: the quintic's 1.9e-4)."""
+    alpha = jnp.arange(12) * 0.25
+    target = 3.0
+    branches = jnp.stack([jnp.sin(alpha), 1 + alpha - 0.5 * alpha**2 + 0.1 * alpha**3,
+                          jnp.abs(alpha - 2.1)], axis=1)
+    exact = np.array([np.sin(target), 1 + target - 0.5 * target**2 + 0.1 * target**3, 0.9])
+    error = np.abs(np.asarray(_extrapolate(alpha, branches, 12, target)) - exact)
+    assert error[0] < 1e-7 and error[1] < 1e-14 and error[2] < 1e-14
+    capped = np.abs(np.asarray(_extrapolate(alpha, branches, 6, target)) - exact)
+    assert 1e-4 < capped[0] < 3e-4 and capped[1] < 1e-14
+
+
+def test_expired_curvature_refreshes_every_lane():
+    """One lane's K expired (PRIOR_AGE steps old): the step runs every lane without its prior;
+    afterwards a lane that measured K has it at age 0, an unexpired one that did not keeps its K
+    one step older, and an expired one that did not has none (age PRIOR_AGE, which triggers no
+    further refresh). Without an expired K the priors age by one."""
+    k = jnp.array([0.3, 0.2, jnp.nan])
+    age = jnp.array([PRIOR_AGE, 3, PRIOR_AGE])
+    assert bool(_refresh(k, age))
+    assert not bool(_refresh(k, jnp.array([PRIOR_AGE - 1, 3, PRIOR_AGE])))  # a missing K: none
+    new_k, new_age = _aged(jnp.array([0.31, jnp.nan, 0.5]), k, age, True)
+    np.testing.assert_array_equal(new_k, [0.31, 0.2, 0.5])
+    np.testing.assert_array_equal(new_age, [0, 4, 0])
+    new_k, new_age = _aged(jnp.array([jnp.nan, jnp.nan, 0.5]), k, age, True)
+    np.testing.assert_array_equal(new_k, [np.nan, 0.2, 0.5])
+    np.testing.assert_array_equal(new_age, [PRIOR_AGE, 4, 0])
+    assert not bool(_refresh(new_k, new_age))
+    kept_k, kept_age = _aged(jnp.full(3, jnp.nan), k, jnp.array([2, 3, PRIOR_AGE]), False)
+    np.testing.assert_array_equal(kept_k, k)
+    np.testing.assert_array_equal(kept_age, [3, 4, PRIOR_AGE + 1])
