@@ -320,7 +320,12 @@ def _finish(ax, xlabel, ylabel, legend=True):
     ax.set_ylabel(ylabel)
     ax.grid(alpha=0.3)
     if legend:
-        ax.legend(fontsize=7)
+        _legend_below(ax)
+
+
+def _legend_below(ax):
+    """The legend under the axes (outside them: it never covers a curve), two columns."""
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
 
 
 def _first_columns(stability: Stability, lambda_i) -> dict:
@@ -346,13 +351,13 @@ def _shade_unstable(ax, stability: Stability, stretches) -> None:
 
 
 def _note_unstable(ax, stability: Stability, stretches) -> None:
-    """State the first instability of each λ_i below the figure of ``ax`` (the curves at V̂ ≥ V̂_first
-    are faded)."""
+    """State the first instability of each λ_i under the title of the figure of ``ax`` (the curves
+    at V̂ ≥ V̂_first are faded; the legends are below the axes)."""
     lines = []
     for li in stretches:
         v, m, n = stability.first(li)
         lines.append(f"λi={li:.3g}: ({m}, {n}) unstable for V̂ ≥ {v:.4f}")
-    ax.figure.text(0.5, -0.03, "first instability (curves past it faded): " + ";  ".join(lines),
+    ax.figure.text(0.5, 0.935, "first instability (curves past it faded): " + ";  ".join(lines),
                    ha="center", va="top", fontsize=8, color="0.2")
 
 
@@ -532,7 +537,7 @@ def figure_stability_map(ctx: Context) -> None:
                       color="0.5", alpha=0.1, lw=0)
     ax_l.set_title("(a) axial mode n = 1 (shaded: unstable)", fontsize=9)
     _finish(ax_l, "inner stretch λ_i", "critical voltage V̂_cr", legend=False)
-    ax_l.legend(fontsize=7, loc="upper right")
+    _legend_below(ax_l)
     modes = np.arange(1, ctx.res.max_mode + 1)
     for li, style in zip(STRETCHES, ("-", "--"), strict=True):
         grid = stability.grids[float(li)]
