@@ -46,6 +46,7 @@ from .params import (
 from .state_matrix import LONGITUDINAL, ORDER_M, TORSIONAL
 from .transfer import (
     Wall,
+    carry_basis,
     discretize,
     laminate,
     propagate_basis,
@@ -337,6 +338,20 @@ def characteristic_of_w(wall: Wall, omega_squared, alpha, fluid=None, order=0, m
     ``family`` is static; ``m`` may be traced (``"order_m"``)."""
     return characteristic_and_scale_of_w(wall, omega_squared, alpha, fluid, order, method, m,
                                          family, pressure_outer)[0]
+
+
+def characteristic_at_rest(wall: Wall, exponentials, alpha, fluid=None, order=0, m=0,
+                           family: str = LONGITUDINAL):
+    """f(Ω = 0) on ``wall`` with its sublayer exponentials T_k given (N, n, n): the value of
+    :func:`characteristic_on_wall` (longitudinal) or :func:`characteristic_of_w` (w = 0) with
+    ``method="at_rest"``, whose T_k the critical-voltage search forms from the generators' expansion
+    in V̂ (:func:`jaxdea.transfer.voltage_exponentials`)."""
+    zero = jnp.zeros_like(wall.r_inner)
+    if family == LONGITUDINAL:
+        q, _ = carry_basis(initial_basis(wall, zero, alpha, fluid, order), exponentials)
+        return jnp.linalg.det(q[OUTER_ROWS, :])
+    q, _ = carry_basis(initial_basis_of_w(wall, zero, alpha, fluid, order, m, family), exponentials)
+    return jnp.linalg.det(outer_conditions(wall, alpha, m, family) @ q)
 
 
 def reference_determinant_of_w(wall: Wall, omega_squared, alpha, fluid=None, order=0, m=0,

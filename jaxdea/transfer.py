@@ -599,6 +599,93 @@ def generator_coefficients(step, coef: Coefficients, radius, alpha, m=0, family=
     return jnp.stack(_poly_add(b1, _poly_scale(1.0 / 12.0, b3), _poly_scale(1.0 / 240.0, outer)))
 
 
+VOLTAGE_DEGREE = 4
+"""Degree in V̂ of the state matrix at fixed stretches: the wall is quadratic in V̂
+(:func:`voltage_expansion`) and its only divisor, the shear modulus c − εd² = 2W_1λ_r², does not
+depend on V̂, so the entries hold at most (p − εd²)² (theory.md §3)."""
+
+
+def _stacked_add(*polys):
+    """Σ of matrix polynomials stacked along axis 0 (lowest degree first), of any lengths."""
+    size = max(p.shape[0] for p in polys)
+    return sum(jnp.pad(p, [(0, size - p.shape[0])] + [(0, 0)] * (p.ndim - 1)) for p in polys)
+
+
+def _stacked_commutator(p, q):
+    """[p, q] of matrix polynomials stacked along axis 0, (I, …, n, n) and (J, …, n, n): every
+    product p_i q_j and q_j p_i at once (two ``einsum``), summed by degree i + j as I shifted
+    rows (2.6× faster than contracting with a 0/1 tensor of the degrees, measured)."""
+    pq = jnp.einsum("i...ab,j...bc->ij...ac", p, q)
+    qp = jnp.einsum("j...ab,i...bc->ij...ac", q, p)
+    d, size = pq - qp, p.shape[0]
+    rest = [(0, 0)] * (d.ndim - 2)
+    return sum(jnp.pad(d[i], [(i, size - 1 - i)] + rest) for i in range(size))
+
+
+def voltage_generators(expansion, alpha, m=0, family=LONGITUDINAL, radius=1.0):
+    """The at-rest generators G_k (Ω = 0) of a Magnus wall as polynomials in V̂: P of shape
+    (J, N, n, n) with G_k(V̂) = Σ_j P[j, k] V̂^j, from the wall's :func:`voltage_expansion`.
+
+    The state matrix at every node is a polynomial of degree :data:`VOLTAGE_DEGREE` in V̂; its
+    coefficients come from its values at the 5 points V̂ = ρ e^{2πil/5} of the circle of radius
+    ρ = ``radius`` (a discrete Fourier transform, unitary: errors of rounding relative to M on that
+    circle; take ρ about the largest V̂ searched), and the scheme's commutators are taken of the
+    polynomials (:func:`_stacked_commutator`), once per (tube, α̂, m): degree 8 for ``"magnus4"``,
+    20 for ``"magnus6"`` (0.4 ms for the paper's tube, N = 16). A search in V̂ at Ω = 0
+    (:func:`jaxdea.critical_voltage`) then forms each G_k(V̂) as a sum over the powers of V̂
+    (:func:`generators_at_voltage`) instead of by 2 (6) matrix products per sublayer and V̂, each
+    of them three under the forward-mode slope: a chunk of 32 values and slopes on the magnus6
+    wall N = 16 costs 0.9 ms instead of 3.1 (measured); the same G_k to rounding
+    (tests/test_core.py). Taylor mode (``jax.experimental.jet``) gives the same coefficients but
+    its programs took 2–5 s longer to compile."""
+    if family == LONGITUDINAL:
+        matrix = lambda c, r: state_matrix(c, r, 0.0, alpha)  # noqa: E731
+    else:
+        matrix = lambda c, r: family_matrix(family, c, r, 0.0, alpha, m)  # noqa: E731
+
+    def node_matrices(v):  # (N, q, n, n) at V̂ = v
+        wall = wall_at_voltage(expansion, v)
+        return jax.vmap(jax.vmap(matrix))(wall.coef, wall.radii)
+
+    count = VOLTAGE_DEGREE + 1
+    turns = np.exp(2j * np.pi * np.arange(count) / count)
+    values = jax.vmap(node_matrices)(radius * jnp.asarray(turns))  # (J, N, q, n, n), complex
+    power = np.arange(count)
+    fourier = np.exp(-2j * np.pi * np.outer(power, power) / count) / count
+    nodes = jnp.real(jnp.tensordot(jnp.asarray(fourier), values, axes=1))
+    nodes = nodes / (radius ** power.astype(np.float64))[:, None, None, None, None]
+    h = expansion[0].step
+    h = (h if jnp.ndim(h) else jnp.full(nodes.shape[1], h))[:, None, None]
+    node = [nodes[:, :, k] for k in range(nodes.shape[2])]  # (J, N, n, n) at each Gauss node
+    if len(node) == 2:
+        return _stacked_add(0.5 * h * (node[0] + node[1]),
+                            (math.sqrt(3.0) / 12.0) * h**2 * _stacked_commutator(node[1], node[0]))
+    b1 = h * node[1]
+    b2 = (math.sqrt(15.0) / 3.0) * h * (node[2] - node[0])
+    b3 = (10.0 / 3.0) * h * (node[2] - 2.0 * node[1] + node[0])
+    c1 = _stacked_commutator(b1, b2)
+    c2 = (-1.0 / 60.0) * _stacked_commutator(b1, _stacked_add(2.0 * b3, c1))
+    outer = _stacked_commutator(_stacked_add(-20.0 * b1, -b3, c1), _stacked_add(b2, c2))
+    return _stacked_add(b1 + (1.0 / 12.0) * b3, (1.0 / 240.0) * outer)
+
+
+def generators_at_voltage(polys, voltage):
+    """G_k(V̂) of every sublayer, (N, n, n), from :func:`voltage_generators`: one contraction with
+    the powers 1, V̂, …, V̂^J (a dot product; Horner's rule, elementwise, was fused by XLA:CPU into
+    the exponentials' products and recomputed there: a chunk of value and slope took 1.2–1.9 ms
+    instead of 0.7 for its 16 exponentials, measured)."""
+    powers = [jnp.ones_like(voltage)]
+    for _ in range(polys.shape[0] - 1):
+        powers.append(powers[-1] * voltage)
+    return jnp.tensordot(jnp.stack(powers), polys, axes=1)
+
+
+def voltage_exponentials(polys, voltage):
+    """T_k = exp(G_k(V̂)) at Ω = 0 (:func:`voltage_generators`), as the ``"at_rest"`` exponentials
+    of :func:`layer_exponentials_of_w` (:func:`expm_taylor_adaptive`)."""
+    return jax.vmap(EXPONENTIALS["at_rest"])(generators_at_voltage(polys, voltage))
+
+
 def evaluate_generator(coefficients, omega):
     """G(Ω) = Σ_j G_j Ω^{2j} by Horner's rule in w = Ω² (:func:`generator_of_w`)."""
     return generator_of_w(coefficients, omega * omega)
@@ -720,6 +807,13 @@ def _advance(carry, t):
     return (q_new, log_scale + log_r), None
 
 
+def carry_basis(basis, exponentials):
+    """(Q, log_scale) of :func:`propagate_basis_of_w` with the sublayer exponentials T_k given
+    (shape (N, n, n)): ``basis`` carried across them with re-orthonormalisation."""
+    (q, log_scale), _ = jax.lax.scan(_advance, orthonormalize(basis), exponentials)
+    return q, log_scale
+
+
 def propagate_basis_of_w(wall: Wall, omega_squared, alpha, basis, method: str = "taylor", m=0,
                          family=LONGITUDINAL):
     """:func:`propagate_basis` at w = Ω² (either sign; real arithmetic for real w).
@@ -733,13 +827,11 @@ def propagate_basis_of_w(wall: Wall, omega_squared, alpha, basis, method: str = 
         basis = basis.astype(jnp.result_type(basis.dtype, w))
     if family == ORDER_M and method not in ("adaptive", "at_rest"):
         return propagate_balanced_of_w(wall, w, alpha, basis, method, m, family)
-    q0, log0 = orthonormalize(basis)
     if method in ("adaptive", "at_rest"):
         # the solvers' value-and-slope evaluations (small batches: lanes, 32-point grid chunks): all
         # N exponentials at once, then the scan (fewer sequential steps; 1.2–1.5× faster there)
-        (q, log_scale), _ = jax.lax.scan(
-            _advance, (q0, log0), layer_exponentials_of_w(wall, w, alpha, method, m, family))
-        return q, log_scale
+        return carry_basis(basis, layer_exponentials_of_w(wall, w, alpha, method, m, family))
+    q0, log0 = orthonormalize(basis)
     exponential = EXPONENTIALS[method]
 
     def step(carry, coefficients):

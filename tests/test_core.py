@@ -468,6 +468,62 @@ def test_wall_is_quadratic_in_the_voltage(scheme):
     assert abs(float(expansion[2].pressure_inner)) > 1e-3
 
 
+@pytest.mark.parametrize("layers", [transfer.Layers(9, "magnus6", graded=True),
+                                    transfer.Layers(7, "magnus4")])
+@pytest.mark.parametrize("m", [0, 3])
+def test_voltage_generators_equal_the_direct_ones(layers, m):
+    """The at-rest generators of a Magnus wall as polynomials in V̂ (voltage_generators) equal those
+    formed at each V̂ from the wall (wall_generators, at_rest), on a Gent wall near locking, at
+    voltages inside and beyond the radius of the expansion's circle."""
+    from jaxdea.state_matrix import LONGITUDINAL, ORDER_M
+
+    tube = jd.Tube(voltage=0.0, lambda_i=1.6, lambda_z=1.5, eta=0.7, gent=6.0)
+    family = LONGITUDINAL if m == 0 else ORDER_M
+    expansion = jax.jit(lambda t: transfer.voltage_expansion(t, layers))(tube)
+    polys = jax.jit(lambda e: transfer.voltage_generators(e, 0.8, float(m), family, 0.5))(expansion)
+    for v in (0.0, 0.05, 0.3, 0.6):
+        direct = jax.jit(lambda e, v: transfer.wall_generators(
+            transfer.wall_at_voltage(e, v), 0.8, float(m), family, True)[:, 0])(expansion, v)
+        expanded = transfer.generators_at_voltage(polys, v)
+        np.testing.assert_allclose(expanded, direct, rtol=0,
+                                   atol=1e-13 * float(jnp.max(jnp.abs(direct))))
+
+
+@pytest.mark.parametrize("m", [0, 2, 8])
+def test_critical_voltage_equals_the_direct_search(m):
+    """The critical-voltage search with the generators' expansion in V̂ (the Magnus schemes) finds
+    the V̂_cr of the same search forming every generator from the wall at each V̂, to 1e-13."""
+    from jaxdea.base_state import voltage_limit
+    from jaxdea.dispersion import characteristic_of_w, characteristic_on_wall
+    from jaxdea.roots import _first_root, critical_voltage_unchecked
+    from jaxdea.state_matrix import LONGITUDINAL, ORDER_M
+
+    family = LONGITUDINAL if m == 0 else ORDER_M
+    for tube in (jd.Tube(voltage=0.0, lambda_i=0.9, **PAPER),
+                 jd.Tube(voltage=0.0, lambda_i=1.6, lambda_z=1.5, eta=0.7, gent=6.0)):
+        alpha = jd.axial_wavenumber(tube, 1)
+        layers = transfer.laminate(None, None, tube, alpha, m=m, at_rest=True)
+
+        def direct(tube, alpha, layers=layers):
+            v_end = voltage_limit(tube)
+            expansion = transfer.voltage_expansion(tube, layers)
+
+            def g(v):
+                wall = transfer.wall_at_voltage(expansion, v)
+                if family == LONGITUDINAL:
+                    return characteristic_on_wall(wall, jnp.zeros_like(v), alpha, None, 0, "at_rest")
+                return characteristic_of_w(wall, jnp.zeros_like(v), alpha, None, 0, "at_rest",
+                                           float(m), family)
+
+            return _first_root(g, v_end / 32, v_end)
+
+        expected = jax.jit(direct)(tube, alpha)
+        got = jax.jit(lambda t, a, layers=layers: critical_voltage_unchecked(
+            t, a, None, layers, 0, m=float(m), family=family))(tube, alpha)
+        assert int(got.status) == int(expected.status) == jd.Status.CONVERGED
+        np.testing.assert_allclose(got.omega, expected.omega, rtol=1e-13)
+
+
 def test_bracketed_root_with_given_end_slopes():
     """bracketed_root with the caller's end slopes gives the root it finds by evaluating them."""
     from jaxdea.scalar import bracketed_root
