@@ -139,10 +139,11 @@ def _rules(s, order):
     rules = [(nodes, True) for nodes in TIERS] + [(NODES, False)]
     small = (jnp.abs(s) <= _switch(order)) | ((s < 0) & (s >= -NEGATIVE_SERIES))
     reach = jnp.sqrt(jnp.abs(s)) + order + 2.0
+    beyond = len(rules) + 1
     positive_tier = 1 + sum((reach > _tier_limit(nodes)).astype(jnp.int32) for nodes in TIERS)
-    negative_tier = jnp.where(reach > _tier_limit(NODES), len(rules) + 1, len(rules))
-    index = jnp.where(small, 0, jnp.where(s > 0, positive_tier, negative_tier))
-    return rules, jnp.where((s > 0) & (positive_tier > len(TIERS)), len(rules) + 1, index)
+    positive_tier = jnp.where(positive_tier > len(TIERS), beyond, positive_tier)
+    negative_tier = jnp.where(reach > _tier_limit(NODES), beyond, len(rules))
+    return rules, jnp.where(small, 0, jnp.where(s > 0, positive_tier, negative_tier))
 
 
 def _pair_of_any_shape(s, order):
@@ -154,7 +155,8 @@ def _pair_of_any_shape(s, order):
     shape = jnp.broadcast_shapes(jnp.shape(s), jnp.shape(order))
     rules, index = _rules(s, order)
     scale = jnp.exp(coupling_log_factor(s))
-    stand_in = [0.0] + [(1.0 if positive else -1.0) * 4.0 * _switch(order) for _, positive in rules]
+    stand_in = ([0.0] + [(1.0 if positive else -1.0) * 4.0 * _switch(order) for _, positive in rules]
+                + [0.0])  # an admissible s for each branch, where its elements are not
 
     def series(s):
         f_nu, f_next = _series(s, order)
@@ -174,7 +176,7 @@ def _pair_of_any_shape(s, order):
         here = index == i
         t_nu, t_next = jax.lax.cond(jnp.any(here), branch,
                                     lambda s: (jnp.zeros(shape), jnp.zeros(shape)),
-                                    jnp.where(here, s, stand_in[i] if i < len(stand_in) else 0.0))
+                                    jnp.where(here, s, stand_in[i]))
         f_nu, f_next = jnp.where(here, t_nu, f_nu), jnp.where(here, t_next, f_next)
     return f_nu, f_next
 
@@ -216,8 +218,7 @@ def _scaled_pair_jvp(primals, tangents):
     ds, _ = tangents
     f_nu, f_next = _scaled_pair(s, order)
     _, f_after = _scaled_pair(s, order + 1.0)
-    large_negative = s < -SCALE_SWITCH
-    g_slope = jnp.where(large_negative, 0.5 / jnp.sqrt(jnp.where(large_negative, -s, 1.0)), 0.0)
+    g_slope = jax.jvp(coupling_log_factor, (s,), (jnp.ones_like(s),))[1]
     d_nu = g_slope * f_nu - f_next / (4.0 * (order + 1.0))
     d_next = g_slope * f_next - f_after / (4.0 * (order + 2.0))
     return (f_nu, f_next), (d_nu * ds, d_next * ds)
@@ -253,16 +254,13 @@ def _integrals_complex(s, order):
 
 
 def _complex_pair(s, order):
-    """(N_ν, D_ν) for complex s: the series (cumulative products) below the switch, the
-    integrals of :func:`_integrals_complex` above."""
+    """(N_ν, D_ν) for complex s: the series (:func:`_series`) below the switch, the integrals of
+    :func:`_integrals_complex` above."""
     small = jnp.abs(s) <= _switch(order)
     s_small = jnp.where(small, s, 0.0)
     s_large = jnp.where(small, _switch(order) * 4.0, s)
-    k = jnp.arange(1, SERIES_TERMS + 1, dtype=jnp.float64)
-    z = -0.25 * s_small
-    f_nu = 1.0 + jnp.sum(jnp.cumprod(z / (k * (k + order))))
-    f_next = 1.0 / (order + 1.0) + jnp.sum(jnp.cumprod(z / (k * (k + order + 1.0)))) / (order + 1.0)
-    n_small, d_small = f_nu, order * f_nu - 0.5 * s_small * f_next
+    f_nu, f_next = _series(s_small, order)
+    n_small, d_small = f_nu, order * f_nu - 0.5 * s_small * f_next / (order + 1.0)
     n_large, d_large = _integrals_complex(s_large, order)
     return jnp.where(small, n_small, n_large), jnp.where(small, d_small, d_large)
 

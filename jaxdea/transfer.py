@@ -592,11 +592,19 @@ def generator_coefficients(step, coef: Coefficients, radius, alpha, m=0, family=
     b1 = [step * m0[1], *e]
     b2 = [(math.sqrt(15.0) / 3.0) * step * (m0[2] - m0[0])]
     b3 = [(10.0 / 3.0) * step * (m0[2] - 2.0 * m0[1] + m0[0])]
-    c1 = _poly_commutator(b1, b2)
-    c2 = _poly_scale(-1.0 / 60.0, _poly_commutator(b1, _poly_add(_poly_scale(2.0, b3), c1)))
-    outer = _poly_commutator(_poly_add(_poly_scale(-20.0, b1), _poly_scale(-1.0, b3), c1),
-                             _poly_add(b2, c2))
-    return jnp.stack(_poly_add(b1, _poly_scale(1.0 / 12.0, b3), _poly_scale(1.0 / 240.0, outer)))
+    return jnp.stack(_magnus6_generator(b1, b2, b3, _poly_add, _poly_scale, _poly_commutator))
+
+
+def _magnus6_generator(b1, b2, b3, add, scale, commutator):
+    """The sixth-order Magnus generator from B_1 = h M_2, B_2 = (√15/3) h (M_3 − M_1),
+    B_3 = (10/3) h (M_3 − 2M_2 + M_1) (node matrices M_k): B_1 + B_3/12 + [−20B_1 − B_3 + C_1,
+    B_2 + C_2]/240, C_1 = [B_1, B_2], C_2 = −[B_1, 2B_3 + C_1]/60; in any representation of matrix
+    polynomials given by its ``add``, ``scale`` and ``commutator`` (coefficient lists in w = Ω²,
+    :func:`generator_coefficients`; stacked arrays in V̂, :func:`voltage_generators`)."""
+    c1 = commutator(b1, b2)
+    c2 = scale(-1.0 / 60.0, commutator(b1, add(scale(2.0, b3), c1)))
+    outer = commutator(add(scale(-20.0, b1), scale(-1.0, b3), c1), add(b2, c2))
+    return add(b1, scale(1.0 / 12.0, b3), scale(1.0 / 240.0, outer))
 
 
 VOLTAGE_DEGREE = 4
@@ -663,10 +671,8 @@ def voltage_generators(expansion, alpha, m=0, family=LONGITUDINAL, radius=1.0):
     b1 = h * node[1]
     b2 = (math.sqrt(15.0) / 3.0) * h * (node[2] - node[0])
     b3 = (10.0 / 3.0) * h * (node[2] - 2.0 * node[1] + node[0])
-    c1 = _stacked_commutator(b1, b2)
-    c2 = (-1.0 / 60.0) * _stacked_commutator(b1, _stacked_add(2.0 * b3, c1))
-    outer = _stacked_commutator(_stacked_add(-20.0 * b1, -b3, c1), _stacked_add(b2, c2))
-    return _stacked_add(b1 + (1.0 / 12.0) * b3, (1.0 / 240.0) * outer)
+    return _magnus6_generator(b1, b2, b3, _stacked_add, lambda factor, p: factor * p,
+                              _stacked_commutator)
 
 
 def generators_at_voltage(polys, voltage):
