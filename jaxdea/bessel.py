@@ -16,7 +16,8 @@ The pair is built from one entire function, F_ν(s) = Σ_k ν!(−s/4)^k/(k!(k+�
 
 times e^{g(s)}, g(s) = −sqrt(−s) for s < −SCALE_SWITCH and 0 elsewhere (:func:`coupling_log_factor`),
 which keeps the modified Bessel functions finite. Derivatives follow dF_ν/ds = −F_{ν+1}/(4(ν+1)),
-exactly and to any order (a ``jax.custom_jvp`` that calls itself one order up).
+exactly and to any order (a ``jax.custom_jvp``: the slope of the pair evaluates F_ν, F_{ν+1},
+F_{ν+2} in one pass, on the quadratures of order ν; each further order calls that triple one order up).
 
 Small |s| (|s| ≤ (0.7ν + 8)², little cancellation) and −90² ≤ s < 0 (all terms positive): the
 power series by Horner's rule. Otherwise Bessel's integrals J_ν(x) = (1/π)∫₀^π cos(νt − x sin t)dt
@@ -41,6 +42,9 @@ NODES = 512
 """Points of the largest trapezoidal rule over the full period (the complex branch uses it alone)."""
 TIERS = (64, 128, 256, 512)
 SERIES_TERMS = 96
+SERIES_UNROLL = 8
+"""Horner steps per iteration of the series loop: a loop of 12, not 96 steps written out, which
+took a fifth of the tracing of a first fluid-filled ``frequencies`` for no faster code."""
 SCALE_SWITCH = 64.0
 """s < −SCALE_SWITCH: the pair carries the factor e^{−x̃} (the same for every order ν)."""
 NEGATIVE_SERIES = 90.0**2
@@ -64,19 +68,22 @@ def _switch(order):
     return jnp.maximum(8.0, 0.7 * order + 8.0) ** 2
 
 
-def _series(s, order):
-    """(F_ν, F_{ν+1}) by Horner's rule on SERIES_TERMS terms: F_ν = 1 + z c₁(1 + z c₂(1 + …)),
+def _series(s, order, count: int = 2):
+    """(F_ν, …, F_{ν+count−1}) by Horner's rule on SERIES_TERMS terms: F_ν = 1 + z c₁(1 + z c₂(1 + …)),
     z = −s/4, c_k = 1/(k(k+ν))."""
     k = jnp.arange(SERIES_TERMS, 0, -1, dtype=jnp.float64)
     order = order[..., None]
-    rec_nu = 1.0 / (k * (k + order))  # independent of s: computed once for an unbatched ν
-    rec_next = 1.0 / (k * (k + order + 1.0))
+    # independent of s: computed once for an unbatched ν (k + ν + j, not k + (ν + j): the same
+    # integers, the same bits as before)
+    recs = [1.0 / (k * (k + order))] + [1.0 / (k * (k + order + float(j))) for j in range(1, count)]
     z = -0.25 * s
-    f_nu = f_next = jnp.ones_like(s)
-    for i in range(SERIES_TERMS):
-        f_nu = 1.0 + z * rec_nu[..., i] * f_nu
-        f_next = 1.0 + z * rec_next[..., i] * f_next
-    return f_nu, f_next
+
+    def horner(i, values):
+        return tuple(1.0 + z * jax.lax.dynamic_index_in_dim(rec, i, -1, keepdims=False) * f
+                     for rec, f in zip(recs, values, strict=True))
+
+    return jax.lax.fori_loop(0, SERIES_TERMS, horner, (jnp.ones_like(s),) * count,
+                             unroll=SERIES_UNROLL)
 
 
 PIO2_HEAD, PIO2_TAIL = 1.57079632673412561417e+00, 6.07710050650619224932e-11  # π/2, 33 + 53 bits
@@ -105,9 +112,9 @@ def _sincos(b):
     return sin_b, cos_b
 
 
-def _trapezoid(s, order, nodes: int, positive: bool):
-    """(F_ν, F_{ν+1}) e^{g(s)} from Bessel's integrals on ``nodes`` points of the full period
-    (nodes/2 + 1 on [0, π], the integrands being even about π): J_ν(x) for ``positive`` s,
+def _trapezoid(s, order, nodes: int, positive: bool, count: int = 2):
+    """(F_ν, …, F_{ν+count−1}) e^{g(s)} from Bessel's integrals on ``nodes`` points of the full
+    period (nodes/2 + 1 on [0, π], the integrands being even about π): J_ν(x) for ``positive`` s,
     e^{−x̃}I_ν(x̃) for negative s."""
     half = nodes // 2
     t = np.pi * np.arange(half + 1) / half
@@ -115,20 +122,24 @@ def _trapezoid(s, order, nodes: int, positive: bool):
     weight[[0, -1]] *= 0.5
     t, weight = jnp.asarray(t), jnp.asarray(weight)
     order_ = order[..., None]
-    cos_nu, cos_next = jnp.cos(order_ * t), jnp.cos((order_ + 1.0) * t)  # ν unbatched: once
+    orders = [order_] + [order_ + float(j) for j in range(1, count)]
+    cosines = [jnp.cos(o * t) for o in orders]  # ν unbatched: once
     x = jnp.sqrt(jnp.abs(s))
     if positive:  # cos((ν + j)t − b) = cos (ν + j)t cos b + sin (ν + j)t sin b, b = x sin t
-        sin_nu, sin_next = jnp.sin(order_ * t), jnp.sin((order_ + 1.0) * t)
+        sines = [jnp.sin(o * t) for o in orders]
         sin_b, cos_b = _sincos(x[..., None] * jnp.sin(t))
         sin_b, cos_b = sin_b * weight, cos_b * weight
-        f_nu = jnp.sum(cos_b * cos_nu + sin_b * sin_nu, axis=-1)
-        f_next = jnp.sum(cos_b * cos_next + sin_b * sin_next, axis=-1)
+        sums = [jnp.sum(cos_b * c + sin_b * si, axis=-1) for c, si in zip(cosines, sines, strict=True)]
     else:  # e^{x̃(cos t − 1)} cos (ν + j)t
         damp = jnp.exp(x[..., None] * (jnp.cos(t) - 1.0)) * weight
-        f_nu, f_next = jnp.sum(damp * cos_nu, axis=-1), jnp.sum(damp * cos_next, axis=-1)
-    # 2^ν ν!/x^ν and 2^{ν+1}(ν+1)!/x^{ν+1}: the normalisation of the series (positive factors)
-    factor = jnp.exp(order * np.log(2.0) + gammaln(order + 1.0) - order * jnp.log(x))
-    return f_nu * factor, f_next * factor * 2.0 * (order + 1.0) / x
+        sums = [jnp.sum(damp * c, axis=-1) for c in cosines]
+    def factor(mu):  # 2^μ μ!/x^μ: the normalisation of the series (a positive factor)
+        return jnp.exp(mu * np.log(2.0) + gammaln(mu + 1.0) - mu * jnp.log(x))
+
+    # F_{μ+1} = sum · 2^{μ+1}(μ+1)!/x^{μ+1}, written from μ's factor (as the pair at μ has it)
+    mus = [order] + [order + float(j) for j in range(1, count)]
+    return (sums[0] * factor(order),) + tuple(
+        sums[j] * factor(mus[j - 1]) * 2.0 * (mus[j - 1] + 1.0) / x for j in range(1, count))
 
 
 def _rules(s, order):
@@ -146,12 +157,12 @@ def _rules(s, order):
     return rules, jnp.where(small, 0, jnp.where(s > 0, positive_tier, negative_tier))
 
 
-def _pair_of_any_shape(s, order):
-    """(F_ν, F_{ν+1}) e^{g(s)} elementwise over arrays of any (broadcastable) shape. Every element
-    takes its own quadrature (:func:`_rules`), so its value never depends on the others; a scalar
-    branches once (``lax.switch``), an array computes each quadrature only if some element takes it
-    (``lax.cond``; the series too, whose result XLA would otherwise recompute in every fusion
-    that uses it)."""
+def _values_of_any_shape(s, order, count: int):
+    """(F_ν, …, F_{ν+count−1}) e^{g(s)} elementwise over arrays of any (broadcastable) shape. Every
+    element takes its own quadrature (:func:`_rules`, those of order ν for all of them), so its
+    value never depends on the others; a scalar branches once (``lax.switch``), an array computes
+    each quadrature only if some element takes it (``lax.cond``; the series too, whose result XLA
+    would otherwise recompute in every fusion that uses it)."""
     shape = jnp.broadcast_shapes(jnp.shape(s), jnp.shape(order))
     rules, index = _rules(s, order)
     scale = jnp.exp(coupling_log_factor(s))
@@ -159,50 +170,54 @@ def _pair_of_any_shape(s, order):
                 + [0.0])  # an admissible s for each branch, where its elements are not
 
     def series(s):
-        f_nu, f_next = _series(s, order)
-        return jnp.broadcast_to(f_nu * scale, shape), jnp.broadcast_to(f_next * scale, shape)
+        return tuple(jnp.broadcast_to(f * scale, shape) for f in _series(s, order, count))
 
     def quadrature(nodes, positive):
-        return lambda s: _trapezoid(s, order, nodes, positive)
+        return lambda s: _trapezoid(s, order, nodes, positive, count)
 
-    def nan(s):
-        return jnp.full(shape, jnp.nan), jnp.full(shape, jnp.nan)
+    def constant(value):
+        return lambda s: (jnp.full(shape, value),) * count
 
-    branches = [series] + [quadrature(*rule) for rule in rules] + [nan]
+    branches = [series] + [quadrature(*rule) for rule in rules] + [constant(jnp.nan)]
     if shape == ():
         return jax.lax.switch(index, branches, s)
-    f_nu = f_next = jnp.zeros(shape)
+    values = (jnp.zeros(shape),) * count
     for i, branch in enumerate(branches):
         here = index == i
-        t_nu, t_next = jax.lax.cond(jnp.any(here), branch,
-                                    lambda s: (jnp.zeros(shape), jnp.zeros(shape)),
-                                    jnp.where(here, s, stand_in[i]))
-        f_nu, f_next = jnp.where(here, t_nu, f_nu), jnp.where(here, t_next, f_next)
-    return f_nu, f_next
+        taken = jax.lax.cond(jnp.any(here), branch, constant(0.0), jnp.where(here, s, stand_in[i]))
+        values = tuple(jnp.where(here, t, v) for t, v in zip(taken, values, strict=True))
+    return values
 
 
-@jax.custom_batching.custom_vmap
-def _pair_batched(s, order):
-    return _pair_of_any_shape(s, order)
+def _batched(count: int):
+    """:func:`_values_of_any_shape` of ``count`` orders, whose ``jax.vmap`` is the same function on
+    the whole batch, so that the tiers' conditionals test the batch at once (and an enclosing vmap
+    does the same one level up)."""
+    @jax.custom_batching.custom_vmap
+    def values(s, order):
+        return _values_of_any_shape(s, order, count)
+
+    @values.def_vmap
+    def rule(axis_size, in_batched, s, order):
+        shape = jnp.broadcast_shapes(*(jnp.shape(a)[1:] if b else jnp.shape(a)
+                                       for a, b in zip((s, order), in_batched, strict=True)))
+
+        def lead(a, batched):  # the batch axis first, then the per-element shape broadcast to ``shape``
+            if not batched:
+                return a
+            a = jnp.reshape(a, (axis_size,) + (1,) * (len(shape) - (jnp.ndim(a) - 1))
+                            + jnp.shape(a)[1:])
+            return jnp.broadcast_to(a, (axis_size, *shape))
+
+        s, order = lead(s, in_batched[0]), lead(order, in_batched[1])
+        if not in_batched[0]:
+            s = jnp.broadcast_to(s, (axis_size, *shape))
+        return values(s, order), (True,) * count
+
+    return values
 
 
-@_pair_batched.def_vmap
-def _pair_batched_rule(axis_size, in_batched, s, order):
-    """Under ``jax.vmap``: the same function on the whole batch, so that the tiers' conditionals
-    test the batch at once (and an enclosing vmap does the same one level up)."""
-    shape = jnp.broadcast_shapes(*(jnp.shape(a)[1:] if b else jnp.shape(a)
-                                   for a, b in zip((s, order), in_batched, strict=True)))
-
-    def lead(a, batched):  # the batch axis first, then the per-element shape broadcast to ``shape``
-        if not batched:
-            return a
-        a = jnp.reshape(a, (axis_size,) + (1,) * (len(shape) - (jnp.ndim(a) - 1)) + jnp.shape(a)[1:])
-        return jnp.broadcast_to(a, (axis_size, *shape))
-
-    s, order = lead(s, in_batched[0]), lead(order, in_batched[1])
-    if not in_batched[0]:
-        s = jnp.broadcast_to(s, (axis_size, *shape))
-    return _pair_batched(s, order), (True, True)
+_pair_batched, _triple_batched = _batched(2), _batched(3)
 
 
 @jax.custom_jvp
@@ -211,17 +226,39 @@ def _scaled_pair(s, order):
     return _pair_batched(s, order)
 
 
+def _slopes(s, order, values, last):
+    """d/ds e^g F_μ = g' e^g F_μ − e^g F_{μ+1}/(4(μ+1)) for μ = ν, ν+1, … (``values`` = e^g F_μ,
+    ``last`` the one after them); no derivative in ν."""
+    g_slope = jax.jvp(coupling_log_factor, (s,), (jnp.ones_like(s),))[1]
+    after = (*values[1:], last)
+    return tuple(g_slope * f - f_after / (4.0 * (order + float(j + 1)))
+                 for j, (f, f_after) in enumerate(zip(values, after, strict=True)))
+
+
 @_scaled_pair.defjvp
 def _scaled_pair_jvp(primals, tangents):
-    """d/ds e^g F_μ = g' e^g F_μ − e^g F_{μ+1}/(4(μ+1)) for μ = ν, ν+1; no derivative in ν."""
+    """The derivative from one evaluation of three orders (:func:`_scaled_triple`): one program
+    section where two pairs (ν and ν + 1) took two."""
     s, order = primals
     ds, _ = tangents
-    f_nu, f_next = _scaled_pair(s, order)
-    _, f_after = _scaled_pair(s, order + 1.0)
-    g_slope = jax.jvp(coupling_log_factor, (s,), (jnp.ones_like(s),))[1]
-    d_nu = g_slope * f_nu - f_next / (4.0 * (order + 1.0))
-    d_next = g_slope * f_next - f_after / (4.0 * (order + 2.0))
-    return (f_nu, f_next), (d_nu * ds, d_next * ds)
+    f_nu, f_next, f_after = _scaled_triple(s, order)
+    slopes = _slopes(s, order, (f_nu, f_next), f_after)
+    return (f_nu, f_next), tuple(d * ds for d in slopes)
+
+
+@jax.custom_jvp
+def _scaled_triple(s, order):
+    """e^{g(s)} (F_ν(s), F_{ν+1}(s), F_{ν+2}(s)), each element on the quadrature of order ν."""
+    return _triple_batched(s, order)
+
+
+@_scaled_triple.defjvp
+def _scaled_triple_jvp(primals, tangents):
+    s, order = primals
+    ds, _ = tangents
+    values = _scaled_triple(s, order)
+    slopes = _slopes(s, order, values, _scaled_triple(s, order + 1.0)[2])
+    return values, tuple(d * ds for d in slopes)
 
 
 def _integrals_complex(s, order):

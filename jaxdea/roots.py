@@ -288,6 +288,9 @@ def scanned_function(wall: Wall, alpha, fluid: Fluid | None, order: int, m=0.0,
     f without a sign change and with two extrema (f' changes sign at the jump), which the scan's
     classification misses; g has the ordinary simple root there. ``variable``: ``"omega"`` (g(Ω))
     or ``"omega_squared"`` (g(w), w = Ω² of either sign; order m and torsional families only).
+
+    Returns a :class:`Scaled` (x ↦ (f, ℓ)): the scan takes ℓ₀ from its own first point, x = 0,
+    instead of a separate evaluation of f at 0 (:func:`_scan_for_roots`).
     """
     if family == LONGITUDINAL and variable == "omega":
         def scaled(x):
@@ -302,14 +305,42 @@ def scanned_function(wall: Wall, alpha, fluid: Fluid | None, order: int, m=0.0,
                                                          m_safe, family)
             return jnp.where(ok, f, jnp.nan), log_scale
 
-    reference = scaled(jnp.zeros_like(wall.r_inner))[1]
-    reference = jnp.where(jnp.isfinite(reference), reference, 0.0)
+    return Scaled(scaled)
 
-    def g(x):
-        f, log_scale = scaled(x)
+
+class Scaled(NamedTuple):
+    """g(x) = f(x)·e^{ℓ(x) − ℓ₀} of :func:`scanned_function`, held as ``scaled``: x ↦ (f, ℓ), with
+    ℓ₀ = ℓ(0) supplied by the caller. The scan evaluates f at x = 0 anyway (its first point):
+    taking ℓ₀ from there, and not from an evaluation of its own, leaves one copy of f fewer in
+    the compiled program (a sixth of the tracing and compilation of a first ``frequencies``)."""
+
+    scaled: object
+
+    @staticmethod
+    def reference(log_scale):
+        """ℓ₀ from ℓ(0) (0 where ℓ(0) is not finite)."""
+        return jnp.where(jnp.isfinite(log_scale), log_scale, 0.0)
+
+    @staticmethod
+    def combine(f, log_scale, reference):
+        """g = f·e^{ℓ − ℓ₀}, the exponent clipped to ±SCALE_EXPONENT_MAX."""
         return f * jnp.exp(jnp.clip(log_scale - reference, -SCALE_EXPONENT_MAX, SCALE_EXPONENT_MAX))
 
-    return g
+    def at(self, reference):
+        """g as a function of x alone."""
+        def g(x):
+            return self.combine(*self.scaled(x), reference)
+
+        return g
+
+    def values_and_slopes(self, x, reference, first):
+        """(g, g', ℓ₀) at the points ``x`` (a vector), ℓ₀ taken from x[0] = 0 where ``first``:
+        the same arithmetic as ``value_and_slope`` of :meth:`at`."""
+        (f, log_scale), (df, dlog_scale) = jax.vmap(lambda y: value_and_slope(self.scaled, y))(x)
+        reference = jnp.where(first, self.reference(log_scale[0]), reference)
+        g, dg = jax.jvp(lambda f, log_scale: self.combine(f, log_scale, reference),
+                        (f, log_scale), (df, dlog_scale))
+        return g, dg, reference
 
 
 def default_omega_max(wall: Wall, alpha, n_roots: int, m=0.0):
@@ -368,8 +399,20 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None,
     sign means an odd number of roots below it was not found (or a lane took another root of its
     interval than the one it bracketed): it and all above it are then SUSPECT (NaN), never
     CONVERGED with a wrong index. Where f(0) = 0 the check is off.
+
+    ``fun``: a function of x, or a :class:`Scaled` (:func:`scanned_function`), whose reference ℓ₀
+    is taken at the first point of the first chunk, x = 0, and carried to the lanes.
     """
-    fvals = jax.vmap(lambda x: value_and_slope(fun, x))
+    if isinstance(fun, Scaled):
+        fvals, lane_function = fun.values_and_slopes, fun.at
+    else:
+        def fvals(x, reference, first):
+            del first
+            return (*jax.vmap(lambda x: value_and_slope(fun, x))(x), reference)
+
+        def lane_function(reference):
+            del reference
+            return fun
     head = _head(step)
     max_chunks = 1_000_000
     n_lanes = n_roots + 1  # a hidden pair always fits next to n_roots − 1 taken lanes
@@ -398,9 +441,9 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None,
 
     def collect(c):
         """One chunk: classify its intervals and put the candidates into free lane slots."""
-        (left, f_left, df_left, blocked, chunk, f_zero), slots, used, need = c
+        (left, f_left, df_left, blocked, chunk, f_zero, reference), slots, used, need = c
         x = grid(left, chunk)
-        f, df = fvals(x)
+        f, df, reference = fvals(x, reference, chunk == 0)
         f_zero = jnp.where(chunk == 0, f[0], f_zero)  # the first chunk starts at Ω = 0
         start = chunk == 0  # the first interval [0, 0] is empty
         xa, fa, dfa, kind, finite = _intervals(
@@ -408,16 +451,20 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None,
         cost = cost_of[kind]
         pos = used + jnp.cumsum(cost) - cost  # first lane slot of each candidate
         take = (kind > 0) & (pos < need)
+        # each slot gathers the candidate aimed at it (at most one): XLA:CPU expands a scatter into
+        # a loop over the chunk, 16 of them here, slower to compile and to run
         for side in (0, 1):
-            at = jnp.where(take & (side < cost), pos + side, n_lanes)  # n_lanes: dropped
+            at = jnp.where(take & (side < cost), pos + side, n_lanes)  # n_lanes: none
+            hit = at[None, :] == jnp.arange(n_lanes)[:, None]  # (slot, candidate)
+            found, k = jnp.any(hit, axis=1), jnp.argmax(hit, axis=1)
             values = (xa, x, fa, f, dfa, df, kind, jnp.full_like(kind, side))
-            slots = tuple(v.at[at].set(w, mode="drop") for v, w in zip(slots, values, strict=True))
+            slots = tuple(jnp.where(found, w[k], v) for v, w in zip(slots, values, strict=True))
         # more candidates than needed: resume after the last one taken
         full = jnp.any((kind > 0) & ~take)
         end = jnp.where(full, jnp.max(jnp.where(take, jnp.arange(CHUNK), 0)), CHUNK - 1)
         blocked = jnp.any(~finite & (jnp.arange(CHUNK) <= end))
         used = used + jnp.sum(jnp.where(take, cost, 0))
-        return (x[end], f[end], df[end], blocked, chunk + 1, f_zero), slots, used, need
+        return (x[end], f[end], df[end], blocked, chunk + 1, f_zero, reference), slots, used, need
 
     def round_cond(r):
         scan, keys = r[0], r[1]
@@ -430,8 +477,8 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None,
         scan, slots, _, _ = jax.lax.while_loop(
             lambda c: (c[2] < c[3]) & scanning(c[0][0], c[0][3], c[0][4]), collect,
             (scan, empty, 0, need))
-        new_roots, new_keys, new_status, new_slopes = run_lanes(fun, lanes_from_slots(*slots),
-                                                                slopes=True)
+        new_roots, new_keys, new_status, new_slopes = run_lanes(
+            lane_function(scan[6]), lanes_from_slots(*slots), slopes=True)
         all_keys = jnp.concatenate([keys, new_keys])
         order = jnp.argsort(all_keys)[:n_roots]
         return (scan, all_keys[order], jnp.concatenate([roots, new_roots])[order],
@@ -440,9 +487,9 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None,
 
     zero = jnp.zeros_like(step)
     blocked = ~(jnp.isfinite(step) & jnp.isfinite(omega_end) & (step > 0))
-    init = ((zero, zero, zero, blocked, 0, zero), jnp.full(n_roots, jnp.inf), jnp.full(n_roots, jnp.nan),
-            jnp.full(n_roots, Status.NO_ROOT, jnp.int32), jnp.zeros(n_roots))
-    (_, _, _, blocked, _, f_zero), keys, roots, status, slopes = jax.lax.while_loop(
+    init = ((zero, zero, zero, blocked, 0, zero, zero), jnp.full(n_roots, jnp.inf),
+            jnp.full(n_roots, jnp.nan), jnp.full(n_roots, Status.NO_ROOT, jnp.int32), jnp.zeros(n_roots))
+    (_, _, _, blocked, _, f_zero, _), keys, roots, status, slopes = jax.lax.while_loop(
         round_cond, one_round, init)
     missing = ~jnp.isfinite(keys)
     status = jnp.where(missing, jnp.where(blocked, Status.NOT_FINITE, Status.NO_ROOT), status)
@@ -672,9 +719,7 @@ def growth_rates_unchecked(tube, alpha, fluid, s_max, n_roots, n_layers, order, 
     ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
     wall = discretize(tube, n_layers)
     of_w = scanned_function(wall, alpha, fluid, order, m, family, "omega_squared")
-
-    def fun(s):
-        return of_w(-s * s)
+    fun = Scaled(lambda s: of_w.scaled(-s * s))
 
     end = default_omega_max(wall, alpha, n_roots, m) if s_max is None else as_float(s_max)
     ok &= jnp.isfinite(end) & (end > 0)
@@ -947,25 +992,11 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
     return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "voltage", family)
 
 
-def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=32, v_end=None, m=0.0,
-                               family=LONGITUDINAL):
-    """(V̂_cr, status) for one case (traceable); see :func:`critical_voltage`.
-
-    :func:`_first_root` over (0, V̂_lim] with step V̂_lim/``n_grid``: the chunked scan with Hermite
-    classification, the first candidate refined by zooming with the same chunk of f and f' (after a
-    hidden pair that holds no roots it scans on). One compiled copy of f and f' instead of the
-    scan's and the lanes' (:func:`_scan_for_roots`): tracing and compilation 4.9 → 2.7–3.3 s.
-    f(Ω = 0; V̂) is a static problem: it has no thickness oscillation in V̂, so one chunk of 32
-    points spans the range (n_grid 32, 128 and 512 give the same roots over every m ≤ 8, n ≤ 3 of
-    random tubes, ``tests/test_missed_roots.py``); the zooms reach rounding in one to three chunks.
-    ``v_end`` (optional) searches (0, v_end] instead of (0, V̂_lim] with the pull-in limit V̂_lim of
-    :func:`voltage_limit` (values only: about 0.25 s of the first call's compilation, measured); a
-    root above ``v_end`` is reported as NO_ROOT. On a Magnus wall (the default) the sublayer
-    generators are formed once, as polynomials in V̂ (:func:`jaxdea.transfer.voltage_generators`,
-    on the circle of radius ``v_end``), and each V̂ sums them (one critical voltage of the paper's
-    tube 2.1 → 0.8× the time of the paper's laminate; V̂_cr within 1.1e-14 of forming them at each
-    V̂, measured; tests/test_core.py).
-    """
+def critical_function(tube, alpha, fluid, n_layers, order, v_end=None, m=0.0, family=LONGITUDINAL):
+    """(ok, g, v_end): g(V̂) = f(Ω = 0; V̂), whose first zero in (0, v_end] is the critical voltage
+    (traceable; ``v_end`` None: the pull-in limit), and ``ok`` for the case. The wall at each V̂ is
+    formed from its expansion in V̂; on a Magnus wall the generators are polynomials in V̂, formed
+    here once (:func:`critical_voltage_unchecked`)."""
     ok, tube, alpha, fluid = _guard_order(tube.replace(voltage=0.0), alpha, fluid, m, family)
     v_end = voltage_limit(tube) if v_end is None else as_float(v_end)
 
@@ -987,6 +1018,29 @@ def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=32, v
         return characteristic_of_w(wall, jnp.zeros_like(v), alpha, None, order, "at_rest", m_safe,
                                    family)
 
+    return ok, g, v_end
+
+
+def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=32, v_end=None, m=0.0,
+                               family=LONGITUDINAL):
+    """(V̂_cr, status) for one case (traceable); see :func:`critical_voltage`.
+
+    :func:`_first_root` over (0, V̂_lim] with step V̂_lim/``n_grid``: the chunked scan with Hermite
+    classification, the first candidate refined by zooming with the same chunk of f and f' (after a
+    hidden pair that holds no roots it scans on). One compiled copy of f and f' instead of the
+    scan's and the lanes' (:func:`_scan_for_roots`): tracing and compilation 4.9 → 2.7–3.3 s.
+    f(Ω = 0; V̂) is a static problem: it has no thickness oscillation in V̂, so one chunk of 32
+    points spans the range (n_grid 32, 128 and 512 give the same roots over every m ≤ 8, n ≤ 3 of
+    random tubes, ``tests/test_missed_roots.py``); the zooms reach rounding in one to three chunks.
+    ``v_end`` (optional) searches (0, v_end] instead of (0, V̂_lim] with the pull-in limit V̂_lim of
+    :func:`voltage_limit` (values only: about 0.25 s of the first call's compilation, measured); a
+    root above ``v_end`` is reported as NO_ROOT. On a Magnus wall (the default) the sublayer
+    generators are formed once, as polynomials in V̂ (:func:`jaxdea.transfer.voltage_generators`,
+    on the circle of radius ``v_end``), and each V̂ sums them (one critical voltage of the paper's
+    tube 2.1 → 0.8× the time of the paper's laminate; V̂_cr within 1.1e-14 of forming them at each
+    V̂, measured; tests/test_core.py).
+    """
+    ok, g, v_end = critical_function(tube, alpha, fluid, n_layers, order, v_end, m, family)
     roots = _first_root(g, v_end / n_grid, v_end)
     empty = (v_end == 0) & (roots.status == Status.NOT_FINITE)  # no range, so no root
     return invalid_where(ok, Roots(roots.omega, jnp.where(empty, Status.NO_ROOT, roots.status)))

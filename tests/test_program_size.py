@@ -1,0 +1,85 @@
+"""What keeps the first call's programs small gives the values of the longer forms they replace."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxdea as jd
+from jaxdea import bessel, roots
+from jaxdea.transfer import discretize, laminate
+
+TUBE = jd.Tube(lambda_z=1.2, eta=0.85, gent=97.2, length_ratio=10.0, lambda_i=0.9, voltage=0.1)
+
+
+@pytest.mark.parametrize("order", [0, 1, 5])
+def test_triple_is_the_two_pairs(order):
+    """F_ν, F_{ν+1}, F_{ν+2} in one pass (the pair's slope) equal the pairs at ν and ν + 1: bit for
+    bit where both orders take the same quadrature, to rounding where ν + 1 takes another."""
+    s = np.concatenate([-np.geomspace(1e-3, 1.5e5, 60), np.geomspace(1e-3, 1.5e5, 60)])
+    s = s[np.sqrt(np.abs(s)) + order + 2 < bessel.RANGE]
+    nu = jnp.full(s.shape, float(order))
+    triple = jax.vmap(bessel._scaled_triple)(s, nu)
+    low = jax.vmap(bessel._scaled_pair)(s, nu)
+    high = jax.vmap(bessel._scaled_pair)(s, nu + 1.0)
+    same = np.asarray(bessel._rules(s, nu)[1] == bessel._rules(s, nu + 1.0)[1])
+    assert same.any()
+    for got, want in zip(triple, (low[0], low[1], high[1]), strict=True):
+        got, want = np.asarray(got), np.asarray(want)
+        np.testing.assert_array_equal(got[same], want[same])
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-14)  # near zeros of F: absolute
+    np.testing.assert_array_equal(np.asarray(triple[0]), np.asarray(low[0]))  # the pair's own
+    np.testing.assert_array_equal(np.asarray(triple[1]), np.asarray(low[1]))  # values, always
+
+
+def test_pair_slope_is_the_recurrence():
+    """d/ds of the pair, first and second order, from the triple: dF_ν/ds = −F_{ν+1}/(4(ν+1))."""
+    order, s = 1.0, jnp.array([-9000.0, -30.0, 0.5, 40.0, 2000.0])
+    f = lambda s: bessel._scaled_pair(s, order)  # noqa: E731
+    slope = jax.vmap(lambda s: jax.jvp(f, (s,), (1.0,))[1])(s)
+    second = jax.vmap(jax.jacfwd(jax.jacfwd(f)))(s)
+    vals = jax.vmap(lambda s: bessel._scaled_triple(s, order))(s)
+    after = jax.vmap(lambda s: bessel._scaled_triple(s, order + 1.0))(s)[2]
+    g1 = jax.vmap(jax.grad(bessel.coupling_log_factor))(s)
+    want = (g1 * vals[0] - vals[1] / (4 * (order + 1)), g1 * vals[1] - vals[2] / (4 * (order + 2)))
+    for got, w in zip(slope, want, strict=True):
+        np.testing.assert_allclose(got, w, rtol=1e-14)
+    # second derivative of F_ν (s > 0, g = 0): F_{ν+2}/(16(ν+1)(ν+2))
+    pos = np.asarray(s) > 0
+    np.testing.assert_allclose(np.asarray(second[0])[pos],
+                               np.asarray(vals[2] / (16 * (order + 1) * (order + 2)))[pos],
+                               rtol=1e-13)
+    np.testing.assert_allclose(np.asarray(second[1])[pos],
+                               np.asarray(after / (16 * (order + 2) * (order + 3)))[pos],
+                               rtol=1e-13)
+
+
+@pytest.mark.parametrize("fluid", [None, jd.Fluid(density_ratio=0.13, speed_ratio=0.27)])
+def test_scan_takes_its_reference_from_its_first_point(fluid):
+    """The scan's ℓ₀ from its first point (x = 0) gives the roots of the scan of g with ℓ₀ from
+    an evaluation of its own (the former program)."""
+    alpha = 0.445
+    layers = laminate(None, None, TUBE, alpha, 4, 0)
+
+    def both():
+        wall = discretize(TUBE, layers)
+        scaled = roots.scanned_function(wall, alpha, fluid, 0)
+        reference = roots.Scaled.reference(scaled.scaled(jnp.zeros(()))[1])
+        shared = roots.scan_roots(wall, scaled, alpha, fluid, None, 4)
+        own = roots.scan_roots(wall, scaled.at(reference), alpha, fluid, None, 4)
+        return shared, own
+
+    shared, own = jax.jit(both)()
+    np.testing.assert_array_equal(shared.status, own.status)
+    assert np.all(shared.status == jd.Status.CONVERGED)
+    np.testing.assert_allclose(shared.omega, own.omega, rtol=1e-14)
+
+
+def test_collect_has_no_scatter():
+    """The scan puts its candidates into the lanes' slots by gathering (XLA:CPU turns a scatter
+    into a loop over the chunk: 16 of them, slower to compile and to run)."""
+    layers = laminate(None, None, TUBE, 0.445, 3, 0)
+    text = jax.jit(lambda t, a: roots.frequencies_unchecked(t, a, None, None, 3, layers, 0)).lower(
+        TUBE, 0.445).as_text()
+    signatures = [line for line in text.splitlines() if line.lstrip().startswith("}) : (")]
+    assert not [line for line in signatures if f"tensor<{roots.CHUNK}x1xi32>" in line]
