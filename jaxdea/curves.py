@@ -61,8 +61,22 @@ Cost: a step costs 1 evaluation of (f, f') on K + 1 lanes where the prediction i
 1e-8 of the roots, 2 where it is good (3 or more where it is not); the scan of one α̂ costs one
 or more 32-point chunks plus the lanes. The evaluations are the whole cost on the CPU: with a
 polynomial in place of f the 200 steps of the benchmark's curve took 0.85 ms (predictor, checks,
-history, loops), against 0.2–0.3 ms for one (f, f') of its 5 lanes on the default wall (N = 16),
-so the time is ≈ (evaluations) × (one evaluation) plus the scan of the first α̂ (≈ 5 ms there).
+history, loops), so the time is ≈ (evaluations) × (one evaluation) plus the scan of the first α̂
+(≈ 4 ms there). The lanes take (f, f') from :func:`jaxdea.dispersion.value_and_slope_on_wall`:
+the slope without differentiating Gram–Schmidt, and at V̂ = 0 through the 4×4 mechanical block
+alone (the electric one decouples); one (f, f') of the 5 lanes on that wall (N = 16) costs
+≈ 0.05–0.07 ms instead of 0.3 by forward mode through the 6×6 propagation.
+:func:`dispersion_curve` compiles one of the two propagations, chosen from the concrete V̂
+(``decoupled``, :func:`_omega_problem`): at V̂ = 0 the scan of the first α̂ runs on the 4×4 one
+too (the log-scale's slope is tr(QᵀZ)), and the program compiles faster than one holding both.
+Paths. Nothing above needs α̂ to be the abscissa: :func:`path_unchecked` runs the same steps and
+checks along any path through parameter space (V̂, λ_i, h/R_i, ρ̂_f, ĉ_f, α̂ or n; the problem between
+two points is the linear interpolation of their parameters), several curves packed into one path,
+and :func:`critical_path_unchecked` along a path in the unknown V̂ instead of Ω: the critical voltage
+is the first zero of f(Ω = 0; V̂), held by the same sign checks with K = 1 (the figures follow every
+curve and every critical voltage this way). Both also report where a root found by the scan is
+more than ρ_k from its prediction: the k-th root changed branch there.
+
 Inside ``jax.vmap`` the fallback (a ``lax.cond``) turns
 into a select that runs the scan at every step: vmap the curve only where few steps would succeed
 anyway, and loop in Python (or use :func:`jaxdea.sweep`) otherwise.
@@ -72,12 +86,27 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .compiled import cached_jit, serializable
-from .dispersion import characteristic_on_wall, order_m_admissible
+from .dispersion import (
+    characteristic_on_wall,
+    order_m_admissible,
+    scale_and_slope_on_wall,
+    value_and_slope_on_wall,
+)
 from .params import ALPHA_MIN, Fluid, Tube, as_float, canonical, guard, validate_count, validate_range
-from .roots import Roots, _order_inputs, _with_derivatives, scan_roots, scanned_function
-from .scalar import Status, iterate_lanes, lanes_from_slots
+from .roots import (
+    Roots,
+    Scaled,
+    _order_inputs,
+    _with_derivatives,
+    critical_function,
+    critical_voltage_unchecked,
+    scan_roots,
+    scanned_function,
+)
+from .scalar import Status, iterate_lanes, lanes_from_slots, value_and_slope
 from .state_matrix import LONGITUDINAL, ORDER_M
 from .transfer import discretize, laminate
 
@@ -170,8 +199,8 @@ def _room(pred):
 
 def _track(fun, pred, curvature=None):
     """(Ω, accepted, K): K corrector lanes from ``pred`` (with prior curvatures ``curvature``, see
-    :func:`jaxdea.scalar.iterate_lanes`) and the checks of the module docstring; K holds the
-    curvature each lane measured (NaN where it finished on its prior)."""
+    :func:`jaxdea.scalar.iterate_lanes`; ``fun`` gives (f, f')) and the checks of the module
+    docstring; K holds the curvature each lane measured (NaN where it finished on its prior)."""
     k = pred.shape[0]
     room = _room(pred)
     x0 = jnp.concatenate([pred, jnp.zeros(1)])  # the last lane evaluates f(0)
@@ -180,7 +209,7 @@ def _track(fun, pred, curvature=None):
     kind = jnp.concatenate([jnp.full(k, 3), jnp.zeros(1, jnp.int32)])
     lanes = lanes_from_slots(x0, x0, nan, nan, nan, nan, kind, jnp.zeros(k + 1, jnp.int32),
                              max_step=jnp.concatenate([room, jnp.full(1, jnp.inf)]), curvature=prior)
-    lanes = iterate_lanes(fun, lanes, max_iter=TRACK_ITERATIONS)
+    lanes = iterate_lanes(fun, lanes, max_iter=TRACK_ITERATIONS, with_slope=True)
     omega, slope, f0 = lanes.x[:k], lanes.dfx[:k], lanes.fx[k]
     alternating = jnp.sign(f0) * (-1.0) ** jnp.arange(1, k + 1)
     ok = jnp.all(lanes.status[:k] == Status.CONVERGED) & jnp.all(jnp.isfinite(omega))
@@ -192,55 +221,80 @@ def _track(fun, pred, curvature=None):
     return omega, ok, jnp.where(measured, lanes.curvature[:k], jnp.nan)
 
 
-def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order, m=0.0,
-                    family=LONGITUDINAL) -> Curve:
-    """The curve for one tube (traceable; the grid ``alpha`` has shape (M,)). ``family`` (static)
-    and ``m`` (traced, ``"order_m"``): the mode family, as in :func:`jaxdea.frequencies`; an
-    inadmissible m gives INVALID everywhere."""
-    ok_tube, tube, _, fluid = guard(tube, 1.0, fluid)
-    if family != LONGITUDINAL:
-        ok_tube &= order_m_admissible(m, fluid, family)
-    m_safe = jnp.where(ok_tube, as_float(m), 0.0) if family == ORDER_M else 0.0
-    alpha = as_float(alpha)
-    ok_alpha = ok_tube & jnp.isfinite(alpha) & (alpha >= ALPHA_MIN)
-    wall = discretize(tube, n_layers)
-    conservative = fluid is None or fluid.coupling == "acoustic"
+def _omega_problem(problem, n_roots, m_safe, family, decoupled=None):
+    """The callables of :func:`_follow` for the K lowest roots in Ω of ``problem(x, s)`` = (wall, α̂,
+    fluid, Bessel order) at abscissa s near the point x of a path: (f, f') for the corrector lanes,
+    f itself (the tangent's differences) and the guaranteed scan. ``decoupled`` (static,
+    longitudinal): True where every wall is known to decouple (V̂ = 0): lanes and scan then take
+    the 4×4 propagation alone (:func:`jaxdea.dispersion.value_and_slope_on_wall`); False: the 6×6
+    one alone; None: checked at each point (both compiled)."""
+    def value(x, s, om):
+        wall, a, fluid, order = problem(x, s)
+        if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
+            return characteristic_on_wall(wall, om, a, fluid, order, "adaptive")
+        return characteristic_on_wall(wall, om, a, fluid, order, "adaptive", m_safe, family)
+
+    def at(x, s):  # (f, f') for the corrector lanes
+        wall, a, fluid, order = problem(x, s)
+        return lambda om: value_and_slope_on_wall(wall, om, a, fluid, order, m_safe, family,
+                                                  decoupled)
+
+    def search(x, s):
+        # the unnormalised determinant and, for the paper's coupling, points at its poles
+        # (:func:`jaxdea.roots.scanned_function`, :func:`jaxdea.roots.pole_steps`)
+        wall, a, fluid, order = problem(x, s)
+        if family == LONGITUDINAL:
+            # on a decoupled wall the same (f, ℓ) with the 4×4 slope (the first α̂'s scan: 4× cheaper)
+            fun = (Scaled(scale_and_slope_on_wall(wall, a, fluid, order)) if decoupled
+                   else scanned_function(wall, a, fluid, order))
+            return scan_roots(wall, fun, a, fluid, None, n_roots, order=order)
+        return scan_roots(wall, scanned_function(wall, a, fluid, order, m_safe, family), a, fluid,
+                          None, n_roots, m_safe, family, order=order)
+
+    return at, value, search
+
+
+def _follow(at, value, search, points, abscissa, ok_points, starts, n_roots, conservative):
+    """The continuation of the module docstring over a path of M points (traceable).
+
+    At abscissa s near the point x of ``points`` (a pytree with leading axis M), ``at(x, s)`` is the
+    function u ↦ (f(u), f'(u)) of the unknown u (Ω on a dispersion curve) for the corrector lanes,
+    ``value(x, s, u)`` is f(u) and ``search(x, s)`` the guaranteed search for the K lowest roots
+    (:class:`Roots`). ``abscissa`` (M,) is the coordinate the predictor extrapolates in (α̂ on a
+    dispersion curve); ``ok_points`` (M,) marks the admissible points and ``starts`` (M,) those
+    where a new curve starts (solved by the search, the history dropped).
+    Returns (Ω (M, K), status, scanned (M,), restarted (M, K)), ``restarted`` True where a root
+    found by the scan is not within ρ_k of its prediction (at the first point, and where the k-th
+    root left the branch it followed: a step the continuation could not follow)."""
     unknown = (jnp.full(n_roots, jnp.nan), jnp.full(n_roots, PRIOR_AGE))  # (K, its age in steps)
 
-    def on_wall(om, a, method="adaptive"):
-        if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
-            return characteristic_on_wall(wall, om, a, fluid, order, method)
-        return characteristic_on_wall(wall, om, a, fluid, order, method, m_safe, family)
-
-    def at(a):
-        return lambda om: on_wall(om, a)
-
-    def tangent(a, omega):
-        """dΩ_k/dα̂ = −(∂f/∂α̂)/(∂f/∂Ω) at the roots Ω_k (implicit function theorem): the slope of
+    def tangent(x, s, omega):
+        """dΩ_k/ds = −(∂f/∂s)/(∂f/∂Ω) at the roots Ω_k (implicit function theorem): the slope of
         each branch, for the predictor after a scan (NaN where a root is missing). The partial
         derivatives by central differences of f, relative steps ``TANGENT_STEP`` (values only, one
         batch of 4K: a predictor needs a few digits, and a forward-mode pass in α̂ added 3.5 s to
         the compile time, measured)."""
         found = jnp.isfinite(omega)
         om = jnp.where(found, omega, 1.0)
-        dw, da = TANGENT_STEP * om, TANGENT_STEP * a
-        shift = jnp.array([[1.0, -1.0, 0.0, 0.0], [0.0, 0.0, 1.0, -1.0]])[:, :, None]  # Ω±, α̂±
+        dw, ds = TANGENT_STEP * om, TANGENT_STEP * jnp.where(s != 0, jnp.abs(s), 1.0)
+        shift = jnp.array([[1.0, -1.0, 0.0, 0.0], [0.0, 0.0, 1.0, -1.0]])[:, :, None]  # Ω±, s±
         points_om = jnp.ravel(om + shift[0] * dw)
-        points_al = jnp.ravel(a + shift[1] * jnp.full_like(om, da))
-        f = jax.vmap(on_wall)(points_om, points_al).reshape(4, -1)
-        f_omega, f_alpha = (f[0] - f[1]) / (2.0 * dw), (f[2] - f[3]) / (2.0 * da)
-        return jnp.where(found, -f_alpha / f_omega, jnp.nan)
+        points_s = jnp.ravel(s + shift[1] * jnp.full_like(om, ds))
+        f = jax.vmap(lambda w, t: value(x, t, w))(points_om, points_s)
+        f = f.reshape(4, -1)
+        f_omega, f_s = (f[0] - f[1]) / (2.0 * dw), (f[2] - f[3]) / (2.0 * ds)
+        return jnp.where(found, -f_s / f_omega, jnp.nan)
 
-    def follow(history, a):
-        """Continuation to α̂ = a: the whole step; if it fails a check, the two halves of it (the
-        midpoint, accepted by the same checks, joins the history). Returns (Ω, accepted, the
-        history used, the last prediction, the lanes' curvatures)."""
+    def follow(history, x, s):
+        """Continuation to the abscissa s: the whole step; if it fails a check, the two halves of
+        it (the midpoint, accepted by the same checks, joins the history). Returns (Ω, accepted,
+        the history used, the last prediction, the lanes' curvatures)."""
         def attempt(c):
             hist, stage = c[:2]
-            target = jnp.where(stage == 1, 0.5 * (hist[0][-1] + a), a)
+            target = jnp.where(stage == 1, 0.5 * (hist[0][-1] + s), s)
             pred = _extrapolate(*hist[:3], target, hist[5])
             refresh = _refresh(*hist[3:5])
-            omega, ok, measured = _track(at(target), pred, jnp.where(
+            omega, ok, measured = _track(at(x, target), pred, jnp.where(
                 (hist[4] < PRIOR_AGE) & ~refresh, hist[3], jnp.nan))
             curvature = _aged(measured, *hist[3:5], refresh)
             pushed = (jnp.concatenate([hist[0][1:], target[None]]),
@@ -258,49 +312,120 @@ def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order, m=0.0,
         return omega, done, hist, pred, curvature
 
     def step(carry, inputs):
-        a, ok = inputs
-        a = jnp.where(ok, a, 1.0)
-        tried = ok & (carry[2] > 0)
+        x, s, ok, start = inputs
+        s = jnp.where(ok, s, 1.0)
+        tried = ok & (carry[2] > 0) & ~start
         if conservative:
             omega, accepted, carry, pred, curvature = jax.lax.cond(
-                tried, lambda: follow(carry, a),
+                tried, lambda: follow(carry, x, s),
                 lambda: (jnp.zeros(n_roots), jnp.array(False), carry, jnp.zeros(n_roots), unknown))
-        else:  # roots are born in pairs: scan every α̂
-            omega, accepted, pred = jnp.zeros(n_roots), jnp.array(False), jnp.zeros(n_roots)
-            curvature = unknown
-        hist_alpha, hist_omega, n_hist = carry[:3]
+        else:  # roots are born in pairs: scan every point (the prediction tells a jump)
+            omega, accepted, curvature = jnp.zeros(n_roots), jnp.array(False), unknown
+            pred = _extrapolate(*carry[:3], s)
+        hist_s, hist_omega, n_hist = carry[:3]
         scan = ok & ~accepted
         def scanned():
-            # the unnormalised determinant and, for the paper's coupling, points at its poles
-            # (:func:`jaxdea.roots.scanned_function`, :func:`jaxdea.roots.pole_steps`)
-            if family == LONGITUDINAL:
-                found = scan_roots(wall, scanned_function(wall, a, fluid, order), a, fluid, None,
-                                   n_roots, order=order)
-            else:
-                found = scan_roots(wall, scanned_function(wall, a, fluid, order, m_safe, family), a,
-                                   fluid, None, n_roots, m_safe, family, order=order)
-            return found, tangent(a, found.omega)
+            found = search(x, s)
+            if not conservative:  # every point is scanned: no predictor
+                return found, jnp.full(n_roots, jnp.nan)
+            return found, tangent(x, s, found.omega)
 
         roots, slope = jax.lax.cond(scan, scanned, lambda: (
             Roots(omega, jnp.full(n_roots, Status.CONVERGED, jnp.int32)), jnp.full(n_roots, jnp.nan)))
         complete = jnp.all(roots.status == Status.CONVERGED)
-        on_track = tried & jnp.all(jnp.abs(roots.omega - pred) <= _room(pred))
+        near = tried & (jnp.abs(roots.omega - pred) <= _room(pred))  # per root
+        on_track = jnp.all(near)
         n_new = jnp.where(on_track, jnp.minimum(n_hist + 1, HISTORY), 1)
         n_new = jnp.where(ok & complete, n_new, 0)
-        carry = (jnp.concatenate([hist_alpha[1:], a[None]]),
+        carry = (jnp.concatenate([hist_s[1:], s[None]]),
                  jnp.concatenate([hist_omega[1:], roots.omega[None]]), n_new,
                  *jax.tree_util.tree_map(lambda x, y: jnp.where(scan, x, y), unknown, curvature), slope)
         status = jnp.where(ok, roots.status, Status.INVALID).astype(jnp.int32)
-        return carry, (jnp.where(ok, roots.omega, jnp.nan), status, scan)
+        return carry, (jnp.where(ok, roots.omega, jnp.nan), status, scan, scan & ~near)
 
     init = (jnp.arange(HISTORY, dtype=jnp.float64), jnp.zeros((HISTORY, n_roots)), jnp.array(0),
             *unknown, jnp.full(n_roots, jnp.nan))
-    _, (omega, status, scanned) = jax.lax.scan(step, init, (alpha, ok_alpha))
+    _, out = jax.lax.scan(step, init, (points, abscissa, ok_points, starts))
+    return out
+
+
+def _family_order(ok, m, fluid, family):
+    """(ok, the traced order m, zero where not admissible) of the mode family (one m for every
+    point of ``ok``)."""
+    if family == LONGITUDINAL:
+        return ok, 0.0
+    admissible = order_m_admissible(m, fluid, family)
+    m_safe = jnp.where(admissible, as_float(m), 0.0) if family == ORDER_M else 0.0
+    return ok & admissible, m_safe
+
+
+def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order, m=0.0,
+                    family=LONGITUDINAL, decoupled=None) -> Curve:
+    """The curve for one tube (traceable; the grid ``alpha`` has shape (M,)). ``family`` (static)
+    and ``m`` (traced, ``"order_m"``): the mode family, as in :func:`jaxdea.frequencies`; an
+    inadmissible m gives INVALID everywhere. ``decoupled`` (static): :func:`_omega_problem`."""
+    ok_tube, tube, _, fluid = guard(tube, 1.0, fluid)
+    ok_tube, m_safe = _family_order(ok_tube, m, fluid, family)
+    alpha = as_float(alpha)
+    ok_alpha = ok_tube & jnp.isfinite(alpha) & (alpha >= ALPHA_MIN)
+    wall = discretize(tube, n_layers)
+    conservative = fluid is None or fluid.coupling == "acoustic"
+    callables = _omega_problem(lambda _, a: (wall, a, fluid, order), n_roots, m_safe, family,
+                               decoupled)
+    omega, status, scanned, _ = _follow(*callables, alpha, alpha, ok_alpha, jnp.zeros(alpha.shape, bool),
+                                        n_roots, conservative)
     return Curve(alpha, omega, status, scanned)
 
 
 _solve_curve = cached_jit(curve_unchecked,
-                          static_argnames=("n_roots", "n_layers", "order", "family"))
+                          static_argnames=("n_roots", "n_layers", "order", "family", "decoupled"))
+
+
+def _slopes(values, abscissa, starts):
+    """d(values)/ds along the path: the backward difference at each point, the forward one where a
+    curve starts; zero where it is not finite (a repeated abscissa, a curve of one point)."""
+    dv = jnp.diff(values) / jnp.diff(abscissa)
+    nan = jnp.full(1, jnp.nan)
+    back, ahead = jnp.concatenate([nan, dv]), jnp.concatenate([dv, nan])
+    dv = jnp.where(starts | ~jnp.isfinite(back), ahead, back)
+    return jnp.where(jnp.isfinite(dv), dv, 0.0)
+
+
+def path_unchecked(tubes, alphas, fluids, abscissa, starts, orders, n_roots, n_layers, order, m=0.0,
+                   family=LONGITUDINAL):
+    """The K lowest roots at the M points of a path through parameter space (traceable).
+
+    Point j is the tube ``tubes`` (leaves of shape (M,)) at j, α̂ = ``alphas[j]`` and the fluid
+    ``fluids`` at j (None: empty); a new curve starts where ``starts`` (M,) is True (several curves
+    share one call, so one compiled program of M points serves every curve; pad with a non-finite
+    abscissa, which marks a point inadmissible). ``abscissa`` (M,), ordered along each curve, is the
+    coordinate the predictor extrapolates in (the swept parameter, or any smooth reparametrisation
+    of it); between two points the problem is the linear interpolation of their leaves in it (the
+    midpoint of a halved step, the differences of the tangent). ``order`` (static): the Bessel order of the
+    paper's coupling, or ``"n"`` for the traced ``orders`` (M,) of the points (the paper's ν = n;
+    every point of that coupling is scanned, so no order is interpolated). Every point gets the
+    roots of :func:`jaxdea.frequencies` there, as on a dispersion curve (module docstring). Returns
+    (Ω (M, K), status, scanned, restarted) (:func:`_follow`)."""
+    ok, tubes, alphas, fluids = jax.vmap(guard)(tubes, as_float(alphas), fluids)
+    abscissa = as_float(abscissa)
+    ok &= jnp.isfinite(abscissa)
+    ok, m_safe = _family_order(ok, m, fluids, family)
+    orders = as_float(orders) if order == "n" else jnp.zeros_like(abscissa)
+    leaves = (tubes, alphas, fluids)
+    starts = jnp.asarray(starts, bool)
+    slopes = jax.tree_util.tree_map(lambda v: _slopes(v, abscissa, starts), leaves)
+    conservative = fluids is None or fluids.coupling == "acoustic"
+
+    def problem(x, s):
+        point, slope, s_point, nu = x
+        tube, a, fluid = jax.tree_util.tree_map(lambda v, dv: v + (s - s_point) * dv, point, slope)
+        return discretize(tube, n_layers), a, fluid, nu if order == "n" else order
+
+    return _follow(*_omega_problem(problem, n_roots, m_safe, family), (leaves, slopes, abscissa, orders),
+                   abscissa, ok, starts, n_roots, conservative)
+
+
+_solve_path = cached_jit(path_unchecked, static_argnames=("n_roots", "n_layers", "order", "family"))
 
 
 def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
@@ -349,7 +474,10 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
     layers = laminate(n_layers, scheme, tube, alpha, n_roots, m)
     values = jax.lax.stop_gradient((tube, alpha, fluid))
     if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
-        curve = _solve_curve(*values, n_roots, layers, order)
+        # one propagation compiled, not both: V̂ = 0 decouples the electric block (a program each)
+        voltage = tube.voltage
+        decoupled = None if isinstance(voltage, jax.core.Tracer) else bool(np.all(np.asarray(voltage) == 0))
+        curve = _solve_curve(*values, n_roots, layers, order, decoupled=decoupled)
     else:
         curve = _solve_curve(*values, n_roots, layers, order, jax.lax.stop_gradient(m), family)
     if not any(isinstance(leaf, jax.core.Tracer)
@@ -361,3 +489,48 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
                                                                   layers, order, "omega",
                                                                   family).omega)
     return curve._replace(alpha=alpha, omega=with_derivatives(curve.omega, curve.status, alpha))
+
+
+def critical_path_unchecked(tubes, alphas, abscissa, starts, orders, n_layers, family=ORDER_M):
+    """The critical voltages V̂_cr (:func:`jaxdea.critical_voltage`) at the M points of a path
+    (traceable): the tube ``tubes`` (leaves of shape (M,); their voltage is ignored), α̂ = ``alphas``
+    and the circumferential order ``orders`` (M,) of each point (``family`` static), fluid-free
+    (fluids do not change V̂_cr).
+
+    The continuation of :func:`path_unchecked` in the unknown V̂ instead of Ω: V̂_cr is the first
+    zero of g(V̂) = f(Ω = 0; V̂) in (0, V̂_lim] (:func:`jaxdea.roots.critical_function`), so the checks
+    of the module docstring with K = 1 (sign g'(V̂_cr) = −sign g(0): no zero missed below it) hold
+    it; g is NaN above the pull-in limit V̂_lim, so a continued V̂_cr never passes it. A step that
+    fails the checks is solved by the search of :func:`jaxdea.roots.critical_voltage_unchecked`.
+    Returns (V̂_cr (M, 1), status, scanned, restarted), as :func:`path_unchecked`."""
+    orders = as_float(orders)
+    ok, tubes, alphas, _ = jax.vmap(guard)(tubes.replace(voltage=jnp.zeros_like(abscissa)),
+                                           as_float(alphas), None)
+    abscissa = as_float(abscissa)
+    ok &= jnp.isfinite(abscissa) & order_m_admissible(orders, None, family)
+    orders = jnp.where(ok, orders, 0.0)
+    starts = jnp.asarray(starts, bool)
+    leaves = (tubes, alphas)
+    slopes = jax.tree_util.tree_map(lambda v: _slopes(v, abscissa, starts), leaves)
+
+    def problem(x, s):
+        point, slope, s_point, m = x
+        tube, a = jax.tree_util.tree_map(lambda v, dv: v + (s - s_point) * dv, point, slope)
+        return tube, a, m
+
+    def bounded(x, s):  # g, NaN above the pull-in limit
+        tube, a, m = problem(x, s)
+        _, g, v_end = critical_function(tube, a, None, n_layers, 0, None, m, family)
+        return lambda v: jnp.where(v <= v_end, g(v), jnp.nan)
+
+    def search(x, s):
+        tube, a, m = problem(x, s)
+        found = critical_voltage_unchecked(tube, a, None, n_layers, 0, m=m, family=family)
+        return Roots(found.omega[None], found.status[None])
+
+    return _follow(lambda x, s: (lambda v: value_and_slope(bounded(x, s), v)),
+                   lambda x, s, v: bounded(x, s)(v), search, (leaves, slopes, abscissa, orders),
+                   abscissa, ok, starts, 1, True)
+
+
+_solve_critical_path = cached_jit(critical_path_unchecked, static_argnames=("n_layers", "family"))

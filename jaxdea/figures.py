@@ -2,15 +2,24 @@
 
 ``make_figures(out)`` (the main job, ``jaxdea figures``) writes, for each figure, a PNG and the CSV
 behind it. The tube is the paper's: η = 0.85, L = 10 R_o, λ_z = 1.2, Gent G = 97.2; the fluid
-ρ̂_f = 0.13, ĉ_f = 0.27. Every curve is the lowest frequency of the axial mode n (α̂ = 2nπη/(10λ_z));
-the consistent ``acoustic`` coupling is drawn solid, the paper's coupling (theory.md §4(b)) dashed
-beside it wherever a fluid enters.
+ρ̂_f = 0.13, ĉ_f = 0.27. Every curve is the lowest frequency of the axial mode n (α̂ = 2nπη/(10λ_z)),
+solved by certified continuation along the figure's own axis (V̂, n, ĉ_f, ρ̂_f, h/R_i:
+:func:`solve_curves`, the roots of :func:`jaxdea.frequencies` at every point); the critical voltages
+likewise along theirs (:func:`critical_curves`). The figures against n follow α̂ = n α̂_1 through
+fractional n (the infinite tube's curve) and mark the tube's modes, the integers; the paper's
+coupling, whose Bessel order is ν = n, exists at integer n only and is drawn there.
+
+Styles are the same in every figure: one colour per axial mode n (:data:`MODE_COLORS`), per order m
+(:data:`ORDER_COLORS`) or, against n, per V̂ (:data:`VOLTAGE_COLORS`); one line style per coupling and
+λ_i (:func:`_style`: the empty tube and the acoustic coupling solid-based, the paper's dashed-based).
+Legends sit below the axes. A curve breaks only where its root changes branch (:func:`solve_curves`),
+the point after the break circled.
 
 Past the critical voltage V̂_cr(n) the lowest frequency is imaginary (the tube buckles
-axisymmetrically): such points are left blank (NaN, ``status`` = ``"past critical"`` in the CSV) and
-the curves against V̂ end at (V̂_cr, 0). V̂_cr is solved directly (:func:`jaxdea.critical_voltage`), so
-a blank point never hides a wrong branch: the lowest real root found above V̂_cr belongs to another
-branch and is not drawn.
+axisymmetrically): the curves against V̂ run from V̂ = 0 to V̂_cr(n), where they end at Ω = 0 (the
+points crowd there, V̂ = V̂_cr(1 − (1 − t)²) for t uniform: Ω falls like √(V̂_cr − V̂)); elsewhere such
+points are left blank (NaN, ``status`` = ``"past critical"`` in the CSV). V̂_cr is solved directly
+(:func:`jaxdea.critical_voltage`'s problem), so a blank point never hides a wrong branch.
 
 The tube loses stability earlier in a non-axisymmetric order m (theory_m.md): for λ_i = 0.9 the
 ring mode (m, n) = (2, 1) at V̂ ≈ 0.029, a tenth of the axisymmetric V̂_cr. The first instability
@@ -38,22 +47,24 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base_state import _squared_voltage, pull_in, voltage_limit, with_thickness_ratio_unchecked
-from .compiled import cached_jit, jit
+from .base_state import _squared_voltage, pull_in
+from .compiled import jit
+from .curves import _solve_critical_path, _solve_path
 from .leaves import apply_parameters
 from .modes import mode_shape
-from .params import Fluid, Tube, guard, mode_wavenumber
-from .roots import critical_voltage_unchecked
+from .params import Fluid, Tube, mode_wavenumber
 from .scalar import Status
 from .state_matrix import ORDER_M
-from .sweeps import sweep
 
 PAPER_TUBE = Tube(lambda_z=1.2, eta=0.85, gent=97.2, length_ratio=10.0)
 PAPER_FLUID = dict(density_ratio=0.13, speed_ratio=0.27)
 COUPLINGS = ("acoustic", "paper")
 STRETCHES = (0.9, 1.1)  # subcritical and overcritical λ_i of the paper
 MODES = (1, 2, 3)
-COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple")
+MODE_COLORS = {1: "tab:blue", 2: "tab:orange", 3: "tab:green"}  # one colour per axial mode n
+ORDER_COLORS = ("tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")  # m = 0 … 4
+VOLTAGE_COLORS = {0.0: "black", 0.1: "tab:red", 0.15: "tab:purple", 0.2: "tab:brown"}  # against n
+COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple")  # other curves
 SHAPE_STRETCH, SHAPE_VOLTAGE = 0.9, 0.01  # a stable state of the paper's tube (first instability 0.0293)
 SHAPE_TUBE = PAPER_TUBE.replace(lambda_i=SHAPE_STRETCH, voltage=SHAPE_VOLTAGE)
 ORDERS = (0, 1, 2, 3, 4)  # circumferential orders of the stability map and of the first instability
@@ -63,15 +74,16 @@ MAP_STRETCH_RANGE = (0.9, 1.4)  # below λ_i ≈ 0.9 the tube is unstable at V̂
 SHAPE_ORDERS = (1, 2, 3)
 CURVE_ORDERS = (0, 1, 2)
 CURVE_ROOTS = 3
-EMPTY_CURVE_ORDERS = tuple(sorted(set(CURVE_ORDERS) | set(SHAPE_ORDERS)))  # the empty tube's sweep
+EMPTY_CURVE_ORDERS = tuple(sorted(set(CURVE_ORDERS) | set(SHAPE_ORDERS)))  # the empty tube's curves
 
 
 @dataclasses.dataclass(frozen=True)
 class Resolution:
     """Grid sizes: ``full`` for the figures, ``quick`` for tests and smoke runs."""
 
-    voltages: int
+    voltages: int  # points of each curve against V̂, from 0 to its critical voltage
     max_mode: int
+    mode_steps: int  # points per unit of n of the curves against the mode number (α̂ between modes)
     fluid_points: int
     static_points: int
     map_stretches: int  # λ_i of the stability map
@@ -81,10 +93,15 @@ class Resolution:
     @classmethod
     def pick(cls, quick: bool) -> Resolution:
         if quick:
-            return cls(voltages=5, max_mode=4, fluid_points=3, static_points=60, map_stretches=5,
-                       curve_steps=1, outline_points=73)
-        return cls(voltages=16, max_mode=15, fluid_points=10, static_points=240, map_stretches=11,
-                   curve_steps=4, outline_points=361)
+            return cls(voltages=8, max_mode=4, mode_steps=2, fluid_points=6, static_points=60,
+                       map_stretches=5, curve_steps=2, outline_points=73)
+        return cls(voltages=64, max_mode=15, mode_steps=5, fluid_points=40, static_points=240,
+                   map_stretches=44, curve_steps=16, outline_points=361)
+
+    def modes(self) -> np.ndarray:
+        """The axial mode numbers n of the curves against n: ``mode_steps`` points per unit from 1
+        to ``max_mode`` (fractional n: the wavenumber α̂ between the tube's modes)."""
+        return np.round(np.linspace(1.0, self.max_mode, (self.max_mode - 1) * self.mode_steps + 1), 12)
 
 
 class Table:
@@ -114,39 +131,7 @@ def _fmt(v):
 # ----------------------------------------------------------------------------- computations
 
 
-CV_CHUNK = 16  # critical voltages per compiled call: every grid pads to a multiple (one compilation)
-
-
-@cached_jit(static_argnames=("n_layers",))
-def _critical_voltages(tubes: Tube, orders, modes, n_layers):
-    """V̂_cr of order m at α̂_n = 2nπη/(L/R_o·λ_z) for each case (tube, m, n) of a flat batch.
-
-    The search of :func:`jaxdea.first_instability`: :func:`critical_voltage_unchecked` of the family
-    ``"order_m"`` (m traced, the longitudinal family at m = 0) in (0, V̂_lim], V̂_lim the pull-in limit
-    of :func:`voltage_limit`; one compiled program for every tube, m and n of every figure (a
-    sequential ``lax.map``: vectorising 8 cases compiled 2.7 times longer for the same run time,
-    measured); NaN where none."""
-    def one(case):
-        tube, order, mode = case
-        ok, base, _, _ = guard(tube.replace(voltage=0.0), 1.0, None)
-        voltage, _ = critical_voltage_unchecked(base, mode_wavenumber(base, mode), None, n_layers, 0,
-                                                v_end=voltage_limit(base), m=order, family=ORDER_M)
-        return jnp.where(ok, voltage, jnp.nan)
-
-    return jax.lax.map(one, (tubes, orders, modes))
-
-
-def critical_voltage_cases(tubes: Tube, orders, modes, n_layers: int) -> np.ndarray:
-    """:func:`_critical_voltages` of a flat batch of any size, in padded chunks of CV_CHUNK cases."""
-    orders, modes = np.asarray(orders, float), np.asarray(modes, float)
-    size = orders.size
-    padded = -(-size // CV_CHUNK) * CV_CHUNK
-    pad = lambda x: jnp.asarray(np.pad(np.asarray(x), (0, padded - size), mode="edge"))  # noqa: E731
-    tubes, orders, modes = jax.tree_util.tree_map(pad, (tubes, orders, modes))
-    chunks = [_critical_voltages(*jax.tree_util.tree_map(lambda x, i=i: x[i:i + CV_CHUNK],
-                                                         (tubes, orders, modes)), n_layers)
-              for i in range(0, padded, CV_CHUNK)]
-    return np.concatenate([np.asarray(c) for c in chunks])[:size]
+PATH_POINTS = 256  # points per compiled continuation call: curves are packed into padded paths
 
 
 def _tubes_with(tube: Tube, **leaves) -> Tube:
@@ -156,15 +141,133 @@ def _tubes_with(tube: Tube, **leaves) -> Tube:
     return batch.replace(**{k: jnp.asarray(v, jnp.float64) for k, v in leaves.items()})
 
 
+def _packed(curves: list):
+    """Curves (values, abscissa) packed into paths of :data:`PATH_POINTS` points: yields (the
+    indices of the curves of a path, {name: values (PATH_POINTS,)}, abscissa (NaN-padded), starts).
+    ``values`` maps parameter names (the same for every curve) to scalars or arrays of the curve's
+    points; padding repeats the last point."""
+    paths, current, used = [], [], 0
+    for k, (_, abscissa) in enumerate(curves):
+        if len(abscissa) > PATH_POINTS:
+            raise ValueError(f"a curve of {len(abscissa)} points exceeds PATH_POINTS = {PATH_POINTS}")
+        if used + len(abscissa) > PATH_POINTS:
+            paths.append(current)
+            current, used = [], 0
+        current.append(k)
+        used += len(abscissa)
+    paths.append(current)
+    for members in paths:
+        lengths = [len(curves[i][1]) for i in members]
+        size = sum(lengths)
+        values = {k: np.pad(np.concatenate([np.broadcast_to(np.asarray(curves[i][0][k], float), n)
+                                            for i, n in zip(members, lengths, strict=True)]),
+                            (0, PATH_POINTS - size), mode="edge") for k in curves[members[0]][0]}
+        abscissa = np.full(PATH_POINTS, np.nan)
+        abscissa[:size] = np.concatenate([np.asarray(curves[i][1], float) for i in members])
+        starts = np.zeros(PATH_POINTS, bool)
+        starts[np.cumsum([0] + lengths[:-1])] = True
+        yield members, lengths, values, abscissa, starts
+
+
+@jit
+def _points(base: Tube, fluid: Fluid | None, values: dict):
+    """(tubes, α̂, fluids) of the points of a path: ``base`` and ``fluid`` with ``values`` set
+    (:func:`jaxdea.leaves.apply_parameters`, one point per entry of the arrays)."""
+    return jax.vmap(lambda vals: apply_parameters(base, 1.0, fluid, vals))(values)
+
+
+def _strong(tree):
+    """Every leaf a strong float64 array of PATH_POINTS values (whichever parameters vary: one
+    compiled program)."""
+    return jax.tree_util.tree_map(
+        lambda x: jnp.asarray(np.broadcast_to(np.asarray(x, float), PATH_POINTS)), tree)
+
+
+def critical_curves(n_layers: int, curves: list, base: Tube = PAPER_TUBE) -> list[np.ndarray]:
+    """V̂_cr along each curve (values, abscissa) of the tube ``base`` (``values``: names of
+    :mod:`jaxdea.leaves` and ``m``, the circumferential order, 0 if absent), by continuation along
+    the curve (:func:`jaxdea.curves.critical_path_unchecked`: the first zero of f(Ω = 0; V̂) in
+    (0, V̂_lim], V̂_lim the pull-in limit; NaN where none); one compiled program for every curve."""
+    out = [None] * len(curves)
+    for members, lengths, values, abscissa, starts in _packed(curves):
+        orders = values.pop("m", np.zeros(PATH_POINTS))
+        tubes, alphas, _ = _points(base, None, {k: jnp.asarray(v) for k, v in values.items()})
+        voltage, *_ = _solve_critical_path(*_strong((tubes, alphas)), jnp.asarray(abscissa),
+                                           jnp.asarray(starts), jnp.asarray(orders), n_layers, ORDER_M)
+        voltage = np.asarray(voltage)[:, 0]
+        for i, first, size in zip(members, np.cumsum([0] + lengths[:-1]), lengths, strict=True):
+            out[i] = voltage[first:first + size]
+    return out
+
+
 def critical_voltage_grid(tube: Tube, n_layers: int, **axes) -> np.ndarray:
-    """Axisymmetric (m = 0) V̂_cr over the grid of ``axes`` (tube leaves, ``thickness_ratio`` and
-    ``n``), shape of the grid; NaN where the lowest frequency stays real up to the pull-in limit."""
+    """V̂_cr over the grid of ``axes`` (tube leaves, ``thickness_ratio``, ``n`` and ``m``, the order:
+    0 if absent), shape of the grid, by :func:`critical_curves` along the longest axis (the last of
+    equals) for every combination of the others; NaN where the lowest frequency stays real up to
+    the pull-in limit."""
     names = list(axes)
-    grids = np.meshgrid(*(np.atleast_1d(np.asarray(v, float)) for v in axes.values()), indexing="ij")
-    flat = {k: jnp.asarray(g.ravel()) for k, g in zip(names, grids, strict=True) if k != "n"}
-    tubes, _, _ = jax.vmap(lambda vals: apply_parameters(tube, 1.0, None, vals))(flat)
-    modes = grids[names.index("n")].ravel() if "n" in names else np.ones(grids[0].size)
-    return critical_voltage_cases(tubes, np.zeros(modes.size), modes, n_layers).reshape(grids[0].shape)
+    values = [np.atleast_1d(np.asarray(v, float)) for v in axes.values()]
+    along = max(reversed(range(len(names))), key=lambda k: len(values[k]))
+    others = [k for k in range(len(names)) if k != along]
+    combos = list(np.ndindex(*(len(values[k]) for k in others)))
+    curves = [({**{names[k]: values[k][i] for k, i in zip(others, idx, strict=True)},
+                names[along]: values[along]}, values[along]) for idx in combos]
+    if "n" not in names:
+        curves = [({**c, "n": 1.0}, a) for c, a in curves]
+    solved = critical_curves(n_layers, curves, tube)
+    grid = np.moveaxis(np.array(solved).reshape([len(values[k]) for k in others] + [len(values[along])]),
+                       -1, along)
+    return grid
+
+
+@dataclasses.dataclass(frozen=True)
+class Solved:
+    """The lowest root (roots) along one curve: Ω, status and ``jumps`` (True where the root left
+    the branch it followed: a branch change, see :func:`solve_curves`), each of shape (P,) (or
+    (P, K)), and α̂ (P,)."""
+
+    omega: np.ndarray
+    status: np.ndarray
+    alpha: np.ndarray
+    jumps: np.ndarray
+
+
+def solve_curves(n_layers: int, fluid: Fluid | None, curves: list, base: Tube = PAPER_TUBE,
+                 n_roots: int = 1, m=None) -> list[Solved]:
+    """The lowest root (``n_roots`` lowest: Ω of shape (P, n_roots)) along each curve of the tube
+    ``base``, by continuation along the curve (:func:`jaxdea.curves.path_unchecked`; of order m
+    where ``m`` is not None, the order-m family with m traced).
+
+    A curve is (values, abscissa): ``values`` maps parameter names of :mod:`jaxdea.leaves` (the same
+    names for every curve; ``n`` sets α̂ from the mode number) to scalars or arrays of its P points,
+    and the abscissa (P,) is the coordinate the predictor extrapolates in. Every point gets the
+    roots of :func:`jaxdea.frequencies` (the scan where a step fails its checks, and at every point
+    of the paper's coupling, ν = n). Curves are packed into paths of :data:`PATH_POINTS` points
+    (:func:`_packed`), so one compiled program serves every figure of a coupling. A jump is a point
+    solved by the scan whose root is more than a quarter of the gap to its neighbours (to Ω = 0 for
+    the lowest) away from its prediction: the root changed branch there (a root that came down
+    through Ω = 0 or went up through it past V̂_cr, or, with the paper's coupling, a pair born below
+    it)."""
+    paper = fluid is not None and fluid.coupling == "paper"
+    solved = [None] * len(curves)
+    for members, lengths, values, abscissa, starts in _packed(curves):
+        tubes, alphas, fluids = _points(base, fluid, {k: jnp.asarray(v) for k, v in values.items()})
+        orders = values["n"] if paper else np.zeros(PATH_POINTS)
+        args = (*_strong((tubes, alphas, fluids)), jnp.asarray(abscissa), jnp.asarray(starts),
+                jnp.asarray(orders), n_roots, n_layers, "n" if paper else 0)
+        if m is None:
+            omega, status, _, restarted = _solve_path(*args)
+        else:
+            omega, status, _, restarted = _solve_path(*args, jnp.float64(m), ORDER_M)
+        omega, status, restarted, alphas = (np.asarray(x) for x in (omega, status, restarted, alphas))
+        if n_roots == 1:
+            omega, status, restarted = omega[:, 0], status[:, 0], restarted[:, 0]
+        for i, first, size in zip(members, np.cumsum([0] + lengths[:-1]), lengths, strict=True):
+            rows = slice(first, first + size)
+            jumps = restarted[rows].copy()
+            jumps[0] = False  # the start of a curve
+            solved[i] = Solved(omega[rows], status[rows], alphas[rows], jumps)
+    return solved
 
 
 @dataclasses.dataclass(frozen=True)
@@ -175,11 +278,15 @@ class Stability:
         map_stretches: λ_i of the stability map, shape (L,).
         map_voltages: V̂_cr of (m, n = 1) at each of them, shape (L, len(ORDERS)).
         grids: {λ_i: V̂_cr of every (m, n), shape (len(ORDERS), max_mode)} at the λ_i of the figures.
+        modes: fractional mode numbers n of the curves against n, shape (P,) (the integers among them).
+        curves: {λ_i: V̂_cr of (m, n) along ``modes``, shape (len(ORDERS), P)} at λ_i = 0.9, 1.1.
     """
 
     map_stretches: np.ndarray
     map_voltages: np.ndarray
     grids: dict
+    modes: np.ndarray
+    curves: dict
 
     def first(self, lambda_i) -> tuple[float, int, int]:
         """(V̂, m, n) of the first instability at λ_i (:func:`lowest_critical` of its grid, as
@@ -197,21 +304,25 @@ def lowest_critical(grid) -> tuple[float, int, int]:
     return float(flat[first]), first // grid.shape[1], first % grid.shape[1] + 1
 
 
-def stability_of_paper_tube(n_layers: int, map_stretches, stretches, max_mode: int) -> Stability:
-    """:class:`Stability`: V̂_cr of (λ_i, m, n = 1) over ``map_stretches`` and of (m, n ≤ max_mode) at
-    each of ``stretches``, by the one compiled program of :func:`critical_voltage_cases`."""
+def stability_of_paper_tube(n_layers: int, map_stretches, stretches, modes) -> Stability:
+    """:class:`Stability`: V̂_cr of (λ_i, m, n = 1) along ``map_stretches``, of (m, n) along the
+    fractional ``modes`` at λ_i = 0.9 and 1.1 (:data:`STRETCHES`) and along the whole modes up to
+    ``modes[-1]`` at the other ``stretches``, by continuation (:func:`critical_voltage_grid`)."""
     orders = np.asarray(ORDERS, float)
-    modes = np.arange(1.0, max_mode + 1.0)
-    blocks = [np.meshgrid(np.asarray(map_stretches, float), orders, [1.0], indexing="ij")]
-    blocks += [np.meshgrid([li], orders, modes, indexing="ij") for li in stretches]
-    cases = [np.concatenate([b[k].ravel() for b in blocks]) for k in range(3)]
-    voltages = critical_voltage_cases(_tubes_with(PAPER_TUBE, lambda_i=cases[0]), cases[1], cases[2],
-                                      n_layers)
-    size = len(map_stretches) * len(orders)
-    grids = np.split(voltages[size:], len(stretches)) if stretches else []
-    return Stability(np.asarray(map_stretches, float), voltages[:size].reshape(len(map_stretches), -1),
-                     {float(li): g.reshape(len(orders), max_mode) for li, g in zip(stretches, grids,
-                                                                                  strict=True)})
+    modes = np.asarray(modes, float)
+    whole = np.arange(1.0, round(modes[-1]) + 1.0)
+    along_map = critical_voltage_grid(PAPER_TUBE, n_layers, lambda_i=map_stretches, m=orders)
+    on_mode = np.isclose(modes, np.round(modes))
+    grids, curves = {}, {}
+    for li in stretches:
+        dense = li in STRETCHES
+        grid = critical_voltage_grid(PAPER_TUBE, n_layers, lambda_i=li, m=orders,
+                                     n=modes if dense else whole)[0]
+        if dense:
+            curves[float(li)] = grid
+            grid = grid[:, on_mode]
+        grids[float(li)] = grid
+    return Stability(np.asarray(map_stretches, float), along_map, grids, modes, curves)
 
 
 @dataclasses.dataclass
@@ -246,24 +357,12 @@ class Context:
         if self.stability_of_tube is None:
             stretches = np.round(np.linspace(*MAP_STRETCH_RANGE, self.res.map_stretches), 12)
             self.stability_of_tube = stability_of_paper_tube(
-                self.n_layers, stretches, STRETCHES + (CRITICAL_STRETCH,), self.res.max_mode)
+                self.n_layers, stretches, STRETCHES + (CRITICAL_STRETCH,), self.res.modes())
         return self.stability_of_tube
 
-    def solve(self, fluid: Fluid | None, *, voltage, lambda_i, n, eta=0.85,
-              density_ratio=PAPER_FLUID["density_ratio"], speed_ratio=PAPER_FLUID["speed_ratio"]):
-        """Lowest root per point of the grid V̂ × λ_i × η × ρ̂_f × ĉ_f × n (a one-root
-        :func:`jaxdea.sweep`); arrays of shape (V, L, E, D, S, N) (D = S = 1 without fluid).
-
-        Every figure sweeps the same axis names in the same order, so each coupling compiles once.
-        """
-        axes = dict(voltage=voltage, lambda_i=lambda_i, eta=eta)
-        if fluid is not None:
-            axes.update(density_ratio=density_ratio, speed_ratio=speed_ratio)
-        axes = {k: np.atleast_1d(np.asarray(v, float)) for k, v in axes.items()}
-        res = sweep(PAPER_TUBE, fluid, n_roots=1, n_layers=self.n_layers,
-                    progress=None if self.progress else False, **axes, n=np.atleast_1d(n))
-        shape = res.alpha.shape if fluid is not None else res.alpha.shape[:3] + (1, 1, res.alpha.shape[3])
-        return res.omega[..., 0].reshape(shape), res.status[..., 0].reshape(shape), res.alpha.reshape(shape)
+    def curves_of(self, fluid: Fluid | None, curves: list) -> list[Solved]:
+        """:func:`solve_curves` of the paper's tube with this laminate."""
+        return solve_curves(self.n_layers, fluid, curves)
 
     def save(self, name: str, fig, table: Table) -> None:
         import matplotlib.pyplot as plt
@@ -311,8 +410,39 @@ def _figure(ncols=2, title=None):
     return fig, axes[0]
 
 
-def _style(coupling):
-    return "-" if coupling in (None, "acoustic") else "--"
+def _style(coupling, lambda_i):
+    """The line style of a coupling and λ_i, the same in every figure: the empty tube and the
+    acoustic coupling solid-based (λ_i = 0.9 solid, 1.1 dash-dot, λ_z^{-1/2} long dashes), the
+    paper's coupling dashed-based (0.9 dashed, 1.1 dash-dot-dot, λ_z^{-1/2} dotted)."""
+    k = min(range(3), key=lambda i: abs((STRETCHES + (CRITICAL_STRETCH,))[i] - float(lambda_i)))
+    if coupling == "paper":
+        return ("--", (0, (6, 2, 1, 2, 1, 2)), (0, (1, 1.5)))[k]
+    return ("-", "-.", (0, (8, 2)))[k]
+
+
+def _plot(ax, x, y, jumps=None, **kw):
+    """A curve that breaks where the lowest root changes branch (``jumps``): the segments are drawn
+    apart and the first point after a break is marked with an open circle."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    drawn = np.isfinite(y) & np.concatenate([[False], np.isfinite(y[:-1])])  # a start after a gap is none
+    breaks = np.flatnonzero(np.asarray(jumps) & drawn) if jumps is not None else np.zeros(0, int)
+    y_line = y.copy()
+    if breaks.size:
+        x, y_line = np.insert(x, breaks, np.nan), np.insert(y_line, breaks, np.nan)
+    line, = ax.plot(x, y_line, **kw)
+    if breaks.size:
+        ax.plot(np.asarray(x)[breaks + np.arange(breaks.size) + 1], y[breaks], "o", mfc="none",
+                color=line.get_color(), ms=5, alpha=kw.get("alpha", 1.0))
+    return line
+
+
+def _legend_styles(ax, entries):
+    """Legend entries for colours and line styles drawn apart (``entries``: (label, plot kwargs))."""
+    from matplotlib.lines import Line2D
+
+    handles = [Line2D([], [], **kw) for _, kw in entries]
+    ax.legend(handles, [label for label, _ in entries], fontsize=7, loc="upper center",
+              bbox_to_anchor=(0.5, -0.16), ncol=3, frameon=False)
 
 
 def _finish(ax, xlabel, ylabel, legend=True):
@@ -364,39 +494,58 @@ def _note_unstable(ax, stability: Stability, stretches) -> None:
 # ----------------------------------------------------------------------------- Figs. 2 and 5
 
 
+def _style_entries(couplings, stretches):
+    """Legend entries of the line styles of :func:`_style`."""
+    return [(f"λi={li:.3g}" + (f" ({c})" if c else ""), dict(color="0.3", ls=_style(c, li)))
+            for c in couplings for li in stretches]
+
+
+def voltage_path(v_cr: float, v_top: float, points: int):
+    """(V̂, abscissa t) of a curve against V̂: V̂ = V̂_cr (1 − (1 − t)²), t = k/points (k < points),
+    where Ω ∝ √(V̂_cr − V̂) falls to zero: linear in t, and the points crowd where the curve is
+    steep; V̂ = v_top·t where there is no V̂_cr below the pull-in limit."""
+    t = np.arange(points) / points
+    if not np.isfinite(v_cr):
+        return v_top * t, t
+    return v_cr * (1.0 - (1.0 - t) ** 2), t
+
+
 def figure_voltage(ctx: Context, fluid_filled: bool) -> None:
-    """Ω and c_p against V̂ for n = 1, 2, 3 at λ_i = 0.9, 1.1 (Fig. 2 fluid-free, Fig. 5 filled)."""
+    """Ω and c_p against V̂ for n = 1, 2, 3 at λ_i = 0.9, 1.1 (Fig. 2 fluid-free, Fig. 5 filled):
+    continuation along V̂ up to V̂_cr(n), where the curve ends at Ω = 0."""
     name = "fig5_voltage_fluid" if fluid_filled else "fig2_voltage_empty"
     ctx.log(f"[{name}] Ω and phase velocity against V̂")
     v_cr = ctx.critical_voltages(lambda_i=STRETCHES, n=MODES)
     v_top = float(np.nanmax(v_cr))
-    voltages = v_top * np.linspace(0.0, 1.0, ctx.res.voltages, endpoint=False)
     cases = _fluids() if fluid_filled else {None: None}
     stability = ctx.stability()
     fig, (ax_w, ax_c) = _figure(title=("Fluid-filled" if fluid_filled else "Fluid-free")
                                 + " tube: lowest frequency of modes n = 1, 2, 3 (λ_z = 1.2)")
     table = Table(name)
+    keys = [(i, j) for i in range(len(STRETCHES)) for j in range(len(MODES))]
+    grids = {key: voltage_path(v_cr[key], v_top, ctx.res.voltages) for key in keys}
     for coupling, fluid in cases.items():
-        omegas, statuses, alphas = ctx.solve(fluid, voltage=voltages, lambda_i=STRETCHES, n=MODES)
-        for i, li in enumerate(STRETCHES):
+        solved = ctx.curves_of(fluid, [(dict(voltage=grids[i, j][0], lambda_i=STRETCHES[i], n=MODES[j]),
+                                        grids[i, j][1]) for i, j in keys])
+        for (i, j), sol in zip(keys, solved, strict=True):
+            li, n, voltages = STRETCHES[i], MODES[j], grids[i, j][0]
             first = _first_columns(stability, li)
-            for j, n in enumerate(MODES):
-                omega, past = _mask_past(omegas[:, i, 0, 0, 0, j], voltages, v_cr[i, j])
-                alpha = alphas[0, i, 0, 0, 0, j]
-                for v, w, s, p in zip(voltages, omega, statuses[:, i, 0, 0, 0, j], past, strict=True):
-                    table.add(lambda_i=li, n=n, voltage=v, coupling=coupling or "none", alpha_hat=alpha,
-                              omega=w, phase_velocity=w / alpha, v_critical=v_cr[i, j],
-                              status=_status_name(s, p), **first)
-                x = np.append(voltages[~past], v_cr[i, j])
-                y = np.append(omega[~past], 0.0)
-                label = f"n={n}, λi={li}" + (f" ({coupling})" if coupling else "")
-                kw = dict(color=COLORS[j], ls=_style(coupling), lw=1.6 if li == 0.9 else 1.0,
-                          marker="o" if li == 0.9 else "s", ms=2.5)
-                ax_w.plot(x, y, label=label, **kw)
-                ax_c.plot(x, y / alpha, **kw)
+            for v, w, a, st in zip(voltages, sol.omega, sol.alpha, sol.status, strict=True):
+                table.add(lambda_i=li, n=n, voltage=v, coupling=coupling or "none", alpha_hat=a,
+                          omega=w, phase_velocity=w / a, v_critical=v_cr[i, j],
+                          status=_status_name(st, False), **first)
+            ends = np.isfinite(v_cr[i, j])
+            x = np.append(voltages, v_cr[i, j]) if ends else voltages
+            y = np.append(sol.omega, 0.0) if ends else sol.omega
+            jumps = np.append(sol.jumps, False) if ends else sol.jumps
+            kw = dict(color=MODE_COLORS[n], ls=_style(coupling, li), lw=1.3)
+            _plot(ax_w, x, y, jumps, **kw)
+            _plot(ax_c, x, y / sol.alpha[0], jumps, **kw)
     for ax in (ax_w, ax_c):
         _shade_unstable(ax, stability, STRETCHES)
-    _finish(ax_w, "voltage V̂", "frequency Ω")
+    _finish(ax_w, "voltage V̂", "frequency Ω", legend=False)
+    _legend_styles(ax_w, [(f"n={n}", dict(color=MODE_COLORS[n])) for n in MODES]
+                   + _style_entries(cases, STRETCHES))
     _finish(ax_c, "voltage V̂", "phase velocity ĉ_p = Ω/α̂", legend=False)
     ctx.save(name, fig, table)
 
@@ -406,7 +555,12 @@ def figure_voltage(ctx: Context, fluid_filled: bool) -> None:
 
 def figure_modes(ctx: Context, fluid_filled: bool, critical_stretch: bool) -> None:
     """Ω and c_p against the axial mode number n (Figs. 3/6: λ_i = 0.9, 1.1 and V̂ = 0, 0.2;
-    Figs. 4/7: λ_i = λ_z^{-1/2} and V̂ = 0, 0.1, 0.15, 0.2)."""
+    Figs. 4/7: λ_i = λ_z^{-1/2} and V̂ = 0, 0.1, 0.15, 0.2): continuation along α̂ = α̂_1 n through
+    fractional n (the curve Ω(α̂) of the infinite tube), the tube's modes (integer n) marked. The
+    paper's coupling is defined at integer n only (its Bessel order is ν = n): drawn there, without
+    jump marks (a grid of whole modes is too coarse to tell a branch change from the root's own
+    variation).
+    Past V̂_cr(n) the lowest root is imaginary and the point is blank."""
     if critical_stretch:
         name = "fig7_modes_critical_fluid" if fluid_filled else "fig4_modes_critical_empty"
         stretches, voltages = (CRITICAL_STRETCH,), (0.0, 0.1, 0.15, 0.2)
@@ -414,8 +568,8 @@ def figure_modes(ctx: Context, fluid_filled: bool, critical_stretch: bool) -> No
         name = "fig6_modes_fluid" if fluid_filled else "fig3_modes_empty"
         stretches, voltages = STRETCHES, (0.0, 0.2)
     ctx.log(f"[{name}] Ω and phase velocity against the axial mode number")
-    modes = np.arange(1, ctx.res.max_mode + 1)
-    v_cr = ctx.critical_voltages(lambda_i=stretches, n=modes)
+    dense = ctx.res.modes()
+    whole = np.arange(1.0, ctx.res.max_mode + 1.0)
     cases = _fluids() if fluid_filled else {None: None}
     title = ("Fluid-filled" if fluid_filled else "Fluid-free") + " tube against the mode number"
     if critical_stretch:
@@ -423,28 +577,31 @@ def figure_modes(ctx: Context, fluid_filled: bool, critical_stretch: bool) -> No
     stability = ctx.stability()
     fig, (ax_w, ax_c) = _figure(title=title)
     table = Table(name)
+    keys = [(i, j) for i in range(len(stretches)) for j in range(len(voltages))]
     for coupling, fluid in cases.items():
-        omegas, statuses, alphas = ctx.solve(fluid, voltage=voltages, lambda_i=stretches, n=modes)
-        for i, li in enumerate(stretches):
+        modes = whole if coupling == "paper" else dense
+        v_cr = ctx.critical_voltages(lambda_i=stretches, n=modes)
+        solved = ctx.curves_of(fluid, [(dict(voltage=voltages[j], lambda_i=stretches[i], n=modes), modes)
+                                       for i, j in keys])
+        for (i, j), sol in zip(keys, solved, strict=True):
+            li, v = stretches[i], voltages[j]
             first = _first_columns(stability, li)
-            for j, v in enumerate(voltages):
-                omega, past = _mask_past(omegas[j, i, 0, 0, 0], v, v_cr[i])
-                alpha = alphas[j, i, 0, 0, 0]
-                for n, a, w, s, p, vc in zip(modes, alpha, omega, statuses[j, i, 0, 0, 0], past, v_cr[i],
-                                             strict=True):
-                    table.add(lambda_i=li, voltage=v, n=n, coupling=coupling or "none", alpha_hat=a,
-                              omega=w, phase_velocity=w / a, v_critical=vc, status=_status_name(s, p),
-                              **first)
-                unstable = v >= first["v_first"]
-                color = COLORS[j if critical_stretch else 2 * i + j]
-                label = f"V̂={v}" + ("" if critical_stretch else f", λi={li}") + (
-                    f" ({coupling})" if coupling else "") + (" unstable" if unstable else "")
-                kw = dict(color=color, ls=_style(coupling), marker="o", ms=2.5,
-                          alpha=0.45 if unstable else 1.0)
-                ax_w.plot(modes, omega, label=label, **kw)
-                ax_c.plot(modes, omega / alpha, **kw)
+            omega, past = _mask_past(sol.omega, v, v_cr[i])
+            for n, a, w, st, p, vc in zip(modes, sol.alpha, omega, sol.status, past, v_cr[i], strict=True):
+                table.add(lambda_i=li, voltage=v, n=n, coupling=coupling or "none", alpha_hat=a,
+                          omega=w, phase_velocity=w / a, v_critical=vc, status=_status_name(st, p),
+                          **first)
+            kw = dict(color=VOLTAGE_COLORS[v], ls=_style(coupling, li), lw=1.3,
+                      alpha=0.45 if v >= first["v_first"] else 1.0)
+            on_mode = np.isclose(modes, np.round(modes))
+            for ax, y in ((ax_w, omega), (ax_c, omega / sol.alpha)):
+                _plot(ax, modes, y, None if coupling == "paper" else sol.jumps, **kw)
+                ax.plot(modes[on_mode], y[on_mode], "o", ms=2.5, color=kw["color"], alpha=kw["alpha"])
     _note_unstable(ax_c, stability, stretches)
-    _finish(ax_w, "axial mode number n", "frequency Ω")
+    _finish(ax_w, "axial mode number n (α̂ = n α̂_1; dots: the tube's modes)", "frequency Ω",
+            legend=False)
+    _legend_styles(ax_w, [(f"V̂={v}", dict(color=VOLTAGE_COLORS[v])) for v in voltages]
+                   + _style_entries(cases, stretches))
     _finish(ax_c, "axial mode number n", "phase velocity ĉ_p = Ω/α̂", legend=False)
     ctx.save(name, fig, table)
     return table
@@ -461,11 +618,13 @@ FLUID_AXES = {
 
 
 def figure_fluid_parameter(ctx: Context, axis: str) -> Table:
-    """Ω of n = 1, 2, 3 against ĉ_f (Fig. 8), ρ̂_f (Fig. 9) or h/R_i (Fig. 10), (a) V̂ = 0, (b) 0.15."""
+    """Ω of n = 1, 2, 3 against ĉ_f (Fig. 8), ρ̂_f (Fig. 9) or h/R_i (Fig. 10), (a) V̂ = 0, (b) 0.15:
+    continuation along the parameter (its logarithm on a log axis)."""
     name, xlabel, (lo, hi), log = FLUID_AXES[axis]
     ctx.log(f"[{name}] Ω against {axis}")
     k = ctx.res.fluid_points
     grid = np.geomspace(lo, hi, k) if log else np.linspace(lo, hi, k)
+    abscissa = np.log(grid) if log else grid
     voltages = (0.0, 0.15)
     geometry_axes = {"thickness_ratio": grid} if axis == "thickness_ratio" else {}
     v_cr = ctx.critical_voltages(lambda_i=STRETCHES, **geometry_axes, n=MODES)
@@ -473,36 +632,27 @@ def figure_fluid_parameter(ctx: Context, axis: str) -> Table:
         v_cr = np.broadcast_to(v_cr[:, None, :], (len(STRETCHES), k, len(MODES)))
     fig, panels = _figure(title=f"Fluid-filled tube: lowest frequency of n = 1, 2, 3 against {axis}")
     table = Table(name)
+    keys = [(i, iv, j) for i in range(len(STRETCHES)) for iv in range(len(voltages))
+            for j in range(len(MODES))]
     for coupling, fluid in _fluids().items():
-        for i, li in enumerate(STRETCHES):
-            if axis == "thickness_ratio":  # h/R_i at this λ_i set through η (same sweep axes)
-                etas = np.asarray(jax.vmap(lambda h, li=li: with_thickness_ratio_unchecked(
-                    PAPER_TUBE.replace(lambda_i=li), h).eta)(jnp.asarray(grid)))
-                omegas, statuses, alphas = ctx.solve(fluid, voltage=voltages, lambda_i=li, eta=etas, n=MODES)
-                pick = lambda a, iv, j: a[iv, 0, :, 0, 0, j]  # noqa: E731
-            else:
-                omegas, statuses, alphas = ctx.solve(fluid, voltage=voltages, lambda_i=li, n=MODES,
-                                                     **{axis: grid})
-                pick = (lambda a, iv, j: a[iv, 0, 0, :, 0, j]) if axis == "density_ratio" else (  # noqa: E731
-                    lambda a, iv, j: a[iv, 0, 0, 0, :, j])
-            for iv, v in enumerate(voltages):
-                for j, n in enumerate(MODES):
-                    omega, past = _mask_past(pick(omegas, iv, j), v, v_cr[i, :, j])
-                    alpha = pick(alphas, iv, j)
-                    for x, a, w, s, p, vc in zip(grid, alpha, omega, pick(statuses, iv, j), past,
-                                                 v_cr[i, :, j], strict=True):
-                        table.add(voltage=v, lambda_i=li, **{axis: x}, n=n, coupling=coupling,
-                                  alpha_hat=a, omega=w, phase_velocity=w / a, v_critical=vc,
-                                  status=_status_name(s, p))
-                    label = f"n={n}, λi={li} ({coupling})"
-                    panels[iv].plot(grid, omega, color=COLORS[j], ls=_style(coupling),
-                                    marker="o" if li == 0.9 else "s", ms=2.5,
-                                    lw=1.6 if li == 0.9 else 1.0, label=label)
+        solved = ctx.curves_of(fluid, [(dict(voltage=voltages[iv], lambda_i=STRETCHES[i], n=MODES[j],
+                                             **{axis: grid}), abscissa) for i, iv, j in keys])
+        for (i, iv, j), sol in zip(keys, solved, strict=True):
+            li, v, n = STRETCHES[i], voltages[iv], MODES[j]
+            omega, past = _mask_past(sol.omega, v, v_cr[i, :, j])
+            for x, a, w, st, p, vc in zip(grid, sol.alpha, omega, sol.status, past, v_cr[i, :, j],
+                                          strict=True):
+                table.add(voltage=v, lambda_i=li, **{axis: x}, n=n, coupling=coupling, alpha_hat=a,
+                          omega=w, phase_velocity=w / a, v_critical=vc, status=_status_name(st, p))
+            _plot(panels[iv], grid, omega, sol.jumps, color=MODE_COLORS[n], ls=_style(coupling, li),
+                  lw=1.3)
     for iv, v in enumerate(voltages):
         panels[iv].set_title(f"({'ab'[iv]}) V̂ = {v}")
         if log:
             panels[iv].set_xscale("log")
-        _finish(panels[iv], xlabel, "frequency Ω", legend=iv == 0)
+        _finish(panels[iv], xlabel, "frequency Ω", legend=False)
+    _legend_styles(panels[0], [(f"n={n}", dict(color=MODE_COLORS[n])) for n in MODES]
+                   + _style_entries(COUPLINGS, STRETCHES))
     ctx.save(name, fig, table)
     return table
 
@@ -529,8 +679,8 @@ def figure_stability_map(ctx: Context) -> None:
             table.add(panel="lambda_i", lambda_i=li, m=m, n=1, v_critical=v, v_first=v_env,
                       m_first=int(m_env), n_first=1 if m_env >= 0 else 0)
     for k, m in enumerate(ORDERS):
-        ax_l.plot(stability.map_stretches, stability.map_voltages[:, k], color=COLORS[k], marker="o",
-                  ms=2.5, lw=1.2, label=f"m = {m}")
+        ax_l.plot(stability.map_stretches, stability.map_voltages[:, k], color=ORDER_COLORS[k], lw=1.3,
+                  label=f"m = {m}")
     ax_l.plot(stability.map_stretches, envelope[:, 0], color="k", ls="--", lw=2, zorder=5,
               label="first instability (min over m)")
     ax_l.fill_between(stability.map_stretches, envelope[:, 0], np.nanmax(stability.map_voltages),
@@ -538,22 +688,25 @@ def figure_stability_map(ctx: Context) -> None:
     ax_l.set_title("(a) axial mode n = 1 (shaded: unstable)", fontsize=9)
     _finish(ax_l, "inner stretch λ_i", "critical voltage V̂_cr", legend=False)
     _legend_below(ax_l)
-    modes = np.arange(1, ctx.res.max_mode + 1)
-    for li, style in zip(STRETCHES, ("-", "--"), strict=True):
-        grid = stability.grids[float(li)]
+    modes = stability.modes
+    on_mode = np.isclose(modes, np.round(modes))
+    for li in STRETCHES:
+        curve = stability.curves[float(li)]
         first = _first_columns(stability, li)
         for k, m in enumerate(ORDERS):
-            for n, v in zip(modes, grid[k], strict=True):
+            for n, v in zip(modes, curve[k], strict=True):
                 table.add(panel="n", lambda_i=li, m=m, n=n, v_critical=v, **first)
-            ax_n.plot(modes, grid[k], color=COLORS[k], ls=style, marker="o", ms=2.5,
-                      label=f"m = {m}, λi = {li}")
+            ax_n.plot(modes, curve[k], color=ORDER_COLORS[k], ls=_style(None, li), lw=1.3)
+            ax_n.plot(modes[on_mode], curve[k][on_mode], "o", color=ORDER_COLORS[k], ms=2.5)
         ax_n.plot([first["n_first"]], [first["v_first"]], "k*", ms=10)
         ax_n.annotate(f"λi={li}: ({first['m_first']}, {first['n_first']}) first", (first["n_first"],
                       first["v_first"]), xytext=(8, -4 if li == STRETCHES[0] else 4),
                       textcoords="offset points", fontsize=7)
-    ax_n.set_title("(b) against the axial mode (* first instability)", fontsize=9)
-    _finish(ax_n, "axial mode number n", "critical voltage V̂_cr", legend=False)
-    ax_n.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    ax_n.set_title("(b) against the axial mode (dots: the tube's modes; * first instability)",
+                   fontsize=9)
+    _finish(ax_n, "axial mode number n (α̂ = n α̂_1)", "critical voltage V̂_cr", legend=False)
+    _legend_styles(ax_n, [(f"m = {m}", dict(color=ORDER_COLORS[k])) for k, m in enumerate(ORDERS)]
+                   + _style_entries((None,), STRETCHES))
     ctx.save(name, fig, table)
 
 
@@ -565,16 +718,19 @@ def dispersion_grid(tube: Tube, max_mode: int, steps: int) -> np.ndarray:
 
 
 def order_m_curves(ctx: Context, fluid: Fluid | None, orders) -> dict:
-    """{m: (Ω (K, CURVE_ROOTS), status (K, CURVE_ROOTS))} along :func:`dispersion_grid` of the tube of
-    :func:`figure_dispersion_order_m`: a :func:`jaxdea.sweep` over the axes m (traced: one compiled
-    program for every order, the longitudinal family through the order-m system at m = 0) and α̂,
-    solved once per fluid."""
+    """{m: (Ω, status, jumps, each (K, CURVE_ROOTS))} along :func:`dispersion_grid`
+    of the tube of :func:`figure_dispersion_order_m`: :func:`solve_curves` of each order
+    (continuation along α̂; m traced: one compiled program for every order, the axisymmetric family
+    through the order-m system at m = 0), solved once per fluid."""
     key = (None if fluid is None else fluid.coupling, tuple(orders))
     if key not in ctx.curves:
         alphas = dispersion_grid(SHAPE_TUBE, ctx.res.max_mode, ctx.res.curve_steps)
-        res = sweep(SHAPE_TUBE, fluid, n_roots=CURVE_ROOTS, n_layers=ctx.n_layers, progress=False,
-                    m=np.asarray(orders), alpha=alphas)
-        ctx.curves[key] = {m: (res.omega[k], res.status[k]) for k, m in enumerate(orders)}
+        curves = {}
+        for m in orders:
+            sol, = solve_curves(ctx.n_layers, fluid, [(dict(alpha=alphas), alphas)], base=SHAPE_TUBE,
+                                n_roots=CURVE_ROOTS, m=m)
+            curves[m] = (sol.omega, sol.status, sol.jumps)
+        ctx.curves[key] = curves
     return ctx.curves[key]
 
 
@@ -616,8 +772,8 @@ def figure_dispersion_order_m(ctx: Context) -> None:
     for ax, (label, fluid) in zip(panels, (("none", None), ("acoustic", Fluid(**PAPER_FLUID))),
                                   strict=True):
         curves = order_m_curves(ctx, fluid, EMPTY_CURVE_ORDERS if fluid is None else CURVE_ORDERS)
-        for k, m in enumerate(CURVE_ORDERS):
-            omega, status = curves[m]
+        for m in CURVE_ORDERS:
+            omega, status, jumps = curves[m]
             for i, a in enumerate(alphas):
                 for b in range(CURVE_ROOTS):
                     table.add(coupling=label, lambda_i=SHAPE_STRETCH, voltage=SHAPE_VOLTAGE, m=m,
@@ -625,10 +781,10 @@ def figure_dispersion_order_m(ctx: Context) -> None:
                               phase_velocity=omega[i, b] / a,
                               status=Status(int(status[i, b])).name.lower())
             for b in range(CURVE_ROOTS):
-                ax.plot(alphas, omega[:, b], color=COLORS[k], lw=1.4 - 0.3 * b,
-                        label=f"m = {m}" if b == 0 else None)
+                _plot(ax, alphas, omega[:, b], jumps[:, b], color=ORDER_COLORS[m], lw=1.4 - 0.3 * b,
+                      label=f"m = {m}" if b == 0 else None)
             on_mode = np.isclose(alphas / alpha_1, np.round(alphas / alpha_1))
-            ax.plot(alphas[on_mode], omega[on_mode, 0], "*", color=COLORS[k], ms=5)
+            ax.plot(alphas[on_mode], omega[on_mode, 0], "*", color=ORDER_COLORS[m], ms=5)
         ax.set_ylim(0.0, 1.1 * max(np.nanmax(curves[m][0][:, 1]) for m in CURVE_ORDERS))
         ax.set_title("(a) empty tube" if fluid is None else
                      f"(b) filled, acoustic fluid ρ̂_f = {PAPER_FLUID['density_ratio']}, "
@@ -689,18 +845,30 @@ def figure_comparison(ctx: Context, tables: dict) -> None:
         for row in rows:
             tag = (row["voltage"], row["lambda_i"]) + ((row["n"],) if xname != "n" else ())
             group.setdefault(tag, {}).setdefault(row["coupling"], []).append((row[xname], row["omega"]))
-        for c, (tag, pair) in enumerate(sorted(group.items())):
-            x = np.array([p[0] for p in pair["acoustic"]])
-            w_a = np.array([p[1] for p in pair["acoustic"]])
-            w_p = np.array([p[1] for p in pair["paper"]])
+        for tag, pair in sorted(group.items()):
+            paper = dict(pair["paper"])  # the paper's coupling at integer n only (ν = n)
+            x = np.array([p[0] for p in pair["acoustic"] if p[0] in paper])
+            w_a = np.array([p[1] for p in pair["acoustic"] if p[0] in paper])
+            w_p = np.array([paper[xi] for xi in x])
             rel = np.abs(w_p - w_a) / w_a
             for xi, a, p, r in zip(x, w_a, w_p, rel, strict=True):
                 table.add(panel=xname, voltage=tag[0], lambda_i=tag[1],
                           n=tag[2] if len(tag) > 2 else xi, **({xname: xi} if xname != "n" else {}),
                           omega_acoustic=a, omega_paper=p, relative_difference=r)
-            label = f"V̂={tag[0]}, λi={tag[1]}" + (f", n={tag[2]}" if len(tag) > 2 else "")
-            ax.semilogy(x, rel, marker="o", ms=2.5, color=f"C{c % 10}", label=label)
-        _finish(ax, xlabel, "|Ω_paper − Ω_acoustic| / Ω_acoustic")
+            voltage, li = float(tag[0]), float(tag[1])
+            if len(tag) > 2:  # against ĉ_f: one colour per n, V̂ = 0.15 thin
+                kw = dict(color=MODE_COLORS[int(tag[2])], lw=1.5 if voltage == 0.0 else 0.8)
+            else:  # against n: one colour per V̂
+                kw = dict(color=VOLTAGE_COLORS[voltage], lw=1.3, marker="o", ms=2.5)
+            ax.semilogy(x, rel, ls=_style(None, li), **kw)
+        _finish(ax, xlabel, "|Ω_paper − Ω_acoustic| / Ω_acoustic", legend=False)
+        if xname == "n":
+            voltages = sorted({float(t[0]) for t in group})
+            entries = [(f"V̂={v:g}", dict(color=VOLTAGE_COLORS[v])) for v in voltages]
+        else:
+            entries = [(f"n={n}, V̂=0", dict(color=MODE_COLORS[n], lw=1.5)) for n in MODES]
+            entries += [("V̂=0.15 (thin)", dict(color="0.3", lw=0.8))]
+        _legend_styles(ax, entries + _style_entries((None,), STRETCHES))
     ctx.save(name, fig, table)
 
 

@@ -285,7 +285,7 @@ def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200, slopes: bool = False)
     return (roots, keys, lanes.status) + ((lanes.dfx,) if slopes else ())
 
 
-def iterate_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200) -> Lanes:
+def iterate_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200, with_slope=False) -> Lanes:
     """Iterate all lanes until every one is IDLE; one vectorised (f, f') evaluation per iteration.
 
     BRACKET lanes follow Numerical Recipes' rtsafe (a Newton step that leaves the bracket or does
@@ -309,12 +309,14 @@ def iterate_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200) -> Lanes:
     K·|f/f'| ≤ 0.05; every lane's ``curvature`` ends as the last K it measured (or its prior).
 
     IDLE lanes are evaluated too, at their x (their fx, dfx then hold f, f' there).
+    ``with_slope`` (static): ``fun`` returns (f(x), f'(x)) itself (e.g.
+    :func:`jaxdea.dispersion.value_and_slope_on_wall`) instead of f alone, differentiated forward.
 
     Returns:
         the final lanes: status MAX_ITER where a lane was still running; x, fx, dfx the last
         iterate and f, f' at the last point evaluated.
     """
-    evaluate = jax.vmap(lambda x: value_and_slope(fun, x))
+    evaluate = jax.vmap(fun if with_slope else (lambda x: value_and_slope(fun, x)))
 
     def cond(c):
         lanes, it = c

@@ -367,6 +367,91 @@ def test_stable_characteristic_equals_reference_determinant(fluid):
         assert abs(float(f)) <= 1.0
 
 
+@pytest.mark.parametrize("case", ["coupled", "at_rest_voltage", "acoustic", "paper", "midpoint",
+                                  "thick", "order_m", "torsional"])
+def test_value_and_slope_on_wall_equals_forward_mode(case):
+    """value_and_slope_on_wall (the continuation's lanes) gives the value of characteristic_on_wall
+    ("adaptive", to rounding; the expm reference to 1e-12) and its forward-mode slope, through the
+    coupled 6×6 (8×8, 2×2) propagation or, without voltage, the decoupled 4×4 one."""
+    from jaxdea.dispersion import characteristic_on_wall, electric_decoupled, value_and_slope_on_wall
+    from jaxdea.scalar import value_and_slope
+    from jaxdea.state_matrix import LONGITUDINAL, ORDER_M, TORSIONAL
+
+    tube, fluid, order, layers, m, family = jd.Tube(voltage=0.15, lambda_i=0.95, **PAPER), None, 0, \
+        transfer.Layers(16, "magnus6", graded=True), 0.0, LONGITUDINAL
+    alpha, omegas = 0.89, jnp.linspace(0.05, 4.0, 23)
+    if case == "at_rest_voltage":
+        tube = jd.Tube(voltage=0.0, lambda_i=1.2, lambda_z=1.1, eta=0.7, gent=6.0)
+    elif case == "acoustic":
+        tube, fluid = jd.Tube(voltage=0.0, **PAPER), jd.Fluid()
+    elif case == "paper":
+        tube, fluid, order = jd.Tube(voltage=0.0, **PAPER), jd.Fluid(coupling="paper", bessel_order=1), 1
+    elif case == "midpoint":
+        tube, layers = jd.Tube(voltage=0.0, **PAPER), 30
+    elif case == "thick":  # α̂ĥ ≈ 30: growth e^{α̂ĥ} across the wall, and its Ω-derivative
+        tube, layers, alpha = jd.Tube(voltage=0.0, eta=0.3), transfer.Layers(64, "magnus6", True), 20.0
+    elif case == "order_m":
+        m, family = 2.0, ORDER_M
+    elif case == "torsional":
+        family = TORSIONAL
+    wall = discretize(tube, layers)
+    if family == LONGITUDINAL:
+        assert bool(electric_decoupled(wall, alpha)) == (case != "coupled")
+
+    def on_wall(x, method):
+        return characteristic_on_wall(wall, x, alpha, fluid, order, method, m, family)
+
+    f, df = jax.jit(jax.vmap(lambda o: value_and_slope_on_wall(wall, o, alpha, fluid, order, m,
+                                                                 family)))(omegas)
+    f_ref, df_ref = jax.jit(jax.vmap(lambda o: value_and_slope(lambda x: on_wall(x, "adaptive"),
+                                                               o)))(omegas)
+    f_expm = jax.jit(jax.vmap(lambda o: on_wall(o, "expm")))(omegas)
+    scale = float(jnp.max(jnp.abs(f_ref)))
+    np.testing.assert_allclose(f, f_ref, rtol=0, atol=1e-13 * scale)
+    np.testing.assert_allclose(f, f_expm, rtol=0, atol=1e-12 * scale)
+    # f' = D det(BQ)[BZ] − f tr(QᵀZ): rounding relative to |f'| and to |f| (the two terms)
+    np.testing.assert_allclose(df, df_ref, rtol=1e-11, atol=1e-13 * scale)
+
+
+@pytest.mark.parametrize("case", ["at_rest_voltage", "acoustic", "paper", "thick", "coupled"])
+def test_scale_and_slope_on_wall_equals_forward_mode(case):
+    """The scan's (f, ℓ) with the carried slope (scale_and_slope_on_wall, ℓ' = tr(QᵀZ)) equals
+    characteristic_and_scale ("adaptive") and its forward-mode slope; decoupled=True on a wall that
+    does not decouple gives NaN, never a wrong value."""
+    from jaxdea.dispersion import scale_and_slope_on_wall
+    from jaxdea.scalar import value_and_slope
+
+    tube, fluid, order, layers, alpha = jd.Tube(voltage=0.0, **PAPER), None, 0, \
+        transfer.Layers(16, "magnus6", graded=True), 0.89
+    if case == "at_rest_voltage":
+        tube = jd.Tube(voltage=0.0, lambda_i=1.2, lambda_z=1.1, eta=0.7, gent=6.0)
+    elif case == "acoustic":
+        fluid = jd.Fluid()
+    elif case == "paper":
+        fluid, order = jd.Fluid(coupling="paper", bessel_order=1), 1
+    elif case == "thick":
+        tube, layers, alpha = jd.Tube(voltage=0.0, eta=0.3), transfer.Layers(64, "magnus6", True), 20.0
+    elif case == "coupled":
+        tube = jd.Tube(voltage=0.15, lambda_i=0.95, **PAPER)
+    wall = discretize(tube, layers)
+    omegas = jnp.linspace(0.0, 6.0, 25)
+    ref = jax.jit(jax.vmap(lambda o: value_and_slope(
+        lambda x: characteristic_and_scale(wall, x, alpha, fluid, order, "adaptive"), o)))(omegas)
+    for decoupled in (True, False):
+        got = jax.jit(jax.vmap(lambda o, d=decoupled: value_and_slope(
+            scale_and_slope_on_wall(wall, alpha, fluid, order, d), o)))(omegas)
+        if decoupled and case == "coupled":
+            assert np.all(np.isnan(np.asarray(got[0][0])))
+            continue
+        (f, log_scale), (df, dlog) = got
+        (f_ref, log_ref), (df_ref, dlog_ref) = ref
+        scale = float(jnp.max(jnp.abs(f_ref)))
+        np.testing.assert_allclose(f, f_ref, rtol=0, atol=1e-13 * scale)
+        np.testing.assert_allclose(log_scale, log_ref, rtol=1e-13, atol=1e-12)
+        np.testing.assert_allclose(df, df_ref, rtol=1e-11, atol=1e-13 * scale)
+        np.testing.assert_allclose(dlog, dlog_ref, rtol=1e-11, atol=1e-12)
+
+
 def test_characteristic_stays_finite_for_thick_walls():
     """α̂ĥ ≈ 150: the raw 6×6 product grows like e^{α̂ĥ} (its 3×3 determinant is ~1e190, the
     difference of far larger products: noise), while the scaled function stays in [−1, 1]; the

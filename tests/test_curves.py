@@ -9,7 +9,7 @@ import pytest
 
 import jaxdea as jd
 from jaxdea.curves import PRIOR_AGE, _aged, _extrapolate, _refresh, _track
-from jaxdea.dispersion import characteristic_on_wall
+from jaxdea.dispersion import value_and_slope_on_wall
 from jaxdea.scalar import iterate_lanes, lanes_from_slots
 from jaxdea.transfer import discretize
 
@@ -93,7 +93,7 @@ def test_tangent_predictor_continues_the_first_axial_modes():
 
 def _case(alpha=0.445, n_layers=30):
     wall = discretize(jd.Tube(), n_layers)
-    fun = lambda om: characteristic_on_wall(wall, om, jnp.asarray(alpha), None, 0, "adaptive")  # noqa: E731
+    fun = lambda om: value_and_slope_on_wall(wall, om, jnp.asarray(alpha))  # noqa: E731  (f, f')
     return fun, np.asarray(jd.frequencies(jd.Tube(), alpha, n_roots=4, n_layers=n_layers))
 
 
@@ -311,3 +311,116 @@ def test_expired_curvature_refreshes_every_lane():
     kept_k, kept_age = _aged(jnp.full(3, jnp.nan), k, jnp.array([2, 3, PRIOR_AGE]), False)
     np.testing.assert_array_equal(kept_k, k)
     np.testing.assert_array_equal(kept_age, [3, 4, PRIOR_AGE + 1])
+
+
+# ----------------------------------------------------------------------------- paths of any parameter
+
+
+def test_paths_along_voltage_and_speed_ratio_equal_the_scan_at_every_point():
+    """Curves along V̂ (to V̂_cr, abscissa t with V̂ = V̂_cr(1 − (1 − t)²)), along ĉ_f (log abscissa)
+    and along α̂ through fractional n, packed into one padded path of the figures: each point equals
+    jd.frequencies there (1e-10), most points are continued, the padding stays out."""
+    from jaxdea import figures
+
+    tube = figures.PAPER_TUBE.replace(lambda_i=0.9)
+    fluid = jd.Fluid(density_ratio=0.13, speed_ratio=0.27)
+    n_layers = 12
+    v_cr = float(jd.critical_voltage(tube, jd.axial_wavenumber(tube, 2), fluid, n_layers=n_layers))
+    voltages, t = figures.voltage_path(v_cr, v_cr, 24)
+    speeds = np.geomspace(0.05, 1.5, 20)
+    modes = np.linspace(1.0, 4.0, 13)
+    curves = [(dict(voltage=voltages, lambda_i=0.9, n=2.0, speed_ratio=0.27), t),
+              (dict(voltage=0.1, lambda_i=0.9, n=1.0, speed_ratio=speeds), np.log(speeds)),
+              (dict(voltage=0.0, lambda_i=0.9, n=modes, speed_ratio=0.27), modes)]
+    solved = figures.solve_curves(n_layers, fluid, curves)
+    for (values, _), sol in zip(curves, solved, strict=True):
+        size = len(sol.omega)
+        points = {k: np.broadcast_to(v, size) for k, v in values.items()}
+        reference = []
+        for j in range(size):
+            t_j = tube.replace(voltage=float(points["voltage"][j]))
+            a_j = jd.axial_wavenumber(t_j, float(points["n"][j]))
+            f_j = fluid.replace(speed_ratio=float(points["speed_ratio"][j]))
+            reference.append(float(jd.frequencies(t_j, a_j, f_j, n_roots=1, n_layers=n_layers)[0]))
+        np.testing.assert_allclose(sol.omega, reference, rtol=1e-10)
+        np.testing.assert_allclose(sol.alpha, [jd.axial_wavenumber(tube, n) for n in points["n"]],
+                                   rtol=1e-14)
+        assert np.all(sol.status == jd.Status.CONVERGED) and not sol.jumps.any()
+    assert np.all(np.diff(solved[0].omega[-6:]) < 0)  # falling towards Ω = 0 at V̂_cr
+
+
+def test_path_marks_a_root_that_changes_branch():
+    """Past V̂_cr the lowest root of mode n = 1 is imaginary: along V̂ beyond it the lowest real root
+    is another branch's, found by the scan and marked as a jump (the step before it continues)."""
+    from jaxdea import figures
+
+    tube = figures.PAPER_TUBE.replace(lambda_i=1.1)
+    n_layers = 12
+    v_cr = float(jd.critical_voltage(tube, jd.axial_wavenumber(tube, 1), n_layers=n_layers))
+    voltages = np.linspace(0.0, 1.3 * v_cr, 28)  # no point at V̂_cr itself (a root at Ω = 0)
+    sol, = figures.solve_curves(n_layers, None, [(dict(voltage=voltages, lambda_i=1.1, n=1.0), voltages)])
+    past = voltages >= v_cr
+    first_past = int(np.argmax(past))
+    assert sol.jumps[first_past] and not sol.jumps[:first_past].any()
+    alpha = float(jd.axial_wavenumber(tube, 1))
+    direct = [float(jd.frequencies(tube.replace(voltage=float(v)), alpha, n_roots=1, n_layers=n_layers)[0])
+              for v in voltages[first_past - 1:first_past + 2]]
+    np.testing.assert_allclose(sol.omega[first_past - 1:first_past + 2], direct, rtol=1e-10)
+
+
+def test_paper_coupling_path_takes_the_order_of_each_mode():
+    """The paper's coupling along whole n takes ν = n at each point (every point scanned): the roots
+    of jd.frequencies with Fluid(coupling="paper") (ν = n by default) there."""
+    from jaxdea import figures
+
+    fluid = jd.Fluid(density_ratio=0.13, speed_ratio=0.27, coupling="paper")
+    modes = np.arange(1.0, 5.0)
+    sol, = figures.solve_curves(12, fluid, [(dict(voltage=0.05, lambda_i=0.9, n=modes), modes)])
+    tube = figures.PAPER_TUBE.replace(lambda_i=0.9, voltage=0.05)
+    direct = [float(jd.frequencies(tube, jd.axial_wavenumber(tube, int(n)), fluid, n_roots=1,
+                                   n_layers=12)[0]) for n in modes]
+    np.testing.assert_allclose(sol.omega, direct, rtol=1e-10)
+
+
+def test_critical_voltages_along_a_path_equal_the_search_at_every_point():
+    """V̂_cr by continuation along λ_i (m = 0 and 2) and along fractional n (m = 1): each point is
+    jd.critical_voltage there (1e-11); only the start of each curve is searched from V̂ = 0."""
+    from jaxdea import figures
+
+    n_layers = 12
+    stretches = np.linspace(0.9, 1.3, 9)
+    modes = np.linspace(1.0, 3.0, 9)
+    curves = [(dict(lambda_i=stretches, n=1.0, m=0.0), stretches),
+              (dict(lambda_i=stretches, n=1.0, m=2.0), stretches),
+              (dict(lambda_i=1.0, n=modes, m=1.0), modes)]
+    solved = figures.critical_curves(n_layers, curves)
+    for (values, _), v_cr in zip(curves, solved, strict=True):
+        points = {k: np.broadcast_to(v, len(v_cr)) for k, v in values.items()}
+        direct = []
+        for li, n, m in zip(points["lambda_i"], points["n"], points["m"], strict=True):
+            tube = figures.PAPER_TUBE.replace(lambda_i=float(li))
+            direct.append(float(jd.critical_voltage(tube, jd.axial_wavenumber(tube, float(n)), m=int(m),
+                                                    n_layers=n_layers)))
+        np.testing.assert_allclose(v_cr, direct, rtol=1e-11)
+    grid = figures.critical_voltage_grid(figures.PAPER_TUBE, n_layers, lambda_i=stretches[:3],
+                                         m=np.array([0.0, 2.0]))
+    np.testing.assert_allclose(grid, np.stack([solved[0][:3], solved[1][:3]], axis=1), rtol=1e-11)
+
+
+def test_static_propagation_equals_the_checked_one():
+    """dispersion_curve compiles one propagation, chosen from the concrete voltage (V̂ = 0: the
+    decoupled 4×4 one, lanes and scan; else the 6×6 one): the roots and scanned steps of the program
+    that checks the wall at every point and compiles both."""
+    from jaxdea.curves import curve_unchecked
+    from jaxdea.params import canonical
+    from jaxdea.transfer import laminate
+
+    alphas = np.linspace(0.05, 4.0, 24)
+    layers = laminate(8, "magnus6")
+    checked = jax.jit(lambda t, a: curve_unchecked(t, a, None, 3, layers, 0))
+    for tube in (jd.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, eta=0.85), jd.Tube(voltage=0.15)):
+        curve = jd.dispersion_curve(tube, alphas, n_roots=3, n_layers=8, scheme="magnus6")
+        t, a, _ = canonical(tube, alphas, 0.0)
+        reference = checked(t, a)
+        np.testing.assert_array_equal(np.asarray(curve.scanned), np.asarray(reference.scanned))
+        assert_same_roots(curve, np.asarray(reference.omega))

@@ -1,9 +1,9 @@
 """The main job: ``make_figures`` writes every figure and its CSV; the numbers in the CSVs are those of
 direct solves, blank points are exactly the points past the critical voltage.
 
-The quick run compiles the three sweep programs and the critical-voltage solver (minutes on two
-cores): slow tier. In the default run the paper-reproduction notebook (tests/test_notebooks.py)
-drives the same figure functions in their quick setting."""
+The quick run compiles the continuation programs of the three couplings, of order m and of the
+critical voltage (minutes on two cores): slow tier. In the default run the paper-reproduction
+notebook (tests/test_notebooks.py) drives the same figure functions in their quick setting."""
 
 import csv
 import math
@@ -42,6 +42,38 @@ def test_dispersion_grid_holds_the_axial_modes_of_the_tube():
     np.testing.assert_allclose(grid[::4], modes, rtol=1e-14)
 
 
+def test_styles_say_the_same_thing_in_every_figure():
+    """One line style per (coupling, λ_i), none shared; the colours of the axial modes n are used
+    for nothing else."""
+    stretches = (*figures.STRETCHES, figures.CRITICAL_STRETCH)
+    pairs = [(c, li) for c in (None, "acoustic", "paper") for li in stretches]
+    styles = {(c or "acoustic", li): str(figures._style(c, li)) for c, li in pairs}
+    assert len(set(styles.values())) == 6  # the empty tube draws like the acoustic coupling
+    others = set(figures.ORDER_COLORS) | set(figures.VOLTAGE_COLORS.values())
+    assert not set(figures.MODE_COLORS.values()) & others
+    assert len(set(figures.MODE_COLORS.values())) == len(figures.MODES)
+
+
+def test_a_curve_breaks_only_at_a_branch_change():
+    """The line of :func:`figures._plot` has a gap before each jump, the point after it circled; a
+    jump right after blank points (the curve starts again) is no break."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots()
+    y = np.array([1.0, 1.1, 1.2, 2.0, 2.1, np.nan, 3.0, 3.1])
+    jumps = np.array([False, False, False, True, False, True, True, False])
+    figures._plot(ax, np.arange(8.0), y, jumps)
+    line, *circles = ax.get_lines()
+    np.testing.assert_array_equal(np.isnan(line.get_ydata()), [0, 0, 0, 1, 0, 0, 1, 0, 0])
+    assert len(circles) == 1
+    np.testing.assert_array_equal(circles[0].get_xdata(), [3.0])
+    np.testing.assert_array_equal(circles[0].get_ydata(), [2.0])
+    plt.close(fig)
+
+
 FIG_N = 30  # the figures use the paper's laminate (midpoint, N = 30): their CSV says so
 
 @pytest.fixture(scope="module")
@@ -71,12 +103,14 @@ def test_csv_values_are_direct_solves(written):
     table = rows(out, "fig6_modes_fluid")
     solved = [r for r in table if r["status"] == "converged"]
     assert {r["coupling"] for r in solved} == {"acoustic", "paper"}
-    for r in (solved[0], solved[-1]):
+    fractional = [r for r in solved if not float(r["n"]).is_integer()]
+    assert fractional and {r["coupling"] for r in fractional} == {"acoustic"}  # the paper's: ν = n
+    for r in (solved[0], fractional[len(fractional) // 2], solved[-1]):
         tube = figures.PAPER_TUBE.replace(lambda_i=float(r["lambda_i"]), voltage=float(r["voltage"]))
-        alpha = jd.axial_wavenumber(tube, int(r["n"]))
+        alpha = jd.axial_wavenumber(tube, float(r["n"]))
         fluid = jd.Fluid(**figures.PAPER_FLUID, coupling=r["coupling"])
         direct = float(jd.frequencies(tube, alpha, fluid, n_roots=1, n_layers=FIG_N)[0])
-        assert float(r["alpha_hat"]) == pytest.approx(float(alpha), rel=1e-14)
+        assert float(r["alpha_hat"]) == pytest.approx(float(alpha), rel=1e-11)  # 12 digits in the CSV
         assert float(r["omega"]) == pytest.approx(direct, rel=1e-10)
         assert float(r["phase_velocity"]) == pytest.approx(direct / float(alpha), rel=1e-10)
 
@@ -150,7 +184,7 @@ def test_shaded_voltage_is_the_first_instability(written):
             assert float(r["v_first"]) == pytest.approx(float(first.voltage), rel=1e-10)
             assert (int(r["m_first"]), int(r["n_first"])) == (int(first.m), int(first.n))
         if li in figures.STRETCHES:  # the map's panel (b) holds the whole (m, n) grid
-            grid = [r for r in stability if float(r["lambda_i"]) == li]
+            grid = [r for r in stability if float(r["lambda_i"]) == li and float(r["n"]).is_integer()]
             np.testing.assert_allclose(floats(grid, "v_critical").reshape(len(figures.ORDERS), max_mode),
                                        np.asarray(first.critical), rtol=1e-10)
 
