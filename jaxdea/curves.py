@@ -391,6 +391,19 @@ def _slopes(values, abscissa, starts):
     return jnp.where(jnp.isfinite(dv), dv, 0.0)
 
 
+def _path_points(leaves, abscissa, starts):
+    """(points, moved) of a path: its points for :func:`_follow` (each point's leaves, their
+    slopes d/ds (:func:`_slopes`) and abscissa) and moved(x, s), the leaves of the point x linearly
+    interpolated to the abscissa s (x itself at its own abscissa)."""
+    slopes = jax.tree_util.tree_map(lambda v: _slopes(v, abscissa, starts), leaves)
+
+    def moved(x, s):
+        point, slope, s_point = x
+        return jax.tree_util.tree_map(lambda v, dv: v + (s - s_point) * dv, point, slope)
+
+    return (leaves, slopes, abscissa), moved
+
+
 def path_unchecked(tubes, alphas, fluids, abscissa, starts, orders, n_roots, n_layers, order, m=0.0,
                    family=LONGITUDINAL):
     """The K lowest roots at the M points of a path through parameter space (traceable).
@@ -411,18 +424,16 @@ def path_unchecked(tubes, alphas, fluids, abscissa, starts, orders, n_roots, n_l
     ok &= jnp.isfinite(abscissa)
     ok, m_safe = _family_order(ok, m, fluids, family)
     orders = as_float(orders) if order == "n" else jnp.zeros_like(abscissa)
-    leaves = (tubes, alphas, fluids)
     starts = jnp.asarray(starts, bool)
-    slopes = jax.tree_util.tree_map(lambda v: _slopes(v, abscissa, starts), leaves)
+    points, moved = _path_points((tubes, alphas, fluids), abscissa, starts)
     conservative = fluids is None or fluids.coupling == "acoustic"
 
     def problem(x, s):
-        point, slope, s_point, nu = x
-        tube, a, fluid = jax.tree_util.tree_map(lambda v, dv: v + (s - s_point) * dv, point, slope)
-        return discretize(tube, n_layers), a, fluid, nu if order == "n" else order
+        tube, a, fluid = moved(x[0], s)
+        return discretize(tube, n_layers), a, fluid, x[1] if order == "n" else order
 
-    return _follow(*_omega_problem(problem, n_roots, m_safe, family), (leaves, slopes, abscissa, orders),
-                   abscissa, ok, starts, n_roots, conservative)
+    return _follow(*_omega_problem(problem, n_roots, m_safe, family), (points, orders), abscissa, ok,
+                   starts, n_roots, conservative)
 
 
 _solve_path = cached_jit(path_unchecked, static_argnames=("n_roots", "n_layers", "order", "family"))
@@ -510,13 +521,10 @@ def critical_path_unchecked(tubes, alphas, abscissa, starts, orders, n_layers, f
     ok &= jnp.isfinite(abscissa) & order_m_admissible(orders, None, family)
     orders = jnp.where(ok, orders, 0.0)
     starts = jnp.asarray(starts, bool)
-    leaves = (tubes, alphas)
-    slopes = jax.tree_util.tree_map(lambda v: _slopes(v, abscissa, starts), leaves)
+    points, moved = _path_points((tubes, alphas), abscissa, starts)
 
     def problem(x, s):
-        point, slope, s_point, m = x
-        tube, a = jax.tree_util.tree_map(lambda v, dv: v + (s - s_point) * dv, point, slope)
-        return tube, a, m
+        return (*moved(x[0], s), x[1])
 
     def bounded(x, s):  # g, NaN above the pull-in limit
         tube, a, m = problem(x, s)
@@ -529,8 +537,8 @@ def critical_path_unchecked(tubes, alphas, abscissa, starts, orders, n_layers, f
         return Roots(found.omega[None], found.status[None])
 
     return _follow(lambda x, s: (lambda v: value_and_slope(bounded(x, s), v)),
-                   lambda x, s, v: bounded(x, s)(v), search, (leaves, slopes, abscissa, orders),
-                   abscissa, ok, starts, 1, True)
+                   lambda x, s, v: bounded(x, s)(v), search, (points, orders), abscissa, ok, starts,
+                   1, True)
 
 
 _solve_critical_path = cached_jit(critical_path_unchecked, static_argnames=("n_layers", "family"))

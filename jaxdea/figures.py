@@ -134,13 +134,6 @@ def _fmt(v):
 PATH_POINTS = 256  # points per compiled continuation call: curves are packed into padded paths
 
 
-def _tubes_with(tube: Tube, **leaves) -> Tube:
-    """A flat batch of ``tube`` with the given leaves (arrays of one length) replaced."""
-    size = len(next(iter(leaves.values())))
-    batch = jax.tree_util.tree_map(lambda x: jnp.full(size, x, jnp.float64), tube)
-    return batch.replace(**{k: jnp.asarray(v, jnp.float64) for k, v in leaves.items()})
-
-
 def _packed(curves: list):
     """Curves (values, abscissa) packed into paths of :data:`PATH_POINTS` points: yields (the
     indices of the curves of a path, {name: values (PATH_POINTS,)}, abscissa (NaN-padded), starts).
@@ -325,6 +318,11 @@ def stability_of_paper_tube(n_layers: int, map_stretches, stretches, modes) -> S
     return Stability(np.asarray(map_stretches, float), along_map, grids, modes, curves)
 
 
+def _grid_key(axes: dict) -> tuple:
+    """The key of a grid of critical voltages (:meth:`Context.critical_voltages`)."""
+    return tuple((k, tuple(np.atleast_1d(np.asarray(v, float)).tolist())) for k, v in axes.items())
+
+
 @dataclasses.dataclass
 class Context:
     out: Path
@@ -346,7 +344,7 @@ class Context:
     def critical_voltages(self, **axes) -> np.ndarray:
         """:func:`critical_voltage_grid` of the paper's tube, solved once per grid: V̂_cr does not
         depend on the fluid, so the empty-tube and fluid-filled figures share it."""
-        key = tuple((k, tuple(np.atleast_1d(np.asarray(v, float)).tolist())) for k, v in axes.items())
+        key = _grid_key(axes)
         if key not in self.critical:
             self.critical[key] = critical_voltage_grid(PAPER_TUBE, self.n_layers, **axes)
         return self.critical[key]
@@ -358,6 +356,14 @@ class Context:
             stretches = np.round(np.linspace(*MAP_STRETCH_RANGE, self.res.map_stretches), 12)
             self.stability_of_tube = stability_of_paper_tube(
                 self.n_layers, stretches, STRETCHES + (CRITICAL_STRETCH,), self.res.modes())
+            # its axisymmetric V̂_cr along n are the grids of Figs. 3, 4, 6, 7: not solved twice
+            stab, axisymmetric = self.stability_of_tube, ORDERS.index(0)
+            whole = np.arange(1.0, self.res.max_mode + 1.0)
+            for stretches, modes, rows in ((STRETCHES, stab.modes, stab.curves),
+                                           (STRETCHES, whole, stab.grids),
+                                           ((CRITICAL_STRETCH,), whole, stab.grids)):
+                self.critical[_grid_key(dict(lambda_i=stretches, n=modes))] = np.stack(
+                    [rows[float(li)][axisymmetric] for li in stretches])
         return self.stability_of_tube
 
     def curves_of(self, fluid: Fluid | None, curves: list) -> list[Solved]:
