@@ -55,6 +55,7 @@ import os
 import shutil
 import stat
 import tempfile
+import threading
 import warnings
 import weakref
 from pathlib import Path
@@ -261,6 +262,7 @@ class CachedJit:
         self._signature = inspect.signature(fun)
         self._name = f"{fun.__module__}.{fun.__qualname__}"
         self._calls = {}  # key -> jax.jit of the exported program, this process
+        self._lock, self._key_locks = threading.Lock(), {}  # key -> the lock of its first call
         _PROGRAMS.add(self)
         self.counts = {"loaded": 0, "exported": 0, "stored": 0}  # entries read / traced here / written
         functools.update_wrapper(self, fun)
@@ -336,8 +338,16 @@ class CachedJit:
             return self._jit(*args, **kwargs)
         key, statics, leaves, tree = found
         call = self._calls.get(key)
-        if call is None:
-            call = self._calls[key] = self._program(key, statics, leaves, tree)
+        if call is None:  # threads asking for the same new program: one loads and compiles it
+            with self._lock:
+                key_lock = self._key_locks.setdefault(key, threading.Lock())
+            with key_lock:
+                call = self._calls.get(key)
+                if call is None:
+                    call = self._program(key, statics, leaves, tree)
+                    out = call(*leaves)  # compiled here, under the lock
+                    self._calls[key] = call
+                    return out
         return call(*leaves)
 
 

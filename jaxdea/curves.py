@@ -405,7 +405,7 @@ def _path_points(leaves, abscissa, starts):
 
 
 def path_unchecked(tubes, alphas, fluids, abscissa, starts, orders, n_roots, n_layers, order, m=0.0,
-                   family=LONGITUDINAL):
+                   family=LONGITUDINAL, decoupled=None):
     """The K lowest roots at the M points of a path through parameter space (traceable).
 
     Point j is the tube ``tubes`` (leaves of shape (M,)) at j, α̂ = ``alphas[j]`` and the fluid
@@ -417,7 +417,8 @@ def path_unchecked(tubes, alphas, fluids, abscissa, starts, orders, n_roots, n_l
     midpoint of a halved step, the differences of the tangent). ``order`` (static): the Bessel order of the
     paper's coupling, or ``"n"`` for the traced ``orders`` (M,) of the points (the paper's ν = n;
     every point of that coupling is scanned, so no order is interpolated). Every point gets the
-    roots of :func:`jaxdea.frequencies` there, as on a dispersion curve (module docstring). Returns
+    roots of :func:`jaxdea.frequencies` there, as on a dispersion curve (module docstring).
+    ``decoupled`` (static): the propagations compiled (:func:`_omega_problem`). Returns
     (Ω (M, K), status, scanned, restarted) (:func:`_follow`)."""
     ok, tubes, alphas, fluids = jax.vmap(guard)(tubes, as_float(alphas), fluids)
     abscissa = as_float(abscissa)
@@ -432,11 +433,12 @@ def path_unchecked(tubes, alphas, fluids, abscissa, starts, orders, n_roots, n_l
         tube, a, fluid = moved(x[0], s)
         return discretize(tube, n_layers), a, fluid, x[1] if order == "n" else order
 
-    return _follow(*_omega_problem(problem, n_roots, m_safe, family), (points, orders), abscissa, ok,
-                   starts, n_roots, conservative)
+    return _follow(*_omega_problem(problem, n_roots, m_safe, family, decoupled), (points, orders),
+                   abscissa, ok, starts, n_roots, conservative)
 
 
-_solve_path = cached_jit(path_unchecked, static_argnames=("n_roots", "n_layers", "order", "family"))
+_solve_path = cached_jit(path_unchecked,
+                         static_argnames=("n_roots", "n_layers", "order", "family", "decoupled"))
 
 
 def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,

@@ -40,6 +40,7 @@ import concurrent.futures
 import csv
 import dataclasses
 import math
+import threading
 import time
 from pathlib import Path
 
@@ -249,7 +250,7 @@ def solve_curves(n_layers: int, fluid: Fluid | None, curves: list, base: Tube = 
         args = (*_strong((tubes, alphas, fluids)), jnp.asarray(abscissa), jnp.asarray(starts),
                 jnp.asarray(orders), n_roots, n_layers, "n" if paper else 0)
         if m is None:
-            omega, status, _, restarted = _solve_path(*args)
+            omega, status, _, restarted = _solve_path(*args, decoupled=False)
         else:
             omega, status, _, restarted = _solve_path(*args, jnp.float64(m), ORDER_M)
         omega, status, restarted, alphas = (np.asarray(x) for x in (omega, status, restarted, alphas))
@@ -330,45 +331,70 @@ class Context:
     n_layers: int
     progress: bool
     written: list
-    critical: dict = dataclasses.field(default_factory=dict)
-    stability_of_tube: Stability | None = None
-    curves: dict = dataclasses.field(default_factory=dict)
-    shapes: dict | None = None
-    static: tuple | None = None
+    solved: dict = dataclasses.field(default_factory=dict)  # key: its Future (:meth:`once`)
+    lock: threading.Lock = dataclasses.field(default_factory=threading.Lock)
+    pool: concurrent.futures.Executor | None = None  # :meth:`curves_of`
     since: float = dataclasses.field(default_factory=time.perf_counter)  # when the last figure was saved
 
     def log(self, message: str) -> None:
         if self.progress:
             print(message, flush=True)
 
+    def once(self, key, solve):
+        """``solve()``, computed once per ``key`` by whichever thread asks first; the others wait
+        for that result (:func:`make_figures` solves in two threads)."""
+        with self.lock:
+            future = self.solved.get(key)
+            mine = future is None
+            if mine:
+                future = self.solved[key] = concurrent.futures.Future()
+        if mine:
+            try:
+                future.set_result(solve())
+            except BaseException as error:
+                future.set_exception(error)
+        return future.result()
+
     def critical_voltages(self, **axes) -> np.ndarray:
         """:func:`critical_voltage_grid` of the paper's tube, solved once per grid: V̂_cr does not
-        depend on the fluid, so the empty-tube and fluid-filled figures share it."""
-        key = _grid_key(axes)
-        if key not in self.critical:
-            self.critical[key] = critical_voltage_grid(PAPER_TUBE, self.n_layers, **axes)
-        return self.critical[key]
+        depend on the fluid, so the empty-tube and fluid-filled figures share it. The axisymmetric
+        V̂_cr along n at the λ_i of Figs. 3, 4, 6, 7 are those of :meth:`stability`."""
+        key, grids = _grid_key(axes), self._stability_grids()
+        if key in grids:
+            return grids[key](self.stability())
+        return self.once(("critical", key),
+                         lambda: critical_voltage_grid(PAPER_TUBE, self.n_layers, **axes))
+
+    def _stability_grids(self) -> dict:
+        """{grid key: Stability ↦ the axisymmetric V̂_cr of that grid} of the grids along n that
+        :meth:`stability` solves."""
+        axisymmetric = ORDERS.index(0)
+        whole = np.arange(1.0, self.res.max_mode + 1.0)
+        grids = {}
+        for stretches, modes, rows in ((STRETCHES, self.res.modes(), "curves"),
+                                       (STRETCHES, whole, "grids"),
+                                       ((CRITICAL_STRETCH,), whole, "grids")):
+            grids[_grid_key(dict(lambda_i=stretches, n=modes))] = (
+                lambda stab, stretches=stretches, rows=rows: np.stack(
+                    [getattr(stab, rows)[float(li)][axisymmetric] for li in stretches]))
+        return grids
 
     def stability(self) -> Stability:
         """:func:`stability_of_paper_tube` for the stability map (λ_i over :data:`MAP_STRETCH_RANGE`)
         and the λ_i of Figs. 2–7, solved once."""
-        if self.stability_of_tube is None:
-            stretches = np.round(np.linspace(*MAP_STRETCH_RANGE, self.res.map_stretches), 12)
-            self.stability_of_tube = stability_of_paper_tube(
-                self.n_layers, stretches, STRETCHES + (CRITICAL_STRETCH,), self.res.modes())
-            # its axisymmetric V̂_cr along n are the grids of Figs. 3, 4, 6, 7: not solved twice
-            stab, axisymmetric = self.stability_of_tube, ORDERS.index(0)
-            whole = np.arange(1.0, self.res.max_mode + 1.0)
-            for stretches, modes, rows in ((STRETCHES, stab.modes, stab.curves),
-                                           (STRETCHES, whole, stab.grids),
-                                           ((CRITICAL_STRETCH,), whole, stab.grids)):
-                self.critical[_grid_key(dict(lambda_i=stretches, n=modes))] = np.stack(
-                    [rows[float(li)][axisymmetric] for li in stretches])
-        return self.stability_of_tube
+        stretches = np.round(np.linspace(*MAP_STRETCH_RANGE, self.res.map_stretches), 12)
+        return self.once("stability", lambda: stability_of_paper_tube(
+            self.n_layers, stretches, STRETCHES + (CRITICAL_STRETCH,), self.res.modes()))
 
-    def curves_of(self, fluid: Fluid | None, curves: list) -> list[Solved]:
-        """:func:`solve_curves` of the paper's tube with this laminate."""
-        return solve_curves(self.n_layers, fluid, curves)
+    def curves_of(self, cases: dict, curves) -> dict:
+        """{coupling: :func:`solve_curves` of the paper's tube with this laminate, filled with
+        ``cases[coupling]`` (a fluid or None), along ``curves(coupling)``}, the couplings solved
+        side by side in the threads of ``pool`` (tasks that wait for no other)."""
+        jobs = {c: (fluid, curves(c)) for c, fluid in cases.items()}
+        if self.pool is None:
+            return {c: solve_curves(self.n_layers, *job) for c, job in jobs.items()}
+        futures = {c: self.pool.submit(solve_curves, self.n_layers, *job) for c, job in jobs.items()}
+        return {c: future.result() for c, future in futures.items()}
 
     def save(self, name: str, fig, table: Table) -> None:
         import matplotlib.pyplot as plt
@@ -530,9 +556,10 @@ def figure_voltage(ctx: Context, fluid_filled: bool) -> None:
     table = Table(name)
     keys = [(i, j) for i in range(len(STRETCHES)) for j in range(len(MODES))]
     grids = {key: voltage_path(v_cr[key], v_top, ctx.res.voltages) for key in keys}
-    for coupling, fluid in cases.items():
-        solved = ctx.curves_of(fluid, [(dict(voltage=grids[i, j][0], lambda_i=STRETCHES[i], n=MODES[j]),
-                                        grids[i, j][1]) for i, j in keys])
+    by_coupling = ctx.curves_of(cases, lambda _: [
+        (dict(voltage=grids[i, j][0], lambda_i=STRETCHES[i], n=MODES[j]), grids[i, j][1])
+        for i, j in keys])
+    for coupling, solved in by_coupling.items():
         for (i, j), sol in zip(keys, solved, strict=True):
             li, n, voltages = STRETCHES[i], MODES[j], grids[i, j][0]
             first = _first_columns(stability, li)
@@ -584,11 +611,13 @@ def figure_modes(ctx: Context, fluid_filled: bool, critical_stretch: bool) -> No
     fig, (ax_w, ax_c) = _figure(title=title)
     table = Table(name)
     keys = [(i, j) for i in range(len(stretches)) for j in range(len(voltages))]
-    for coupling, fluid in cases.items():
-        modes = whole if coupling == "paper" else dense
+    modes_of = {c: whole if c == "paper" else dense for c in cases}
+    by_coupling = ctx.curves_of(cases, lambda c: [
+        (dict(voltage=voltages[j], lambda_i=stretches[i], n=modes_of[c]), modes_of[c])
+        for i, j in keys])
+    for coupling, solved in by_coupling.items():
+        modes = modes_of[coupling]
         v_cr = ctx.critical_voltages(lambda_i=stretches, n=modes)
-        solved = ctx.curves_of(fluid, [(dict(voltage=voltages[j], lambda_i=stretches[i], n=modes), modes)
-                                       for i, j in keys])
         for (i, j), sol in zip(keys, solved, strict=True):
             li, v = stretches[i], voltages[j]
             first = _first_columns(stability, li)
@@ -623,27 +652,46 @@ FLUID_AXES = {
 }
 
 
+FLUID_VOLTAGES = (0.0, 0.15)  # V̂ of the panels (a), (b) of Figs. 8–10
+
+
+def _fluid_keys():
+    """(λ_i, V̂, n) indices of the curves of Figs. 8–10."""
+    return [(i, iv, j) for i in range(len(STRETCHES)) for iv in range(len(FLUID_VOLTAGES))
+            for j in range(len(MODES))]
+
+
+def fluid_parameter_curves(ctx: Context, axis: str):
+    """(the grid of ``axis``, V̂_cr (λ_i, grid, n), {coupling: the curves of :func:`_fluid_keys`})
+    of :func:`figure_fluid_parameter`, solved once."""
+    def solve():
+        _, _, (lo, hi), log = FLUID_AXES[axis]
+        k = ctx.res.fluid_points
+        grid = np.geomspace(lo, hi, k) if log else np.linspace(lo, hi, k)
+        abscissa = np.log(grid) if log else grid
+        geometry_axes = {"thickness_ratio": grid} if axis == "thickness_ratio" else {}
+        v_cr = ctx.critical_voltages(lambda_i=STRETCHES, **geometry_axes, n=MODES)
+        if not geometry_axes:  # V̂_cr does not depend on the fluid: broadcast over the fluid axis
+            v_cr = np.broadcast_to(v_cr[:, None, :], (len(STRETCHES), k, len(MODES)))
+        curves = ctx.curves_of(_fluids(), lambda _: [
+            (dict(voltage=FLUID_VOLTAGES[iv], lambda_i=STRETCHES[i], n=MODES[j], **{axis: grid}),
+             abscissa) for i, iv, j in _fluid_keys()])
+        return grid, v_cr, curves
+
+    return ctx.once(("fluid", axis), solve)
+
+
 def figure_fluid_parameter(ctx: Context, axis: str) -> Table:
     """Ω of n = 1, 2, 3 against ĉ_f (Fig. 8), ρ̂_f (Fig. 9) or h/R_i (Fig. 10), (a) V̂ = 0, (b) 0.15:
     continuation along the parameter (its logarithm on a log axis)."""
-    name, xlabel, (lo, hi), log = FLUID_AXES[axis]
+    name, xlabel, _, log = FLUID_AXES[axis]
     ctx.log(f"[{name}] Ω against {axis}")
-    k = ctx.res.fluid_points
-    grid = np.geomspace(lo, hi, k) if log else np.linspace(lo, hi, k)
-    abscissa = np.log(grid) if log else grid
-    voltages = (0.0, 0.15)
-    geometry_axes = {"thickness_ratio": grid} if axis == "thickness_ratio" else {}
-    v_cr = ctx.critical_voltages(lambda_i=STRETCHES, **geometry_axes, n=MODES)
-    if not geometry_axes:  # V̂_cr does not depend on the fluid: broadcast over the fluid axis
-        v_cr = np.broadcast_to(v_cr[:, None, :], (len(STRETCHES), k, len(MODES)))
+    grid, v_cr, curves = fluid_parameter_curves(ctx, axis)
+    voltages = FLUID_VOLTAGES
     fig, panels = _figure(title=f"Fluid-filled tube: lowest frequency of n = 1, 2, 3 against {axis}")
     table = Table(name)
-    keys = [(i, iv, j) for i in range(len(STRETCHES)) for iv in range(len(voltages))
-            for j in range(len(MODES))]
-    for coupling, fluid in _fluids().items():
-        solved = ctx.curves_of(fluid, [(dict(voltage=voltages[iv], lambda_i=STRETCHES[i], n=MODES[j],
-                                             **{axis: grid}), abscissa) for i, iv, j in keys])
-        for (i, iv, j), sol in zip(keys, solved, strict=True):
+    for coupling, solved in curves.items():
+        for (i, iv, j), sol in zip(_fluid_keys(), solved, strict=True):
             li, v, n = STRETCHES[i], voltages[iv], MODES[j]
             omega, past = _mask_past(sol.omega, v, v_cr[i, :, j])
             for x, a, w, st, p, vc in zip(grid, sol.alpha, omega, sol.status, past, v_cr[i, :, j],
@@ -728,22 +776,22 @@ def order_m_curves(ctx: Context, fluid: Fluid | None, orders) -> dict:
     of the tube of :func:`figure_dispersion_order_m`: :func:`solve_curves` of each order
     (continuation along α̂; m traced: one compiled program for every order, the axisymmetric family
     through the order-m system at m = 0), solved once per fluid."""
-    key = (None if fluid is None else fluid.coupling, tuple(orders))
-    if key not in ctx.curves:
+    def solve():
         alphas = dispersion_grid(SHAPE_TUBE, ctx.res.max_mode, ctx.res.curve_steps)
         curves = {}
         for m in orders:
             sol, = solve_curves(ctx.n_layers, fluid, [(dict(alpha=alphas), alphas)], base=SHAPE_TUBE,
                                 n_roots=CURVE_ROOTS, m=m)
             curves[m] = (sol.omega, sol.status, sol.jumps)
-        ctx.curves[key] = curves
-    return ctx.curves[key]
+        return curves
+
+    return ctx.once(("order_m", None if fluid is None else fluid.coupling, tuple(orders)), solve)
 
 
 def cross_section_modes(ctx: Context) -> dict:
     """{m: (Ω, r̂ (P,), fields)} of the lowest mode of each order of :data:`SHAPE_ORDERS` at n = 1,
     α̂ = α̂_1 (:func:`jaxdea.mode_shape` at the root of :func:`order_m_curves`), solved once."""
-    if ctx.shapes is None:
+    def solve():
         curves = order_m_curves(ctx, None, EMPTY_CURVE_ORDERS)
         alpha = float(mode_wavenumber(SHAPE_TUBE, 1.0))
         shapes = {}
@@ -751,18 +799,22 @@ def cross_section_modes(ctx: Context) -> dict:
             omega = float(curves[m][0][0, 0])  # the curve's first α̂ is α̂_1
             r, fields = mode_shape(SHAPE_TUBE, alpha, omega, n_layers=ctx.n_layers, m=m)
             shapes[m] = (omega, np.asarray(r), [np.asarray(x) for x in fields])
-        ctx.shapes = shapes
-    return ctx.shapes
+        return shapes
+
+    return ctx.once("shapes", solve)
 
 
-def solve_order_m(ctx: Context) -> None:
-    """The solves of the last three figures (:func:`order_m_curves` of both fluids,
-    :func:`cross_section_modes`, :func:`static_response`): :func:`make_figures` runs them beside
-    Figs. 2–10 in a second thread (computations only; every figure is drawn in the main thread),
-    so that their programs compile while the first figures are solved and drawn."""
+def solve_beside(ctx: Context) -> None:
+    """The solves of Figs. 8–10 (:func:`fluid_parameter_curves`) and of the last three figures
+    (:func:`order_m_curves` of both fluids, :func:`cross_section_modes`, :func:`static_response`):
+    :func:`make_figures` runs them in a second thread beside Figs. 2–7 (computations only; every
+    figure is drawn in the main thread), which solves what it needs first itself
+    (:meth:`Context.once`): two cores solve and compile at once."""
     order_m_curves(ctx, Fluid(**PAPER_FLUID), CURVE_ORDERS)
     cross_section_modes(ctx)
     static_response(ctx)
+    for axis in FLUID_AXES:
+        fluid_parameter_curves(ctx, axis)
 
 
 def figure_dispersion_order_m(ctx: Context) -> None:
@@ -897,7 +949,7 @@ STATIC_PRESSURES = (-0.05, 0.0, 0.05, 0.1)  # ΔP̂ of the static response
 def static_response(ctx: Context):
     """(λ_i at locking, the λ_i grid, {ΔP̂: (V̂ on the grid, (λ_i, V̂, status) of pull_in)}) of the
     paper's tube (:func:`figure_static_response`), solved once."""
-    if ctx.static is None:
+    def solve():
         tube = PAPER_TUBE
         lock = locking_stretch(tube)
         stretches = np.geomspace(0.6, lock, ctx.res.static_points)
@@ -907,8 +959,9 @@ def static_response(ctx: Context):
             vsq = np.asarray(v2(jnp.asarray(stretches), dp))
             curves[dp] = (np.where(vsq >= 0, np.sqrt(np.abs(vsq)), np.nan),
                           tuple(float(x) for x in pull_in(tube, dp)))
-        ctx.static = (lock, stretches, curves)
-    return ctx.static
+        return lock, stretches, curves
+
+    return ctx.once("static", solve)
 
 
 def figure_static_response(ctx: Context) -> None:
@@ -964,15 +1017,16 @@ def make_figures(out="figures", *, quick: bool = False, progress: bool = True,
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    ctx = Context(out, Resolution.pick(quick), int(n_layers), progress, [])
     start = time.perf_counter()
-    with concurrent.futures.ThreadPoolExecutor(1) as pool:  # :func:`solve_order_m` beside Figs. 2–10
-        order_m = pool.submit(solve_order_m, ctx)
+    with (concurrent.futures.ThreadPoolExecutor(2) as leaves,
+          concurrent.futures.ThreadPoolExecutor(1) as pool):  # :func:`solve_beside` beside Figs. 2–10
+        ctx = Context(out, Resolution.pick(quick), int(n_layers), progress, [], pool=leaves)
+        beside = pool.submit(solve_beside, ctx)
         _paper_figures(ctx)
-        order_m.result()
-    figure_cross_sections(ctx)
-    figure_dispersion_order_m(ctx)
-    figure_static_response(ctx)
+        beside.result()
+        figure_cross_sections(ctx)
+        figure_dispersion_order_m(ctx)
+        figure_static_response(ctx)
     ctx.log(f"{len(ctx.written)} files in {out} ({time.perf_counter() - start:.0f} s)")
     return ctx.written
 

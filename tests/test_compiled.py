@@ -50,6 +50,26 @@ def test_key_separates_static_arguments_and_argument_types(cache):
     assert fun.counts == {"loaded": 0, "exported": 6, "stored": 6}
 
 
+def test_threads_asking_for_a_new_program_export_it_once(cache):
+    """Eight threads calling a new program at once: one exports and compiles it, the others wait
+    for it and get the same values."""
+    import concurrent.futures
+    import threading
+
+    fun = cached_jit(_scaled, static_argnames="n")
+    x, start = jnp.arange(5.0), threading.Barrier(8)
+
+    def call(_):
+        start.wait()
+        return np.asarray(fun(x, 7))
+
+    with concurrent.futures.ThreadPoolExecutor(8) as pool:
+        results = list(pool.map(call, range(8)))
+    for got in results:
+        np.testing.assert_array_equal(got, 7 * np.arange(5.0))
+    assert fun.counts == {"loaded": 0, "exported": 1, "stored": 1} and len(_entries(cache)) == 1
+
+
 def test_private_modes_and_no_pickle(cache):
     """The root and its folder 0700, entries 0600; an entry is the magic line, the SHA-256 of the
     artifact and the artifact (a jax.export flatbuffer, not a pickle)."""

@@ -27,6 +27,31 @@ def test_locking_stretch_is_where_i1_reaches_gent():
     assert float(excess) == pytest.approx(97.2, rel=1e-12)
 
 
+def test_context_solves_each_key_once_for_every_thread(tmp_path):
+    """Threads asking for the same result at once get the one computed by the first of them."""
+    import concurrent.futures
+    import threading
+
+    ctx = figures.Context(tmp_path, figures.Resolution.pick(True), 4, False, [])
+    calls, start = [], threading.Barrier(6)
+
+    def solve():
+        calls.append(1)
+        return object()
+
+    def ask(_):
+        start.wait()
+        return ctx.once("key", solve)
+
+    with concurrent.futures.ThreadPoolExecutor(6) as pool:
+        results = list(pool.map(ask, range(6)))
+    assert len(calls) == 1 and all(r is results[0] for r in results)
+    with pytest.raises(ZeroDivisionError):  # a failure reaches every caller, not a stale value
+        ctx.once("bad", lambda: 1 / 0)
+    with pytest.raises(ZeroDivisionError):
+        ctx.once("bad", lambda: 1.0)
+
+
 def test_lowest_critical_takes_the_smallest_finite_voltage_lowest_order_first():
     grid = np.array([[0.3, np.nan, 0.2], [0.1, 0.4, 0.1], [np.nan, 0.1, 0.5]])
     assert figures.lowest_critical(grid) == (0.1, 1, 1)  # ties: lowest m, then lowest n
