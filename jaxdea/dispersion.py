@@ -161,16 +161,39 @@ def scale_and_slope_on_wall(wall: Wall, alpha, fluid=None, order=0, decoupled=Tr
     forward-mode derivative is that of :func:`value_and_slope_on_wall` (ℓ' = tr(QᵀZ)): the
     function :func:`jaxdea.roots.scan_roots` classifies (as ``Scaled``), on the 4×4 path of a
     decoupled wall 4–5 times cheaper than forward mode through the 6×6 propagation."""
+    return carried_jvp(lambda omega: _longitudinal_value_and_slope(wall, omega, alpha, fluid, order,
+                                                                   decoupled, True))
+
+
+def scale_and_slope_of_w(wall: Wall, alpha, fluid=None, order=0, m=0, family: str = ORDER_M,
+                         variable: str = "omega"):
+    """x ↦ (f, ℓ) of :func:`characteristic_and_scale_of_w` (``"adaptive"``) at w = x²
+    (``variable="omega"``) or w = x (``"omega_squared"``), whose forward-mode derivative is the
+    carried slope of :func:`value_and_slope_on_wall` (ℓ' = tr(QᵀZ)), d/dx by the chain rule
+    through w(x): the order-m and torsional function of :func:`jaxdea.roots.scanned_function`,
+    without forward mode through Gram–Schmidt."""
+    w_of = _squared if variable == "omega" else (lambda x: x)
+    out = outer_conditions(wall, alpha, m, family)
+    generators = wall_generators(wall, alpha, m, family)
+
+    def value_and_slope(x):
+        basis_of = lambda y: initial_basis_of_w(wall, w_of(y), alpha, fluid, order, m, family)  # noqa: E731
+        return _coupled_value_and_slope(basis_of, generators, x, out, True, w_of)
+
+    return carried_jvp(value_and_slope)
+
+
+def carried_jvp(value_and_slope):
+    """x ↦ value_and_slope(x)[0] as a ``jax.custom_jvp`` whose tangent is value_and_slope(x)[1]·ẋ."""
     @jax.custom_jvp
-    def scaled(omega):
-        return _longitudinal_value_and_slope(wall, omega, alpha, fluid, order, decoupled, True)[0]
+    def scaled(x):
+        return value_and_slope(x)[0]
 
     @scaled.defjvp
     def _(primals, tangents):
-        (omega,), (omega_dot,) = primals, tangents
-        value, slope = _longitudinal_value_and_slope(wall, omega, alpha, fluid, order, decoupled,
-                                                     True)
-        return value, jax.tree_util.tree_map(lambda d: d * omega_dot, slope)
+        (x,), (x_dot,) = primals, tangents
+        value, slope = value_and_slope(x)
+        return value, jax.tree_util.tree_map(lambda d: d * x_dot, slope)
 
     return scaled
 
@@ -183,11 +206,16 @@ def electric_decoupled(wall: Wall, alpha):
             & jnp.all(nodes[..., ELECTRIC[:, None], MECHANICAL] == 0))
 
 
-def _exponentials_and_tangents(generators, omega):
-    """T_k = exp(G_k(Ω²)) (the ``"adaptive"`` exponentials) and dT_k/dΩ (forward mode)."""
+def _squared(x):
+    return x * x
+
+
+def _exponentials_and_tangents(generators, omega, w_of=_squared):
+    """T_k = exp(G_k(w)) (the ``"adaptive"`` exponentials) at w = ``w_of``(x) (Ω² of x = Ω by
+    default) and dT_k/dx (forward mode)."""
     def exponentials(om):
         return jax.vmap(EXPONENTIALS["adaptive"])(
-            jax.vmap(generator_of_w, (0, None))(generators, om * om))
+            jax.vmap(generator_of_w, (0, None))(generators, w_of(om)))
 
     return jax.jvp(exponentials, (omega,), (jnp.ones_like(omega),))
 
@@ -198,12 +226,13 @@ def _det_and_slope(rows, rows_dot, q, z):
     return f, f_dot - f * jnp.sum(q * z)
 
 
-def _coupled_value_and_slope(basis_of, generators, omega, out, with_scale=False):
+def _coupled_value_and_slope(basis_of, generators, omega, out, with_scale=False, w_of=_squared):
     """The full propagation (any family): ``out`` the outer rows as a matrix, None for
-    :data:`OUTER_ROWS`; ``with_scale``: ((f, ℓ), (f', ℓ'))."""
+    :data:`OUTER_ROWS`; ``with_scale``: ((f, ℓ), (f', ℓ')); the generators at w = ``w_of``(x) and
+    the slopes d/dx."""
     basis, basis_dot = jax.jvp(basis_of, (omega,), (jnp.ones_like(omega),))
-    q, z, *log_scale = carry_basis_tangent(basis, basis_dot,
-                                           *_exponentials_and_tangents(generators, omega), with_scale)
+    q, z, *log_scale = carry_basis_tangent(
+        basis, basis_dot, *_exponentials_and_tangents(generators, omega, w_of), with_scale)
     rows = (q[OUTER_ROWS, :], z[OUTER_ROWS, :]) if out is None else (out @ q, out @ z)
     f, f_dot = _det_and_slope(*rows, q, z)
     return ((f, *log_scale), (f_dot, jnp.sum(q * z))) if with_scale else (f, f_dot)
@@ -227,6 +256,26 @@ def _decoupled_value_and_slope(basis_of, wall, alpha, omega, with_scale=False):
     if with_scale:  # R is block-diagonal too: ℓ is the sum of the blocks' log-scales
         return (q_d[0, 0] * f, log_scale[0] + log_electric), (q_d[0, 0] * f_dot, jnp.sum(q * z))
     return q_d[0, 0] * f, q_d[0, 0] * f_dot
+
+
+def at_rest_value_and_slope(wall_of, exponentials_of, voltage, alpha, fluid=None, order=0, m=0,
+                            family: str = LONGITUDINAL):
+    """(f, df/dV̂) of :func:`characteristic_at_rest` on the wall ``wall_of``(V̂) with the sublayer
+    exponentials ``exponentials_of``(V̂): f' = D det(B Q)[B Z] − f tr(QᵀZ) with Z carried from the
+    tangents of S and of every T_k (:func:`value_and_slope_on_wall`; B is constant in V̂ in the gauge
+    P̂_o = 0), without forward mode through Gram–Schmidt."""
+    zero = jnp.zeros_like(voltage)
+    if family == LONGITUDINAL:
+        basis_of = lambda v: initial_basis(wall_of(v), zero, alpha, fluid, order)  # noqa: E731
+    else:
+        basis_of = lambda v: initial_basis_of_w(wall_of(v), zero, alpha, fluid, order, m, family)  # noqa: E731
+    one = jnp.ones_like(voltage)
+    basis, basis_dot = jax.jvp(basis_of, (voltage,), (one,))
+    q, z = carry_basis_tangent(basis, basis_dot, *jax.jvp(exponentials_of, (voltage,), (one,)))
+    if family == LONGITUDINAL:
+        return _det_and_slope(q[OUTER_ROWS, :], z[OUTER_ROWS, :], q, z)
+    out = outer_conditions(wall_of(voltage), alpha, m, family)
+    return _det_and_slope(out @ q, out @ z, q, z)
 
 
 def reference_determinant(wall: Wall, omega, alpha, fluid=None, order=0):

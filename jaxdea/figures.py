@@ -550,15 +550,15 @@ def figure_voltage(ctx: Context, fluid_filled: bool) -> None:
     v_cr = ctx.critical_voltages(lambda_i=STRETCHES, n=MODES)
     v_top = float(np.nanmax(v_cr))
     cases = _fluids() if fluid_filled else {None: None}
-    stability = ctx.stability()
-    fig, (ax_w, ax_c) = _figure(title=("Fluid-filled" if fluid_filled else "Fluid-free")
-                                + " tube: lowest frequency of modes n = 1, 2, 3 (λ_z = 1.2)")
-    table = Table(name)
     keys = [(i, j) for i in range(len(STRETCHES)) for j in range(len(MODES))]
     grids = {key: voltage_path(v_cr[key], v_top, ctx.res.voltages) for key in keys}
     by_coupling = ctx.curves_of(cases, lambda _: [
         (dict(voltage=grids[i, j][0], lambda_i=STRETCHES[i], n=MODES[j]), grids[i, j][1])
         for i, j in keys])
+    stability = ctx.stability()
+    fig, (ax_w, ax_c) = _figure(title=("Fluid-filled" if fluid_filled else "Fluid-free")
+                                + " tube: lowest frequency of modes n = 1, 2, 3 (λ_z = 1.2)")
+    table = Table(name)
     for coupling, solved in by_coupling.items():
         for (i, j), sol in zip(keys, solved, strict=True):
             li, n, voltages = STRETCHES[i], MODES[j], grids[i, j][0]
@@ -607,14 +607,14 @@ def figure_modes(ctx: Context, fluid_filled: bool, critical_stretch: bool) -> No
     title = ("Fluid-filled" if fluid_filled else "Fluid-free") + " tube against the mode number"
     if critical_stretch:
         title += f" at λ_i = λ_z^-1/2 ≈ {stretches[0]:.3f}"
-    stability = ctx.stability()
-    fig, (ax_w, ax_c) = _figure(title=title)
-    table = Table(name)
     keys = [(i, j) for i in range(len(stretches)) for j in range(len(voltages))]
     modes_of = {c: whole if c == "paper" else dense for c in cases}
     by_coupling = ctx.curves_of(cases, lambda c: [
         (dict(voltage=voltages[j], lambda_i=stretches[i], n=modes_of[c]), modes_of[c])
         for i, j in keys])
+    stability = ctx.stability()
+    fig, (ax_w, ax_c) = _figure(title=title)
+    table = Table(name)
     for coupling, solved in by_coupling.items():
         modes = modes_of[coupling]
         v_cr = ctx.critical_voltages(lambda_i=stretches, n=modes)
@@ -807,9 +807,9 @@ def cross_section_modes(ctx: Context) -> dict:
 def solve_beside(ctx: Context) -> None:
     """The solves of Figs. 8–10 (:func:`fluid_parameter_curves`) and of the last three figures
     (:func:`order_m_curves` of both fluids, :func:`cross_section_modes`, :func:`static_response`):
-    :func:`make_figures` runs them in a second thread beside Figs. 2–7 (computations only; every
-    figure is drawn in the main thread), which solves what it needs first itself
-    (:meth:`Context.once`): two cores solve and compile at once."""
+    :func:`make_figures` runs them in a thread of their own beside Figs. 2–7, as it does
+    :meth:`Context.stability` (computations only; every figure is drawn in the main thread, which
+    solves what it needs first itself, :meth:`Context.once`): two cores solve and compile at once."""
     order_m_curves(ctx, Fluid(**PAPER_FLUID), CURVE_ORDERS)
     cross_section_modes(ctx)
     static_response(ctx)
@@ -1019,11 +1019,13 @@ def make_figures(out="figures", *, quick: bool = False, progress: bool = True,
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     with (concurrent.futures.ThreadPoolExecutor(2) as leaves,
-          concurrent.futures.ThreadPoolExecutor(1) as pool):  # :func:`solve_beside` beside Figs. 2–10
+          concurrent.futures.ThreadPoolExecutor(2) as pool):
         ctx = Context(out, Resolution.pick(quick), int(n_layers), progress, [], pool=leaves)
-        beside = pool.submit(solve_beside, ctx)
+        # the stability map's critical voltages and :func:`solve_beside`, beside Figs. 2–10
+        started = [pool.submit(ctx.stability), pool.submit(solve_beside, ctx)]
         _paper_figures(ctx)
-        beside.result()
+        for future in started:
+            future.result()
         figure_cross_sections(ctx)
         figure_dispersion_order_m(ctx)
         figure_static_response(ctx)

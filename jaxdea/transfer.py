@@ -868,9 +868,24 @@ def carry_basis(basis, exponentials):
     return q, log_scale
 
 
-TANGENT_UNROLL = 2
-"""Sublayers per iteration of :func:`carry_basis_tangent`'s scan: 2 saved 4–6 % of the benchmark
-curve (section k) for 0.1 s of compile time; 4 saved no more and compiled 1 s longer (measured)."""
+TANGENT_UNROLL = 1
+"""Sublayers per iteration of :func:`carry_basis_tangent`'s scan. 2 saved 4–6 % of the benchmark
+curve (section k), but once the scan's slope was carried too (:func:`jaxdea.roots.scanned_function`)
+it cost 0.3–0.6 s of compilation per copy of f and f' (a first ``frequencies`` at m = 2: 1.8 s),
+for no measurable change of its warm time; 4 saved no more and compiled 1 s longer (measured)."""
+
+
+def _flag_reduced(q, z):
+    """Z − Q·triu(QᵀZ, 1): Z without its components q_i along the columns j > i (Ẏ → Ẏ − Y N with N
+    strictly upper triangular, which leaves the span of every leading set of columns, det(B Y)
+    and its derivative unchanged, and tr(QᵀZ) too). Where the columns of Y grow at very different
+    rates (a thick wall, α̂ĥ ≫ 1) those components grow like the ratios R_ii/R_jj from sublayer to
+    sublayer, and f' = D det(BQ)[BZ] − f tr(QᵀZ) became the difference of huge terms (measured at
+    α̂ĥ = 150: f' wrong in every digit, the scan's roots SUSPECT); what remains,
+    Q̇ + Q (diag + strictly lower part of QᵀZ, transposed), is bounded by |Q̇| and |ℓ'|."""
+    a = jnp.einsum("ni,nj->ij", q, z)  # QᵀZ (k × k)
+    upper = jnp.triu(a, 1)
+    return z - sum(q[:, i : i + 1] * upper[i][None, :] for i in range(q.shape[-1] - 1))
 
 
 def carry_basis_tangent(basis, basis_dot, exponentials, exponentials_dot, with_scale=False):
@@ -890,10 +905,11 @@ def carry_basis_tangent(basis, basis_dot, exponentials, exponentials_dot, with_s
         t, t_dot = t
         q_new, coefficients, norms = _gram_schmidt(matmul_small(t, q))
         w = matmul_small(t_dot, q) + matmul_small(t, z)
-        return (q_new, _right_divide(w, coefficients, norms), log_scale + log_det(norms)), None
+        return (q_new, _flag_reduced(q_new, _right_divide(w, coefficients, norms)),
+                log_scale + log_det(norms)), None
 
     q, coefficients, norms = _gram_schmidt(basis)
-    start = (q, _right_divide(basis_dot, coefficients, norms), log_det(norms))
+    start = (q, _flag_reduced(q, _right_divide(basis_dot, coefficients, norms)), log_det(norms))
     (q, z, log_scale), _ = jax.lax.scan(advance, start, (exponentials, exponentials_dot),
                                         unroll=TANGENT_UNROLL)
     return (q, z, log_scale) if with_scale else (q, z)

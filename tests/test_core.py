@@ -452,6 +452,33 @@ def test_scale_and_slope_on_wall_equals_forward_mode(case):
         np.testing.assert_allclose(dlog, dlog_ref, rtol=1e-11, atol=1e-12)
 
 
+def test_carried_slope_is_forward_mode_on_a_thick_wall():
+    """α̂ĥ ≈ 150, whose basis columns grow at rates e^{±α̂ r} apart: the slope carried across the
+    wall without differentiating Gram–Schmidt (the scan's and the corrector lanes') equals forward
+    mode through the propagation, near the roots too (it lost every digit there before its
+    components along earlier columns were removed at each sublayer)."""
+    from jaxdea.dispersion import scale_and_slope_on_wall
+
+    tube = jd.Tube(eta=0.3)
+    alpha = 150.0 / float(jd.thickness_ratio(tube))
+    wall = discretize(tube, 60)
+    carried = scale_and_slope_on_wall(wall, alpha, decoupled=False)
+
+    @jax.jit
+    def both(om):
+        one = jnp.ones_like(om)
+        forward = jax.jvp(lambda o: characteristic_and_scale(wall, o, alpha, None, 0, "adaptive"),
+                          (om,), (one,))
+        return jax.jvp(carried, (om,), (one,)), forward
+
+    for om in (5.0, 20.0, 61.3996, 61.4698, 64.3028):
+        ((f, log_scale), (df, dlog)), ((f_ref, log_ref), (df_ref, dlog_ref)) = both(om)
+        assert float(f) == pytest.approx(float(f_ref), rel=1e-12, abs=1e-14)
+        assert float(log_scale) == pytest.approx(float(log_ref), rel=1e-13)
+        assert float(df) == pytest.approx(float(df_ref), rel=1e-8, abs=1e-12 * abs(float(df_ref)))
+        assert float(dlog) == pytest.approx(float(dlog_ref), rel=1e-10)
+
+
 def test_characteristic_stays_finite_for_thick_walls():
     """α̂ĥ ≈ 150: the raw 6×6 product grows like e^{α̂ĥ} (its 3×3 determinant is ~1e190, the
     difference of far larger products: noise), while the scaled function stays in [−1, 1]; the

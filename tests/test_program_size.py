@@ -83,3 +83,68 @@ def test_collect_has_no_scatter():
         TUBE, 0.445).as_text()
     signatures = [line for line in text.splitlines() if line.lstrip().startswith("}) : (")]
     assert not [line for line in signatures if f"tensor<{roots.CHUNK}x1xi32>" in line]
+
+
+@pytest.mark.parametrize("case", ["acoustic", "m2_omega", "m2_omega_squared", "torsional"])
+def test_scanned_slope_is_forward_mode(case):
+    """The scan's (f, ℓ) and their carried slopes (f' = D det(B Q)[B Z] − f tr(QᵀZ), ℓ' = tr(QᵀZ),
+    no derivative of Gram–Schmidt) equal characteristic_and_scale(_of_w) ("adaptive") and its
+    forward-mode derivative in x: Ω, or w = Ω² itself for "omega_squared"."""
+    from jaxdea.dispersion import characteristic_and_scale, characteristic_and_scale_of_w
+    from jaxdea.scalar import value_and_slope
+
+    alpha, fluid, m, family, variable = 0.445, None, 0.0, "longitudinal", "omega"
+    x = jnp.linspace(0.0, 6.0, 25)
+    if case == "acoustic":
+        fluid = jd.Fluid(density_ratio=0.13, speed_ratio=0.27)
+    elif case == "torsional":
+        family = "torsional"
+    else:
+        m, family, fluid = 2.0, "order_m", jd.Fluid(density_ratio=0.13, speed_ratio=0.27)
+        if case == "m2_omega_squared":
+            variable, x = "omega_squared", jnp.linspace(-4.0, 30.0, 25)
+    wall = discretize(TUBE, laminate(None, None, TUBE, alpha, 3, m))
+    if family == "longitudinal":
+        def old(y):
+            return characteristic_and_scale(wall, y, alpha, fluid, 0, "adaptive")
+    else:
+        def old(y):
+            w = y if variable == "omega_squared" else y * y
+            return characteristic_and_scale_of_w(wall, w, alpha, fluid, 0, "adaptive", m, family)
+    new = roots.scanned_function(wall, alpha, fluid, 0, m, family, variable).scaled
+    (f, log_scale), (df, dlog) = jax.jit(jax.vmap(lambda y: value_and_slope(new, y)))(x)
+    (f_ref, log_ref), (df_ref, dlog_ref) = jax.jit(jax.vmap(lambda y: value_and_slope(old, y)))(x)
+    scale = float(jnp.max(jnp.abs(f_ref)))
+    np.testing.assert_allclose(f, f_ref, rtol=0, atol=1e-13 * scale)
+    np.testing.assert_allclose(log_scale, log_ref, rtol=1e-13, atol=1e-12)
+    slope = float(jnp.max(jnp.abs(df_ref)))
+    np.testing.assert_allclose(df, df_ref, rtol=1e-11, atol=1e-12 * slope)
+    np.testing.assert_allclose(dlog, dlog_ref, rtol=1e-11, atol=1e-12 * float(jnp.max(jnp.abs(dlog_ref))))
+
+
+@pytest.mark.parametrize("m, family", [(0.0, "longitudinal"), (2.0, "order_m")])
+def test_critical_slope_is_forward_mode(m, family):
+    """g(V̂) = f(Ω = 0; V̂) of the critical-voltage search with its carried slope equals
+    characteristic_at_rest on the wall at V̂ and its forward-mode derivative in V̂."""
+    from jaxdea.dispersion import characteristic_at_rest
+    from jaxdea.scalar import value_and_slope
+    from jaxdea.transfer import voltage_expansion, voltage_exponentials, voltage_generators, wall_at_voltage
+
+    alpha, layers = 0.445, laminate(None, None, TUBE, 0.445, 3, m)
+    v = jnp.linspace(0.0, 0.3, 7)
+
+    def both(v):
+        _, g, v_end = roots.critical_function(TUBE, alpha, None, layers, 0, None, m, family)
+        expansion = voltage_expansion(TUBE.replace(voltage=0.0), layers)
+        generators = voltage_generators(expansion, alpha, m, family, v_end)
+
+        def old(u):
+            return characteristic_at_rest(wall_at_voltage(expansion, u),
+                                          voltage_exponentials(generators, u), alpha, None, 0, m,
+                                          family)
+
+        return value_and_slope(g, v), value_and_slope(old, v)
+
+    (f, df), (f_ref, df_ref) = jax.jit(jax.vmap(both))(v)
+    np.testing.assert_allclose(f, f_ref, rtol=0, atol=1e-13 * float(jnp.max(jnp.abs(f_ref))))
+    np.testing.assert_allclose(df, df_ref, rtol=1e-11, atol=1e-12 * float(jnp.max(jnp.abs(df_ref))))
