@@ -342,7 +342,8 @@ class Context:
 
     def once(self, key, solve):
         """``solve()``, computed once per ``key`` by whichever thread asks first; the others wait
-        for that result (:func:`make_figures` solves in two threads)."""
+        for that result (:func:`make_figures` solves in several threads). A solve may ask for
+        other keys, never for its own (none here waits in a cycle)."""
         with self.lock:
             future = self.solved.get(key)
             mine = future is None

@@ -798,10 +798,15 @@ def orthonormalize(y):
     Q^H Q = I and R_jj = ‖v_j‖ is still real and positive: det R > 0 leaves arg det unchanged.
     """
     q, _, norms = _gram_schmidt(y)
+    return q, _log_det(norms)
+
+
+def _log_det(norms):
+    """log det R = Σ log R_jj from the norms of :func:`_gram_schmidt`."""
     logdet = 0.0
     for norm in norms:
         logdet = logdet + jnp.log(norm)
-    return q, logdet
+    return logdet
 
 
 def _gram_schmidt(y):
@@ -890,7 +895,9 @@ def _flag_reduced(q, z):
 
 def carry_basis_tangent(basis, basis_dot, exponentials, exponentials_dot, with_scale=False):
     """(Q, Z) with Q of :func:`carry_basis` and Z = Ẏ R⁻¹, Ẏ the tangent of the unnormalised
-    Y = T_N ⋯ T_1 · basis = Q R (real arrays; tangents of the basis and of every T_k given).
+    Y = T_N ⋯ T_1 · basis = Q R (real arrays; tangents of the basis and of every T_k given), up to
+    columns of Q added to later columns of Z (:func:`_flag_reduced`, which changes neither
+    det(B Y)' nor tr(QᵀZ)).
 
     Z carries the tangent in the frame of Q, Z_k = (Ṫ_k Q_{k−1} + T_k Z_{k−1}) R_k⁻¹ with the R_k of
     each re-orthonormalisation, so Gram–Schmidt is never differentiated (its forward-mode tangent
@@ -898,7 +905,7 @@ def carry_basis_tangent(basis, basis_dot, exponentials, exponentials_dot, with_s
     turns Z into f'). Q is the same array as :func:`carry_basis` computes. ``with_scale`` (static):
     (Q, Z, log_scale) with the log_scale of :func:`carry_basis` (its slope is tr(QᵀZ))."""
     def log_det(norms):
-        return sum(jnp.log(norm) for norm in norms) if with_scale else 0.0
+        return _log_det(norms) if with_scale else 0.0
 
     def advance(carry, t):
         q, z, log_scale = carry
