@@ -181,18 +181,18 @@ def _positive(s, order, level, count: int = 2):
 
 
 def _rules(s, order):
-    """The quadratures (nodes, sign of s) and, for each element, the index of the one it takes:
-    0 the series (below the switch, or −NEGATIVE_SERIES ≤ s < 0), 1 … len(rules) a trapezoidal
-    rule (the fewest nodes that are exact for F_{ν+1}: x + ν + 2 ≤ K − 12 K^{1/3}), and
-    len(rules) + 1 beyond the largest (NaN). I_ν only needs the largest (x̃ > 90)."""
-    rules = [(nodes, True) for nodes in TIERS] + [(NODES, False)]
+    """For each element, the branch it takes and the level of its rule: branch 0 the series (below
+    the switch, or −NEGATIVE_SERIES ≤ s < 0), 1 Bessel's integral of J_ν on TIERS[level] points
+    (the fewest that are exact for F_{ν+1}: x + ν + 2 ≤ K − 12 K^{1/3}; :func:`_positive`), 2 that
+    of I_ν on NODES points (x̃ > 90, :func:`_negative`), 3 beyond the largest rule (NaN); the
+    level is 0 outside branch 1."""
     small = (jnp.abs(s) <= _switch(order)) | ((s < 0) & (s >= -NEGATIVE_SERIES))
     reach = jnp.sqrt(jnp.abs(s)) + order + 2.0
-    beyond = len(rules) + 1
-    positive_tier = 1 + sum((reach > _tier_limit(nodes)).astype(jnp.int32) for nodes in TIERS)
-    positive_tier = jnp.where(positive_tier > len(TIERS), beyond, positive_tier)
-    negative_tier = jnp.where(reach > _tier_limit(NODES), beyond, len(rules))
-    return rules, jnp.where(small, 0, jnp.where(s > 0, positive_tier, negative_tier))
+    level = sum((reach > _tier_limit(nodes)).astype(jnp.int32) for nodes in TIERS)
+    positive = jnp.where(level < len(TIERS), 1, 3)
+    negative = jnp.where(reach > _tier_limit(NODES), 3, 2)
+    branch = jnp.where(small, 0, jnp.where(s > 0, positive, negative))
+    return branch, jnp.where(branch == 1, level, 0)
 
 
 def _values_of_any_shape(s, order, count: int):
@@ -202,18 +202,15 @@ def _values_of_any_shape(s, order, count: int):
     each quadrature only if some element takes it (``lax.cond``; the series too, whose result XLA
     would otherwise recompute in every fusion that uses it)."""
     shape = jnp.broadcast_shapes(jnp.shape(s), jnp.shape(order))
-    rules, index = _rules(s, order)
+    index, level = _rules(s, order)
     scale = jnp.exp(coupling_log_factor(s))
-    # the positive tiers 1 … len(TIERS) are one branch (:func:`_positive`), each at its level
-    level = jnp.clip(index - 1, 0, len(TIERS) - 1)
-    index = jnp.where(index > len(TIERS), index - len(TIERS) + 1, jnp.minimum(index, 1))
     stand_in = [0.0, 4.0 * _switch(order), -4.0 * _switch(order), 0.0]  # admissible s per branch
 
     def series(s):
         return tuple(jnp.broadcast_to(f * scale, shape) for f in _series(s, order, count))
 
     def positive(s):
-        return _positive(s, order, jnp.where(index == 1, level, 0), count)
+        return _positive(s, order, level, count)
 
     def negative(s):
         return _negative(s, order, count)

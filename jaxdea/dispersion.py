@@ -226,6 +226,12 @@ def _det_and_slope(rows, rows_dot, q, z):
     return f, f_dot - f * jnp.sum(q * z)
 
 
+def _outer_det_and_slope(q, z, out):
+    """:func:`_det_and_slope` at the outer rows B: ``out`` as a matrix, None for :data:`OUTER_ROWS`."""
+    rows = (q[OUTER_ROWS, :], z[OUTER_ROWS, :]) if out is None else (out @ q, out @ z)
+    return _det_and_slope(*rows, q, z)
+
+
 def _coupled_value_and_slope(basis_of, generators, omega, out, with_scale=False, w_of=_squared):
     """The full propagation (any family): ``out`` the outer rows as a matrix, None for
     :data:`OUTER_ROWS`; ``with_scale``: ((f, ℓ), (f', ℓ')); the generators at w = ``w_of``(x) and
@@ -233,8 +239,7 @@ def _coupled_value_and_slope(basis_of, generators, omega, out, with_scale=False,
     basis, basis_dot = jax.jvp(basis_of, (omega,), (jnp.ones_like(omega),))
     q, z, *log_scale = carry_basis_tangent(
         basis, basis_dot, *_exponentials_and_tangents(generators, omega, w_of), with_scale)
-    rows = (q[OUTER_ROWS, :], z[OUTER_ROWS, :]) if out is None else (out @ q, out @ z)
-    f, f_dot = _det_and_slope(*rows, q, z)
+    f, f_dot = _outer_det_and_slope(q, z, out)
     return ((f, *log_scale), (f_dot, jnp.sum(q * z))) if with_scale else (f, f_dot)
 
 
@@ -272,10 +277,8 @@ def at_rest_value_and_slope(wall_of, exponentials_of, voltage, alpha, fluid=None
     one = jnp.ones_like(voltage)
     basis, basis_dot = jax.jvp(basis_of, (voltage,), (one,))
     q, z = carry_basis_tangent(basis, basis_dot, *jax.jvp(exponentials_of, (voltage,), (one,)))
-    if family == LONGITUDINAL:
-        return _det_and_slope(q[OUTER_ROWS, :], z[OUTER_ROWS, :], q, z)
-    out = outer_conditions(wall_of(voltage), alpha, m, family)
-    return _det_and_slope(out @ q, out @ z, q, z)
+    out = None if family == LONGITUDINAL else outer_conditions(wall_of(voltage), alpha, m, family)
+    return _outer_det_and_slope(q, z, out)
 
 
 def reference_determinant(wall: Wall, omega, alpha, fluid=None, order=0):
