@@ -349,6 +349,32 @@ def test_paths_along_voltage_and_speed_ratio_equal_the_scan_at_every_point():
     assert np.all(np.diff(solved[0].omega[-6:]) < 0)  # falling towards Ω = 0 at V̂_cr
 
 
+def test_empty_tube_paths_run_on_the_acoustic_program_and_equal_the_empty_tube():
+    """The figures solve the empty tube as a massless acoustic fluid (figures.MASSLESS_FLUID): no
+    program of its own is compiled, and every root equals jd.frequencies of the empty tube
+    (1e-11: the fluid's column scale D_0 > 0 is taken out by the orthonormalisation)."""
+    from jaxdea import figures
+    from jaxdea.curves import _solve_path
+
+    tube = figures.PAPER_TUBE.replace(lambda_i=0.9)
+    n_layers = 12
+    voltages = np.linspace(0.0, 0.025, 9)
+    modes = np.linspace(1.0, 3.0, 9)
+    curves = [(dict(voltage=voltages, lambda_i=0.9, n=2.0), voltages),
+              (dict(voltage=0.01, lambda_i=0.9, n=modes), modes)]
+    figures.solve_curves(n_layers, jd.Fluid(), curves[:1])  # the acoustic coupling's program
+    programs = _solve_path._cache_size()
+    solved = figures.solve_curves(n_layers, None, curves)
+    assert _solve_path._cache_size() == programs
+    for (values, _), sol in zip(curves, solved, strict=True):
+        points = {k: np.broadcast_to(v, len(sol.omega)) for k, v in values.items()}
+        reference = [float(jd.frequencies(tube.replace(voltage=float(v)), jd.axial_wavenumber(tube, float(n)),
+                                          n_roots=1, n_layers=n_layers)[0])
+                     for v, n in zip(points["voltage"], points["n"], strict=True)]
+        np.testing.assert_allclose(sol.omega, reference, rtol=1e-11)
+        assert np.all(sol.status == jd.Status.CONVERGED)
+
+
 def test_path_marks_a_root_that_changes_branch():
     """Past V̂_cr the lowest root of mode n = 1 is imaginary: along V̂ beyond it the lowest real root
     is another branch's, found by the scan and marked as a jump (the step before it continues)."""
