@@ -814,8 +814,10 @@ def _gram_schmidt(y):
     Σ_{i<j} R_ij q_i + R_jj q_j with R_ij the sum of the coefficients of both passes."""
     conj = jnp.conj if jnp.iscomplexobj(y) else (lambda u: u)  # real Y: the real path
 
-    def inner(u, v):  # u^H v as an explicit sum: elementwise, fused by XLA under vmap
-        return sum(conj(u[i]) * v[i] for i in range(u.shape[0]))
+    def inner(u, v):  # u^H v as one reduction: the explicit sum of n products (slices, squeezes,
+        # products, additions) held half of the operations of a value-and-slope and compiled
+        # 20 % longer, for code that ran 0-15 % slower (first m = 2 frequencies 5.9 -> 4.6 s)
+        return jnp.sum(conj(u) * v, axis=0)
 
     cols, coefficients, norms = [], [], []
     for j in range(y.shape[-1]):
