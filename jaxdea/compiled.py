@@ -393,7 +393,8 @@ def jit(fun=None, **kwargs):
     ``@jit(static_argnames=...)``).
 
     A caller's own ``jax.jit`` around jaxdea functions compiles with the caller's options: pass
-    ``compiler_options=jaxdea.compiled.compiler_options()`` to it for the same compile times."""
+    ``compiler_options=jaxdea.compiled.compiler_options()`` to it for the same compile times and the
+    same bits (under other options XLA may fuse reductions differently: equal to rounding)."""
     if fun is None:
         return functools.partial(jit, **kwargs)
     return Jitted(fun, **kwargs)
