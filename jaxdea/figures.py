@@ -229,8 +229,8 @@ class Solved:
 
 MASSLESS_FLUID = Fluid(density_ratio=1e-30, speed_ratio=1e6)
 """The empty tube's curves are solved as filled with this acoustic fluid, so that the empty tube and
-the acoustic coupling share one compiled program per curve family (two programs fewer to compile,
-about a sixth of a cold ``jaxdea figures``, and to load when warm). It is the empty tube to
+the acoustic coupling share one compiled program per curve family (two programs fewer to compile
+and to load: a cold ``jaxdea figures`` took 96 CPU s instead of 126, measured). It is the empty tube to
 rounding: the coupling scales the basis column ū_i by D_0(s) > 0 (s = χ̂²r̂_i² < 0, no fluid
 resonance) and adds Ω²ρ̂_f r̂_i N_0 e_T, 1e-25 of it here, and the orthonormalisation takes the scale
 out; at ĉ_f = 1e6 the fluid's cutoff ĉ_fα̂ and step π ĉ_f/r̂_i lie far above the wall's, so the scan
