@@ -131,9 +131,7 @@ def value_and_slope_on_wall(wall: Wall, omega, alpha, fluid=None, order=0, m=0,
     wall does not decouple), None checks the wall."""
     if family == LONGITUDINAL:
         return _longitudinal_value_and_slope(wall, omega, alpha, fluid, order, decoupled)
-    basis_of = lambda om: initial_basis_of_w(wall, om * om, alpha, fluid, order, m, family)  # noqa: E731
-    out = outer_conditions(wall, alpha, m, family)
-    return _coupled_value_and_slope(basis_of, wall_generators(wall, alpha, m, family), omega, out)
+    return _value_and_slope_of_w(wall, alpha, fluid, order, m, family)(omega)
 
 
 def _longitudinal_value_and_slope(wall, omega, alpha, fluid, order, decoupled, with_scale=False):
@@ -173,14 +171,22 @@ def scale_and_slope_of_w(wall: Wall, alpha, fluid=None, order=0, m=0, family: st
     through w(x): the order-m and torsional function of :func:`jaxdea.roots.scanned_function`,
     without forward mode through Gram–Schmidt."""
     w_of = _squared if variable == "omega" else (lambda x: x)
+    return carried_jvp(_value_and_slope_of_w(wall, alpha, fluid, order, m, family, w_of, True))
+
+
+def _value_and_slope_of_w(wall, alpha, fluid, order, m, family, w_of=None, with_scale=False):
+    """x ↦ (f, f') of the order-m or torsional family at w = ``w_of``(x) (Ω² of x = Ω by default;
+    ``with_scale``: ((f, ℓ), (f', ℓ'))), the outer rows and the generators formed once
+    (:func:`_coupled_value_and_slope`)."""
+    w_of = _squared if w_of is None else w_of
     out = outer_conditions(wall, alpha, m, family)
     generators = wall_generators(wall, alpha, m, family)
 
     def value_and_slope(x):
         basis_of = lambda y: initial_basis_of_w(wall, w_of(y), alpha, fluid, order, m, family)  # noqa: E731
-        return _coupled_value_and_slope(basis_of, generators, x, out, True, w_of)
+        return _coupled_value_and_slope(basis_of, generators, x, out, with_scale, w_of)
 
-    return carried_jvp(value_and_slope)
+    return value_and_slope
 
 
 def carried_jvp(value_and_slope):
