@@ -65,7 +65,11 @@ history, loops), so the time is ≈ (evaluations) × (one evaluation) plus the s
 (≈ 4 ms there). The lanes take (f, f') from :func:`jaxdea.dispersion.value_and_slope_on_wall`:
 the slope without differentiating Gram–Schmidt, and at V̂ = 0 through the 4×4 mechanical block
 alone (the electric one decouples); one (f, f') of the 5 lanes on that wall (N = 16) costs
-≈ 0.05–0.07 ms instead of 0.3 by forward mode through the 6×6 propagation.
+≈ 0.05–0.07 ms instead of 0.3 by forward mode through the 6×6 propagation. The generators of a
+curve's wall (one tube) are formed once, as polynomials in α̂
+(:func:`jaxdea.dispersion.generator_polynomials`): forming them at every step from the state
+matrices cost about as much as the lanes' evaluations there (the benchmark's curve 24.5–25.8 →
+18.6–19.9 ms, measured side by side).
 :func:`dispersion_curve` compiles one of the two propagations, chosen from the concrete V̂
 (``decoupled``, :func:`_omega_problem`): at V̂ = 0 the scan of the first α̂ runs on the 4×4 one
 too (the log-scale's slope is tr(QᵀZ)), and the program compiles faster than one holding both.
@@ -91,6 +95,8 @@ import numpy as np
 from .compiled import cached_jit, serializable
 from .dispersion import (
     characteristic_on_wall,
+    generator_polynomials,
+    lane_generators,
     order_m_admissible,
     value_and_slope_on_wall,
 )
@@ -219,13 +225,15 @@ def _track(fun, pred, curvature=None):
     return omega, ok, jnp.where(measured, lanes.curvature[:k], jnp.nan)
 
 
-def _omega_problem(problem, n_roots, m_safe, family, decoupled=None):
+def _omega_problem(problem, n_roots, m_safe, family, decoupled=None, polys=None):
     """The callables of :func:`_follow` for the K lowest roots in Ω of ``problem(x, s)`` = (wall, α̂,
     fluid, Bessel order) at abscissa s near the point x of a path: (f, f') for the corrector lanes,
     f itself (the tangent's differences) and the guaranteed scan. ``decoupled`` (static,
     longitudinal): True where every wall is known to decouple (V̂ = 0): lanes and scan then take
     the 4×4 propagation alone (:func:`jaxdea.dispersion.value_and_slope_on_wall`); False: the 6×6
-    one alone; None: checked at each point (both compiled)."""
+    one alone; None: checked at each point (both compiled). ``polys``: the lanes' generators as
+    polynomials in α̂ (:func:`jaxdea.dispersion.generator_polynomials`), where every point has the
+    same wall (a dispersion curve of one tube); None: formed from each point's wall."""
     def value(x, s, om):
         wall, a, fluid, order = problem(x, s)
         if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
@@ -234,15 +242,18 @@ def _omega_problem(problem, n_roots, m_safe, family, decoupled=None):
 
     def at(x, s):  # (f, f') for the corrector lanes
         wall, a, fluid, order = problem(x, s)
+        generators = None if polys is None else lane_generators(polys, a)
         return lambda om: value_and_slope_on_wall(wall, om, a, fluid, order, m_safe, family,
-                                                  decoupled)
+                                                  decoupled, generators)
 
     def search(x, s):
         # the unnormalised determinant and, for the paper's coupling, points at its poles
         # (:func:`jaxdea.roots.scanned_function`, :func:`jaxdea.roots.pole_steps`)
         # (on a decoupled wall the 4×4 propagation: the first α̂'s scan 4× cheaper)
         wall, a, fluid, order = problem(x, s)
-        fun = scanned_function(wall, a, fluid, order, m_safe, family, decoupled=bool(decoupled))
+        generators = None if polys is None else lane_generators(polys, a)
+        fun = scanned_function(wall, a, fluid, order, m_safe, family, decoupled=bool(decoupled),
+                               generators=generators)
         return scan_roots(wall, fun, a, fluid, None, n_roots, m_safe, family, order=order)
 
     return at, value, search
@@ -364,8 +375,11 @@ def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order, m=0.0,
     ok_alpha = ok_tube & jnp.isfinite(alpha) & (alpha >= ALPHA_MIN)
     wall = discretize(tube, n_layers)
     conservative = fluid is None or fluid.coupling == "acoustic"
+    # the wall is the same at every α̂: the lanes' generators as polynomials in α̂, formed once
+    # (the state matrices and the scheme's products at every step cost as much as the lanes' evaluation)
+    polys = generator_polynomials(wall, m_safe, family, decoupled)
     callables = _omega_problem(lambda _, a: (wall, a, fluid, order), n_roots, m_safe, family,
-                               decoupled)
+                               decoupled, polys)
     omega, status, scanned, _ = _follow(*callables, alpha, alpha, ok_alpha, jnp.zeros(alpha.shape, bool),
                                         n_roots, conservative)
     return Curve(alpha, omega, status, scanned)

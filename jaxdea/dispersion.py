@@ -47,10 +47,12 @@ from .state_matrix import LONGITUDINAL, ORDER_M, TORSIONAL
 from .transfer import (
     EXPONENTIALS,
     Wall,
+    alpha_generators,
     carry_basis,
     carry_basis_tangent,
     discretize,
     generator_of_w,
+    generators_at_alpha,
     laminate,
     node_matrices,
     propagate_basis,
@@ -115,7 +117,7 @@ def characteristic_on_wall(wall: Wall, omega, alpha, fluid=None, order=0, method
 
 
 def value_and_slope_on_wall(wall: Wall, omega, alpha, fluid=None, order=0, m=0,
-                            family=LONGITUDINAL, decoupled=None):
+                            family=LONGITUDINAL, decoupled=None, generators=None):
     """(f, df/dΩ) at a real Ω: f of :func:`characteristic_on_wall` with ``method="adaptive"``,
     f' without forward mode through the propagation (the corrector lanes of
     :func:`jaxdea.curves.dispersion_curve`; forward mode through Gram–Schmidt cost 3–4 values).
@@ -128,23 +130,50 @@ def value_and_slope_on_wall(wall: Wall, omega, alpha, fluid=None, order=0, m=0,
     (:func:`electric_decoupled`, a ``lax.cond``), take the 4×4 mechanical propagation with a 4×2
     basis (:func:`_decoupled_value_and_slope`): f to rounding, 4–5 times faster. ``decoupled``
     (static, longitudinal only): True or False compiles that propagation alone (True: NaN where the
-    wall does not decouple), None checks the wall."""
+    wall does not decouple), None checks the wall. ``generators``: those of :func:`lane_generators`
+    at this α̂ (formed from the wall if None)."""
     if family == LONGITUDINAL:
-        return _longitudinal_value_and_slope(wall, omega, alpha, fluid, order, decoupled)
-    return _value_and_slope_of_w(wall, alpha, fluid, order, m, family)(omega)
+        return _longitudinal_value_and_slope(wall, omega, alpha, fluid, order, decoupled,
+                                             generators=generators)
+    full = None if generators is None else generators["full"]
+    return _value_and_slope_of_w(wall, alpha, fluid, order, m, family, generators=full)(omega)
 
 
-def _longitudinal_value_and_slope(wall, omega, alpha, fluid, order, decoupled, with_scale=False):
+def generator_polynomials(wall: Wall, m=0, family=LONGITUDINAL, decoupled=None) -> dict:
+    """The generators that :func:`value_and_slope_on_wall` forms from a wall, as polynomials in α̂
+    (:func:`jaxdea.transfer.alpha_generators`): ``"full"``, those of the whole state (order m,
+    torsion, and a longitudinal wall unless ``decoupled`` is True), and ``"mechanical"``,
+    ``"electric"`` (at rest), those of the blocks of a decoupled longitudinal wall (unless
+    ``decoupled`` is False). :func:`lane_generators` evaluates them at one α̂."""
+    if family != LONGITUDINAL:
+        return {"full": alpha_generators(wall, m, family)}
+    polys = {}
+    if decoupled is None or decoupled:
+        polys["mechanical"] = alpha_generators(wall, block=tuple(MECHANICAL))
+        polys["electric"] = alpha_generators(wall, at_rest=True, block=tuple(ELECTRIC))
+    if not decoupled:
+        polys["full"] = alpha_generators(wall)
+    return polys
+
+
+def lane_generators(polys: dict, alpha) -> dict:
+    """The generators of :func:`generator_polynomials` at α̂ (the ``generators`` argument of
+    :func:`value_and_slope_on_wall`): equal to those formed from the wall, to rounding."""
+    return {k: generators_at_alpha(p, alpha) for k, p in polys.items()}
+
+
+def _longitudinal_value_and_slope(wall, omega, alpha, fluid, order, decoupled, with_scale=False,
+                                  generators=None):
     """:func:`value_and_slope_on_wall` of the longitudinal family (``with_scale``: of (f, ℓ), the
     log-scale of :func:`characteristic_and_scale`, whose slope is tr(QᵀZ))."""
     basis_of = lambda om: initial_basis(wall, om, alpha, fluid, order)  # noqa: E731
 
     def split():
-        return _decoupled_value_and_slope(basis_of, wall, alpha, omega, with_scale)
+        return _decoupled_value_and_slope(basis_of, wall, alpha, omega, with_scale, generators)
 
     def full():
-        return _coupled_value_and_slope(basis_of, wall_generators(wall, alpha), omega, None,
-                                        with_scale)
+        gens = wall_generators(wall, alpha) if generators is None else generators["full"]
+        return _coupled_value_and_slope(basis_of, gens, omega, None, with_scale)
 
     if decoupled is None:
         return jax.lax.cond(electric_decoupled(wall, alpha), split, full)
@@ -154,33 +183,40 @@ def _longitudinal_value_and_slope(wall, omega, alpha, fluid, order, decoupled, w
     return jax.tree_util.tree_map(lambda v: jnp.where(ok, v, jnp.nan), split())
 
 
-def scale_and_slope_on_wall(wall: Wall, alpha, fluid=None, order=0, decoupled=True):
+def scale_and_slope_on_wall(wall: Wall, alpha, fluid=None, order=0, decoupled=True,
+                            generators=None):
     """Ω ↦ (f, ℓ) of :func:`characteristic_and_scale` (longitudinal, ``"adaptive"``) whose
     forward-mode derivative is that of :func:`value_and_slope_on_wall` (ℓ' = tr(QᵀZ)): the
     function :func:`jaxdea.roots.scan_roots` classifies (as ``Scaled``), on the 4×4 path of a
-    decoupled wall 4–5 times cheaper than forward mode through the 6×6 propagation."""
+    decoupled wall 4–5 times cheaper than forward mode through the 6×6 propagation.
+    ``generators``: as for :func:`value_and_slope_on_wall`."""
     return carried_jvp(lambda omega: _longitudinal_value_and_slope(wall, omega, alpha, fluid, order,
-                                                                   decoupled, True))
+                                                                   decoupled, True, generators))
 
 
 def scale_and_slope_of_w(wall: Wall, alpha, fluid=None, order=0, m=0, family: str = ORDER_M,
-                         variable: str = "omega"):
+                         variable: str = "omega", generators=None):
     """x ↦ (f, ℓ) of :func:`characteristic_and_scale_of_w` (``"adaptive"``) at w = x²
     (``variable="omega"``) or w = x (``"omega_squared"``), whose forward-mode derivative is the
     carried slope of :func:`value_and_slope_on_wall` (ℓ' = tr(QᵀZ)), d/dx by the chain rule
     through w(x): the order-m and torsional function of :func:`jaxdea.roots.scanned_function`,
-    without forward mode through Gram–Schmidt."""
+    without forward mode through Gram–Schmidt. ``generators``: as for
+    :func:`value_and_slope_on_wall`."""
     w_of = _squared if variable == "omega" else (lambda x: x)
-    return carried_jvp(_value_and_slope_of_w(wall, alpha, fluid, order, m, family, w_of, True))
+    full = None if generators is None else generators["full"]
+    return carried_jvp(_value_and_slope_of_w(wall, alpha, fluid, order, m, family, w_of, True,
+                                             full))
 
 
-def _value_and_slope_of_w(wall, alpha, fluid, order, m, family, w_of=None, with_scale=False):
+def _value_and_slope_of_w(wall, alpha, fluid, order, m, family, w_of=None, with_scale=False,
+                          generators=None):
     """x ↦ (f, f') of the order-m or torsional family at w = ``w_of``(x) (Ω² of x = Ω by default;
     ``with_scale``: ((f, ℓ), (f', ℓ'))), the outer rows and the generators formed once
-    (:func:`_coupled_value_and_slope`)."""
+    (:func:`_coupled_value_and_slope`; ``generators`` given: those)."""
     w_of = _squared if w_of is None else w_of
     out = outer_conditions(wall, alpha, m, family)
-    generators = wall_generators(wall, alpha, m, family)
+    if generators is None:
+        generators = wall_generators(wall, alpha, m, family)
 
     def value_and_slope(x):
         basis_of = lambda y: initial_basis_of_w(wall, w_of(y), alpha, fluid, order, m, family)  # noqa: E731
@@ -249,19 +285,23 @@ def _coupled_value_and_slope(basis_of, generators, omega, out, with_scale=False,
     return ((f, *log_scale), (f_dot, jnp.sum(q * z))) if with_scale else (f, f_dot)
 
 
-def _decoupled_value_and_slope(basis_of, wall, alpha, omega, with_scale=False):
+def _decoupled_value_and_slope(basis_of, wall, alpha, omega, with_scale=False, generators=None):
     """f = q_Φ det(Q_m[T, S]) on a longitudinal wall whose state matrices are block-diagonal in
     (U, W, T, S) and (Φ, D) (so are E and every generator, exactly): Q_m from the 4×4 mechanical
     propagation of the basis columns ū, w̄, q from the electric one of the column D̄ (Ω-free: its
     block holds no inertia). The 6×3 Gram–Schmidt of the block-diagonal Y is that of its blocks,
     and det(B Q) = q_Φ (Q_T,ū Q_S,w̄ − Q_T,w̄ Q_S,ū), so f is the same to rounding, from
-    exponentials of 4×4 instead of 6×6 matrices (3.4 times fewer products)."""
+    exponentials of 4×4 instead of 6×6 matrices (3.4 times fewer products). ``generators``: those
+    of :func:`lane_generators` (formed from the wall if None)."""
     basis, basis_dot = jax.jvp(basis_of, (omega,), (jnp.ones_like(omega),))
-    block = wall_generators(wall, alpha, block=tuple(MECHANICAL))
+    if generators is None:
+        block = wall_generators(wall, alpha, block=tuple(MECHANICAL))
+        electric = wall_generators(wall, alpha, at_rest=True, block=tuple(ELECTRIC))
+    else:
+        block, electric = generators["mechanical"], generators["electric"]
     q, z, *log_scale = carry_basis_tangent(basis[MECHANICAL, :2], basis_dot[MECHANICAL, :2],
                                            *_exponentials_and_tangents(block, omega), with_scale)
-    electric = jax.vmap(EXPONENTIALS["adaptive"])(
-        wall_generators(wall, alpha, at_rest=True, block=tuple(ELECTRIC))[:, 0])
+    electric = jax.vmap(EXPONENTIALS["adaptive"])(electric[:, 0])
     q_d, log_electric = carry_basis(basis[ELECTRIC, 2:], electric)
     f, f_dot = _det_and_slope(q[2:], z[2:], q, z)  # rows T, S of (U, W, T, S)
     if with_scale:  # R is block-diagonal too: ℓ is the sum of the blocks' log-scales

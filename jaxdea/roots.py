@@ -275,7 +275,8 @@ def pole_steps(next_point, poles, widths):
 
 
 def scanned_function(wall: Wall, alpha, fluid: Fluid | None, order: int, m=0.0,
-                     family: str = LONGITUDINAL, variable: str = "omega", decoupled: bool = False):
+                     family: str = LONGITUDINAL, variable: str = "omega", decoupled: bool = False,
+                     generators=None):
     """g = det(B A S)·e^{−ℓ₀}: the characteristic determinant, unnormalised, that the scan classifies.
 
     det(B A S) = f e^ℓ with f = det(B Q_N) and ℓ the log-volume of the propagated basis
@@ -291,6 +292,7 @@ def scanned_function(wall: Wall, alpha, fluid: Fluid | None, order: int, m=0.0,
     or ``"omega_squared"`` (g(w), w = Ω² of either sign; order m and torsional families only).
     ``decoupled`` (static, longitudinal): the 4×4 mechanical propagation of a wall whose electric
     block decouples (NaN where it does not, :func:`jaxdea.dispersion.value_and_slope_on_wall`).
+    ``generators``: the wall's generators at α̂ if already formed (:func:`jaxdea.dispersion.lane_generators`).
 
     Returns a :class:`Scaled` (x ↦ (f, ℓ)): the scan takes ℓ₀ from its own first point, x = 0,
     instead of a separate evaluation of f at 0 (:func:`_scan_for_roots`). Its forward-mode slope
@@ -302,10 +304,10 @@ def scanned_function(wall: Wall, alpha, fluid: Fluid | None, order: int, m=0.0,
     acoustic 9.0 → 8.1).
     """
     if family == LONGITUDINAL and variable == "omega":
-        return Scaled(scale_and_slope_on_wall(wall, alpha, fluid, order, decoupled))
+        return Scaled(scale_and_slope_on_wall(wall, alpha, fluid, order, decoupled, generators))
     ok = order_m_admissible(m, fluid, family)
     m_safe = jnp.where(ok, as_float(m), 0.0) if family == ORDER_M else 0
-    carried = scale_and_slope_of_w(wall, alpha, fluid, order, m_safe, family, variable)
+    carried = scale_and_slope_of_w(wall, alpha, fluid, order, m_safe, family, variable, generators)
 
     def scaled(x):
         f, log_scale = carried(x)
