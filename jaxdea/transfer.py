@@ -739,16 +739,13 @@ def wall_generators(wall: Wall, alpha, m=0, family=LONGITUDINAL, at_rest: bool =
         wall.step, wall.coef, wall.radii, alpha, m)
 
 
-ALPHA_DEGREE = 2
-"""Degree in α̂ of every family's state matrix at a fixed wall (the α̂ and α̂² = k² − m²/r̂² terms)."""
-
-
 def alpha_generators(wall: Wall, m=0, family=LONGITUDINAL, at_rest: bool = False, block=None):
     """The coefficients of :func:`wall_generators` at a fixed wall as polynomials in α̂: P of shape
     (J, N, P_w, n, n) with ``wall_generators(wall, α̂, m, family, at_rest, block)`` equal to
     Σ_j α̂^j P[j] to rounding (:func:`generators_at_alpha`).
 
-    The state matrix is a polynomial of degree :data:`ALPHA_DEGREE` in α̂, M = A_0 + α̂ A_1 + α̂² A_2,
+    Every family's state matrix is of degree 2 in α̂ at a fixed wall (its α̂ and α̂² = k² − m²/r̂²
+    terms), M = A_0 + α̂ A_1 + α̂² A_2,
     with A_0 = M(0), A_1 = (M(1) − M(−1))/2, A_2 = (M(1) + M(−1))/2 − M(0) (one batch of three
     state matrices per node), and the scheme's commutators are taken of the polynomials in (α̂, w):
     degree 2 in α̂ for the midpoint laminate, 4 for ``"magnus4"`` and 10 for ``"magnus6"``. Along a
@@ -775,11 +772,12 @@ def alpha_generators(wall: Wall, m=0, family=LONGITUDINAL, at_rest: bool = False
     h = wall.step if jnp.ndim(wall.step) else jnp.full(count, wall.step)
     h = h[:, None, None]
     node = [taylor[:, :, k] for k in range(taylor.shape[2])]  # (3, N, n, n) at each node
-    e = [] if at_rest else [jnp.broadcast_to(-h * jnp.asarray(inertia), (1, count) + node[0].shape[-2:])]
+    minus_e = [] if at_rest else [
+        jnp.broadcast_to(-jnp.asarray(inertia), (1, count) + node[0].shape[-2:])]
+    e = [h * x for x in minus_e]  # −hE: degree 0 in α̂, 1 in w
     if len(node) == 1:
         gen = [h * node[0], *e]
     elif len(node) == 2:
-        minus_e = [x / h for x in e]
         inner = _bivariate_commutator([node[1], *minus_e], [node[0], *minus_e])[:2]
         gen = _bivariate_add([0.5 * h * (node[0] + node[1]), *e],
                              _bivariate_scale((math.sqrt(3.0) / 12.0) * h**2, inner))
