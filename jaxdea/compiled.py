@@ -249,6 +249,18 @@ def clear_memory() -> None:
     jax.clear_caches()
 
 
+_TRACING = threading.RLock()
+"""Held while a :class:`CachedJit` traces and lowers a program. Tracing is Python and holds the GIL,
+so threads that trace at the same time only interleave: each finished when all of them had, and no
+compilation (which releases the GIL) could start before. One at a time, the first program compiles
+beside the next one's tracing: ``jaxdea figures`` with an empty cache began its first compilation
+at 3.4 s instead of 5.4 s and ran 41.2–42.2 s instead of 43.0–43.6 s (two pairs, side by side)."""
+TRACING_WAIT = 30.0
+"""Seconds a trace waits for :data:`_TRACING` before it goes on without it: the lock only orders
+work: a program traced inside another one's trace while a thread that waits for the lock holds its
+first call would otherwise wait forever."""
+
+
 class CachedJit:
     """``jax.jit(fun, static_argnames=...)`` whose first call in a process may load the program's
     exported form from disk instead of tracing it (module docstring). Other attributes (``lower``,
@@ -321,7 +333,13 @@ class CachedJit:
             except Exception:  # noqa: BLE001 - another format despite the key: export anew
                 path.unlink(missing_ok=True)
         if exported is None:
-            exported = self._export(statics, leaves, tree)
+            # one trace at a time (:data:`_TRACING`); one that waits longer goes on beside the others
+            tracing = _TRACING.acquire(timeout=TRACING_WAIT)
+            try:
+                exported = self._export(statics, leaves, tree)
+            finally:
+                if tracing:
+                    _TRACING.release()
             self.counts["exported"] += 1
             if path is not None:
                 try:

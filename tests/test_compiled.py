@@ -70,6 +70,45 @@ def test_threads_asking_for_a_new_program_export_it_once(cache):
     assert fun.counts == {"loaded": 0, "exported": 1, "stored": 1} and len(_entries(cache)) == 1
 
 
+def test_traces_take_turns_and_never_wait_on_a_held_turn_for_long(cache, monkeypatch):
+    """Programs traced in several threads take turns (:data:`jaxdea.compiled._TRACING`): after
+    them the turn is free. A trace whose turn another thread holds goes on after
+    ``TRACING_WAIT`` instead of waiting for it (the lock only orders work)."""
+    import concurrent.futures
+    import threading
+    import time
+
+    fun = cached_jit(_scaled, static_argnames="n")
+    x = jnp.arange(4.0)
+    with concurrent.futures.ThreadPoolExecutor(4) as pool:
+        results = list(pool.map(lambda n: np.asarray(fun(x, n)), range(2, 6)))
+    for n, got in zip(range(2, 6), results, strict=True):
+        np.testing.assert_array_equal(got, n * np.arange(4.0))
+    assert fun.counts["exported"] == 4
+    assert compiled._TRACING.acquire(blocking=False)  # released by every trace
+    compiled._TRACING.release()
+
+    monkeypatch.setattr(compiled, "TRACING_WAIT", 0.5)
+    held, done = threading.Event(), threading.Event()
+
+    def hold():
+        with compiled._TRACING:
+            held.set()
+            done.wait(60)
+
+    holder = threading.Thread(target=hold)
+    holder.start()
+    held.wait(60)
+    try:
+        start = time.perf_counter()
+        np.testing.assert_array_equal(fun(x, 9), 9 * np.arange(4.0))
+        assert 0.5 <= time.perf_counter() - start < 30  # waited its turn's limit, then traced
+    finally:
+        done.set()
+        holder.join()
+    assert fun.counts["exported"] == 5
+
+
 def test_private_modes_and_no_pickle(cache):
     """The root and its folder 0700, entries 0600; an entry is the magic line, the SHA-256 of the
     artifact and the artifact (a jax.export flatbuffer, not a pickle)."""
