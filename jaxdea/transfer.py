@@ -404,14 +404,18 @@ def _squarings(a):
 
 def _scaled_taylor(a):
     """(P(a/2^s), s): the degree-12 Taylor polynomial of exp at a/2^s, s = ⌈log2(‖a‖_∞/θ)⌉ ≥ 0,
-    by Paterson–Stockmeyer: P = B_0 + x⁴(B_1 + x⁴(B_2 + c_12 x⁴)), B_j = Σ_{i<4} c_{4j+i} x^i."""
+    by Paterson–Stockmeyer: P = B_0 + x⁴(B_1 + x⁴(B_2 + c_12 x⁴)), B_j = Σ_{i<4} c_{4j+i} x^i.
+
+    x², x³, x⁴ come out of a ``scan``, which x enters as one array. Written out, XLA:CPU fused the
+    forward-mode tangent of x² with x and ẋ, recomputing both from the generator's coefficients for
+    every entry that reads them (the barrier of :func:`_product` does not stop it): one kernel held
+    two thirds of the exponentials' time in the lanes of a dispersion curve (measured: 29 → 22 µs
+    for the exponentials and tangents of 5 lanes × 16 sublayers)."""
     s = _squarings(a)
     x = a * jnp.exp2(-s)
     eye = jnp.eye(a.shape[-1], dtype=a.dtype)
-    powers = [eye, x]
-    for _ in range(TAYLOR_BLOCK - 1):
-        powers.append(_product(powers[-1], x))
-    return _paterson_stockmeyer(powers), s
+    _, higher = jax.lax.scan(lambda p, _: (_product(p, x),) * 2, x, None, length=TAYLOR_BLOCK - 1)
+    return _paterson_stockmeyer([eye, x, *higher]), s
 
 
 def _paterson_stockmeyer(powers):
