@@ -411,8 +411,9 @@ def jit(fun=None, **kwargs):
     ``@jit(static_argnames=...)``).
 
     A caller's own ``jax.jit`` around jaxdea functions compiles with the caller's options: pass
-    ``compiler_options=jaxdea.compiled.compiler_options()`` to it for the same compile times and the
-    same bits (under other options XLA may fuse reductions differently: equal to rounding)."""
+    ``compiler_options=jaxdea.compiled.compiler_options()`` to it for the same compile settings and
+    times. The values agree with jaxdea's own calls to rounding: inside the caller's program XLA may
+    fuse differently (under either options: a group velocity came out 1 ulp apart)."""
     if fun is None:
         return functools.partial(jit, **kwargs)
     return Jitted(fun, **kwargs)

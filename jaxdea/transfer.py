@@ -414,8 +414,8 @@ def _scaled_taylor(a):
     s = _squarings(a)
     x = a * jnp.exp2(-s)
     eye = jnp.eye(a.shape[-1], dtype=a.dtype)
-    _, higher = jax.lax.scan(lambda p, _: (_product(p, x),) * 2, x, None, length=TAYLOR_BLOCK - 1)
-    return _paterson_stockmeyer([eye, x, *higher]), s
+    top, lower = jax.lax.scan(lambda p, _: (_product(p, x), p), x, None, length=TAYLOR_BLOCK - 1)
+    return _paterson_stockmeyer([eye, *lower, top]), s
 
 
 def _paterson_stockmeyer(powers):

@@ -196,19 +196,19 @@ def test_group_velocity_refuses_an_omega_that_is_no_root():
 
 
 def test_group_velocity_of_a_traced_non_root_is_nan():
-    """Under jit and vmap a non-root gives NaN; a root gives the number of the un-jitted call: its
-    bits under jaxdea's compiler options, to rounding under the caller's (XLA fuses the
-    orthonormalisation's reductions differently there)."""
+    """Under jit and vmap a non-root gives NaN; a root gives the number of the un-jitted call to
+    rounding, with jaxdea's compiler options or the caller's (inside a caller's program XLA
+    fuses differently: its program drops the Newton distance the call returns beside the
+    velocity, 356 fusions against 408, and the velocity came out 1 ulp apart)."""
     from jaxdea.compiled import compiler_options
 
     root = float(jd.frequencies(TUBE, ALPHA, n_roots=1)[0])
     alone = float(jd.group_velocity(TUBE, ALPHA, root))
     assert np.isfinite(alone)
-    same_options = jax.jit(lambda w: jd.group_velocity(TUBE, ALPHA, w), compiler_options=compiler_options())
-    assert float(same_options(root)) == alone
-    jitted = jax.jit(lambda w: jd.group_velocity(TUBE, ALPHA, w))
-    np.testing.assert_allclose(float(jitted(root)), alone, rtol=1e-14)
-    assert np.isnan(float(jitted(0.5)))
+    for options in (compiler_options(), None):
+        jitted = jax.jit(lambda w: jd.group_velocity(TUBE, ALPHA, w), compiler_options=options)
+        np.testing.assert_allclose(float(jitted(root)), alone, rtol=1e-14)
+        assert np.isnan(float(jitted(0.5)))
     both = jax.vmap(lambda w: jd.group_velocity(TUBE, ALPHA, w))(jnp.array([root, 0.5]))
     np.testing.assert_allclose(both[0], alone, rtol=1e-14)
     assert np.isnan(float(both[1]))
