@@ -585,29 +585,46 @@ def generator_coefficients(step, coef: Coefficients, radius, alpha, m=0, family=
     from the same block of every M and E; where the block decouples from the rest (the electric
     block at V̂ = 0, :func:`jaxdea.dispersion.value_and_slope_on_wall`) that is the block of G.
     """
-    if family == LONGITUDINAL:
-        matrix, inertia = (lambda c, r: state_matrix(c, r, 0.0, alpha)), INERTIA
+    matrix, inertia = _matrix_of_alpha(family, m, block)
+    minus_e = [] if at_rest else [-inertia]
+    if jnp.ndim(radius) == 0:
+        node = [matrix(coef, radius, alpha)]
     else:
-        matrix = lambda c, r: family_matrix(family, c, r, 0.0, alpha, m)  # noqa: E731
+        node = list(jax.vmap(lambda c, r: matrix(c, r, alpha))(coef, radius))
+    return jnp.stack(_scheme_generator(node, step, minus_e, _poly_add, _poly_scale,
+                                       _poly_commutator))
+
+
+def _matrix_of_alpha(family, m=0, block=None):
+    """((coef, r̂, α̂) ↦ M(r̂; Ω = 0), E) of the family (``block``: of that block of the state)."""
+    if family == LONGITUDINAL:
+        matrix, inertia = (lambda c, r, a: state_matrix(c, r, 0.0, a)), INERTIA
+    else:
+        matrix = lambda c, r, a: family_matrix(family, c, r, 0.0, a, m)  # noqa: E731
         inertia = family_inertia(family, m)
     if block is not None:
         index, full = np.asarray(block), matrix
-        matrix = lambda c, r: full(c, r)[index][:, index]  # noqa: E731
+        matrix = lambda c, r, a: full(c, r, a)[index][:, index]  # noqa: E731
         inertia = inertia[index][:, index]
-    if jnp.ndim(radius) == 0:
-        return jnp.stack([step * matrix(coef, radius)] + ([] if at_rest else [-step * inertia]))
-    m0 = jax.vmap(matrix)(coef, radius)
-    e = [] if at_rest else [-step * inertia]
-    minus_e = [] if at_rest else [-inertia]
-    if radius.shape[0] == 2:
-        mean = [0.5 * step * (m0[0] + m0[1]), *e]
+    return matrix, inertia
+
+
+def _scheme_generator(node, h, minus_e, add, scale, commutator):
+    """The generator of a sublayer (or of all at once) as a polynomial in w = Ω² (a list, lowest
+    degree first) from the state matrices at its 1, 2 or 3 Gauss nodes (midpoint, ``"magnus4"``,
+    ``"magnus6"``), with M = M⁰ − wE and ``minus_e`` = [−E] ([] at rest); in the representation of
+    matrix polynomials given by ``add``, ``scale`` and ``commutator`` (:func:`_magnus6_generator`)."""
+    e = [h * x for x in minus_e]
+    if len(node) == 1:
+        return [h * node[0], *e]
+    if len(node) == 2:
         # [M_2, M_1] with M_j = M_j⁰ − wE; its w² coefficient [E, E] is exactly zero
-        inner = _poly_commutator([m0[1], *minus_e], [m0[0], *minus_e])[:2]
-        return jnp.stack(_poly_add(mean, _poly_scale((math.sqrt(3.0) / 12.0) * step**2, inner)))
-    b1 = [step * m0[1], *e]
-    b2 = [(math.sqrt(15.0) / 3.0) * step * (m0[2] - m0[0])]
-    b3 = [(10.0 / 3.0) * step * (m0[2] - 2.0 * m0[1] + m0[0])]
-    return jnp.stack(_magnus6_generator(b1, b2, b3, _poly_add, _poly_scale, _poly_commutator))
+        inner = commutator([node[1], *minus_e], [node[0], *minus_e])[:2]
+        return add([0.5 * h * (node[0] + node[1]), *e], scale((math.sqrt(3.0) / 12.0) * h**2, inner))
+    b1 = [h * node[1], *e]
+    b2 = [(math.sqrt(15.0) / 3.0) * h * (node[2] - node[0])]
+    b3 = [(10.0 / 3.0) * h * (node[2] - 2.0 * node[1] + node[0])]
+    return _magnus6_generator(b1, b2, b3, add, scale, commutator)
 
 
 def _magnus6_generator(b1, b2, b3, add, scale, commutator):
@@ -756,17 +773,8 @@ def alpha_generators(wall: Wall, m=0, family=LONGITUDINAL, at_rest: bool = False
     dispersion curve of one tube (:func:`jaxdea.curves.dispersion_curve`) the generators of every α̂
     then cost one contraction with the powers of α̂ instead of the state matrices and 24 matrix
     products per sublayer (magnus6). Measured against the generators formed at α̂ (α̂ ≤ 30 on walls
-    of η = 0.3 … 0.85): G(Ω²) equal to 7e-16 of each sublayer's largest entry."""
-    if family == LONGITUDINAL:
-        matrix, inertia = (lambda c, r, a: state_matrix(c, r, 0.0, a)), INERTIA
-    else:
-        matrix = lambda c, r, a: family_matrix(family, c, r, 0.0, a, m)  # noqa: E731
-        inertia = family_inertia(family, m)
-    if block is not None:
-        index, full = np.asarray(block), matrix
-        matrix = lambda c, r, a: full(c, r, a)[index][:, index]  # noqa: E731
-        inertia = inertia[index][:, index]
-
+    of η = 0.3 … 0.85): G(Ω²) equal to 7e-16 to 1.1e-15 of each sublayer's largest entry."""
+    matrix, inertia = _matrix_of_alpha(family, m, block)
     coef, radii = jax.tree_util.tree_map(lambda x: jnp.reshape(x, (x.shape[0], -1)),
                                          (wall.coef, wall.radii))
     at = jax.vmap(lambda a: jax.vmap(jax.vmap(lambda c, r: matrix(c, r, a)))(coef, radii))(
@@ -776,21 +784,10 @@ def alpha_generators(wall: Wall, m=0, family=LONGITUDINAL, at_rest: bool = False
     h = wall.step if jnp.ndim(wall.step) else jnp.full(count, wall.step)
     h = h[:, None, None]
     node = [taylor[:, :, k] for k in range(taylor.shape[2])]  # (3, N, n, n) at each node
-    minus_e = [] if at_rest else [
+    minus_e = [] if at_rest else [  # −E: degree 0 in α̂
         jnp.broadcast_to(-jnp.asarray(inertia), (1, count) + node[0].shape[-2:])]
-    e = [h * x for x in minus_e]  # −hE: degree 0 in α̂, 1 in w
-    if len(node) == 1:
-        gen = [h * node[0], *e]
-    elif len(node) == 2:
-        inner = _bivariate_commutator([node[1], *minus_e], [node[0], *minus_e])[:2]
-        gen = _bivariate_add([0.5 * h * (node[0] + node[1]), *e],
-                             _bivariate_scale((math.sqrt(3.0) / 12.0) * h**2, inner))
-    else:
-        b1 = [h * node[1], *e]
-        b2 = [(math.sqrt(15.0) / 3.0) * h * (node[2] - node[0])]
-        b3 = [(10.0 / 3.0) * h * (node[2] - 2.0 * node[1] + node[0])]
-        gen = _magnus6_generator(b1, b2, b3, _bivariate_add, _bivariate_scale,
-                                 _bivariate_commutator)
+    gen = _scheme_generator(node, h, minus_e, _bivariate_add, _bivariate_scale,
+                            _bivariate_commutator)
     size = max(c.shape[0] for c in gen)
     return jnp.stack([jnp.pad(c, [(0, size - c.shape[0])] + [(0, 0)] * 3) for c in gen], axis=2)
 
