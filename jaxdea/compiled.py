@@ -254,7 +254,8 @@ _TRACING = threading.RLock()
 so threads that trace at the same time only interleave: each finished when all of them had, and no
 compilation (which releases the GIL) could start before. One at a time, the first program compiles
 beside the next one's tracing: ``jaxdea figures`` with an empty cache began its first compilation
-at 3.4 s instead of 5.4 s and ran 41.2–42.2 s instead of 43.0–43.6 s (two pairs, side by side)."""
+at 3.4 s instead of 5.4 s and ran 41.2–42.2 s instead of 43.0–43.6 s in two pairs side by side
+(a third pair was equal: 42.2 against 42.0 s)."""
 TRACING_WAIT = 30.0
 """Seconds a trace waits for :data:`_TRACING` before it goes on without it: the lock only orders
 work: a program traced inside another one's trace while a thread that waits for the lock holds its
