@@ -85,6 +85,43 @@ backends use the level for their kernels too, so it stays off there."""
 def compiler_options() -> dict:
     """:data:`COMPILER_OPTIONS`, with :data:`CPU_OPTIONS` where the default backend is the CPU."""
     return {**COMPILER_OPTIONS, **(CPU_OPTIONS if jax.default_backend() == "cpu" else {})}
+SMALL_LOOP_BYTES = 1 << 20
+"""XLA:CPU's small-while-loop threshold that jaxdea sets at import (:func:`configure_xla`): a while
+loop whose iteration accesses fewer bytes (and holds no dot, convolution or custom call) is
+compiled into one kernel instead of running its body thunk by thunk (XLA's default: 1 KiB). The
+continuation's loops (lanes × sublayers × 4×4 matrices, tens of KiB) then stop paying the runtime's
+per-thunk dispatch, and their thunks no longer migrate between the two threads of a 2-core
+machine, which made every other call of the same curve 1.5× slower. Measured side by side in fresh
+processes (benchmarks/README.md, section k): the unstretched 200-α̂ curve 12.5 → 10.5 ms best and
+18.9 → 13.0 ms median; the first calls unchanged; every root bit-identical. Loops over large
+batches (tens of MiB, as a 4096-point ``characteristic``) keep the thunk runtime and its threads."""
+
+
+def configure_xla(environ=os.environ) -> bool:
+    """Set :data:`SMALL_LOOP_BYTES` in ``XLA_FLAGS`` (``--xla_backend_extra_options``), where it can
+    still act and the user has not chosen otherwise: JAX's backends not yet started (XLA reads its
+    flags once, then), no ``xla_backend_extra_options`` in ``XLA_FLAGS`` already, and
+    ``JAXDEA_XLA_FLAGS`` not ``off``. Called when :mod:`jaxdea` is imported, like its JAX
+    compilation cache. Returns whether it set the flag. The flag changes how XLA compiles, not
+    what a program computes (the same bits, measured on the solvers and curves)."""
+    flags = environ.get("XLA_FLAGS", "")
+    if environ.get("JAXDEA_XLA_FLAGS", "").lower() == "off" or "xla_backend_extra_options" in flags:
+        return False
+    try:
+        from jax._src import xla_bridge
+        started = xla_bridge.backends_are_initialized()
+    except (ImportError, AttributeError):  # another JAX: leave XLA's defaults
+        return False
+    if started:
+        return False
+    option = f"--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold={SMALL_LOOP_BYTES}"
+    environ["XLA_FLAGS"] = f"{flags} {option}".strip()
+    return True
+
+
+configure_xla()  # at import, before any jaxdea module can start a backend (this one is imported first)
+
+
 BYPASS_OPTIONS = ("jax_debug_nans", "jax_debug_infs", "jax_disable_jit", "jax_enable_checks",
                   "jax_check_tracer_leaks", "jax_default_device")
 """JAX options under which every call goes through ``jax.jit`` (they act at tracing or dispatch)."""

@@ -158,8 +158,26 @@ def generator_polynomials(wall: Wall, m=0, family=LONGITUDINAL, decoupled=None) 
 
 def lane_generators(polys: dict, alpha) -> dict:
     """The generators of :func:`generator_polynomials` at α̂ (the ``generators`` argument of
-    :func:`value_and_slope_on_wall`): equal to those formed from the wall, to rounding."""
-    return {k: generators_at_alpha(p, alpha) for k, p in polys.items()}
+    :func:`value_and_slope_on_wall`): equal to those formed from the wall, to rounding. With the
+    electric block's, ``"electric_column"``: its :func:`electric_column`, which depends on α̂ alone."""
+    generators = {k: generators_at_alpha(p, alpha) for k, p in polys.items()}
+    if "electric" in generators:
+        generators["electric_column"] = electric_column(generators["electric"])
+    return generators
+
+
+def electric_column(electric):
+    """(q_Φ, log-scale): the column D̄ = [Φ, D] = [0, 1] of the initial basis (:func:`initial_basis`)
+    carried across a decoupled wall by the electric block's exponentials at rest (``electric``: the
+    generators of :func:`jaxdea.transfer.wall_generators` with ``at_rest``, ``block=ELECTRIC``), with
+    re-normalisation: q_Φ is its Φ entry at the outer face, the factor of f in
+    :func:`_decoupled_value_and_slope`. Independent of Ω and of the fluid (the block holds no
+    inertia, the column no fluid term), so the corrector lanes of a curve form it once per α̂, not
+    at every evaluation (where it also ran beside the mechanical propagation on a second thread)."""
+    exponentials = jax.vmap(EXPONENTIALS["adaptive"])(electric[:, 0])
+    start = jnp.zeros((2, 1), exponentials.dtype).at[1, 0].set(1.0)  # rows (Φ, D) of [0, 0, 1]ᵀ
+    q_d, log_scale = carry_basis(start, exponentials)
+    return q_d[0, 0], log_scale
 
 
 def _longitudinal_value_and_slope(wall, omega, alpha, fluid, order, decoupled, with_scale=False,
@@ -296,17 +314,17 @@ def _decoupled_value_and_slope(basis_of, wall, alpha, omega, with_scale=False, g
     basis, basis_dot = jax.jvp(basis_of, (omega,), (jnp.ones_like(omega),))
     if generators is None:
         block = wall_generators(wall, alpha, block=tuple(MECHANICAL))
-        electric = wall_generators(wall, alpha, at_rest=True, block=tuple(ELECTRIC))
+        q_phi, log_electric = electric_column(wall_generators(wall, alpha, at_rest=True,
+                                                              block=tuple(ELECTRIC)))
     else:
-        block, electric = generators["mechanical"], generators["electric"]
+        block = generators["mechanical"]
+        q_phi, log_electric = generators["electric_column"]
     q, z, *log_scale = carry_basis_tangent(basis[MECHANICAL, :2], basis_dot[MECHANICAL, :2],
                                            *_exponentials_and_tangents(block, omega), with_scale)
-    electric = jax.vmap(EXPONENTIALS["adaptive"])(electric[:, 0])
-    q_d, log_electric = carry_basis(basis[ELECTRIC, 2:], electric)
     f, f_dot = _det_and_slope(q[2:], z[2:], q, z)  # rows T, S of (U, W, T, S)
     if with_scale:  # R is block-diagonal too: ℓ is the sum of the blocks' log-scales
-        return (q_d[0, 0] * f, log_scale[0] + log_electric), (q_d[0, 0] * f_dot, jnp.sum(q * z))
-    return q_d[0, 0] * f, q_d[0, 0] * f_dot
+        return (q_phi * f, log_scale[0] + log_electric), (q_phi * f_dot, jnp.sum(q * z))
+    return q_phi * f, q_phi * f_dot
 
 
 def at_rest_value_and_slope(wall_of, exponentials_of, voltage, alpha, fluid=None, order=0, m=0,

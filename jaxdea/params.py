@@ -108,11 +108,38 @@ def as_float(x) -> jax.Array:
     return jnp.asarray(x, dtype=jnp.float64)
 
 
+def _canonical_leaf(x):
+    """:func:`canonical` of one leaf: a tracer or JAX array as :func:`as_float`; a concrete real
+    number or NumPy array as a float64 NumPy array (no device operation: converting the leaves of a
+    call to JAX arrays one by one dispatched 7–8 eager operations, ≈ 0.5 ms of a 14 ms dispersion
+    curve, measured); anything else (complex, an object) as :func:`as_float`, with its errors."""
+    if isinstance(x, jax.core.Tracer):
+        return as_float(x)
+    if isinstance(x, jax.Array):
+        return x if x.dtype == jnp.float64 and not x.weak_type else as_float(x)
+    value = np.asarray(x)
+    if value.dtype.kind in "biuf":
+        return value.astype(np.float64, copy=False)
+    return as_float(x)
+
+
 def canonical(*trees):
     """Every leaf as a float64 array (strongly typed), so that Python floats, NumPy scalars and JAX
-    arrays share one compiled program (a weak-typed float would compile separately)."""
-    out = tuple(jax.tree_util.tree_map(as_float, t) for t in trees)
+    arrays share one compiled program (a weak-typed float would compile separately). Concrete
+    numbers become NumPy arrays, which the programs take as they take JAX arrays."""
+    out = tuple(jax.tree_util.tree_map(_canonical_leaf, t) for t in trees)
     return out if len(out) > 1 else out[0]
+
+
+def traced(tree) -> bool:
+    """Whether any leaf of ``tree`` is a tracer (a caller's jit, grad or vmap)."""
+    return any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(tree))
+
+
+def detached(tree):
+    """``jax.lax.stop_gradient(tree)`` where a leaf is traced; concrete leaves as they are (they
+    carry no tangent, and stopping them dispatched an eager operation per leaf)."""
+    return jax.lax.stop_gradient(tree) if traced(tree) else tree
 
 
 def _concrete(x, name: str = "value"):

@@ -62,10 +62,12 @@ from .params import (
     Tube,
     as_float,
     canonical,
+    detached,
     guard,
     mode_wavenumber,
     real_value,
     require_x64,
+    traced,
     validate_broadcast,
     validate_count,
     validate_positive,
@@ -662,6 +664,8 @@ def _mapped_over_batches(solve):
 def _with_derivatives(roots: Roots, params, n_layers, order, unknown="omega",
                       family=LONGITUDINAL) -> Roots:
     """``roots`` with implicit derivatives with respect to ``params`` = (tube, α̂, fluid[, m])."""
+    if not traced((roots.omega, params)):  # concrete inputs carry no tangents: values as they are
+        return Roots(roots.omega, roots.status)
     if len(params) == 3:
         params = (*params, 0.0)
     omega = with_implicit_derivatives(Residual(n_layers, order, unknown, family), roots.omega, params)
@@ -779,7 +783,7 @@ def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3
     def solve(tube, alpha, fluid, s_max, m):
         return _solve_growth_rates(tube, alpha, fluid, s_max, n_roots, layers, order, m, family)
 
-    roots = one_point_at_a_time(solve, *jax.lax.stop_gradient((tube, alpha, fluid, s_max, m)))
+    roots = one_point_at_a_time(solve, *detached((tube, alpha, fluid, s_max, m)))
     return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "growth", family).omega
 
 
@@ -804,7 +808,7 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
         validate_positive("omega_max", omega_max)
     tube, alpha, fluid, omega_max, m = canonical(tube, alpha, fluid, omega_max, m)
     layers = laminate(n_layers, scheme, tube, alpha, n_roots, m)
-    values = jax.lax.stop_gradient((tube, alpha, fluid, omega_max))
+    values = detached((tube, alpha, fluid, omega_max))
     if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
         solve = functools.partial(_solve_frequencies, n_roots=n_roots, n_layers=layers, order=order)
         roots = one_point_at_a_time(solve, *values)
@@ -813,7 +817,7 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
             return _solve_frequencies(tube, alpha, fluid, omega_max, n_roots, layers, order, m,
                                       family)
 
-        roots = one_point_at_a_time(solve, *values, jax.lax.stop_gradient(m))
+        roots = one_point_at_a_time(solve, *values, detached(m))
     return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "omega", family)
 
 
@@ -891,11 +895,11 @@ def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
     validate_positive("guess", guess)
     tube, alpha, guess, fluid, m = canonical(tube, alpha, guess, fluid, m)
     layers = laminate(n_layers, scheme, tube, alpha, m=m)
-    values = jax.lax.stop_gradient((tube, alpha, guess, fluid))
+    values = detached((tube, alpha, guess, fluid))
     if family == LONGITUDINAL:
         roots = _solve_frequency(*values, layers, order)
     else:
-        roots = _solve_frequency(*values, layers, order, jax.lax.stop_gradient(m), family)
+        roots = _solve_frequency(*values, layers, order, detached(m), family)
     return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "omega", family)
 
 
@@ -988,7 +992,7 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
     layers = laminate(n_layers, scheme, tube, alpha, m=m, at_rest=True)
-    values = jax.lax.stop_gradient((tube, alpha, fluid))
+    values = detached((tube, alpha, fluid))
     if family == LONGITUDINAL:
         solve = functools.partial(_solve_critical_voltage, n_layers=layers, order=order)
         roots = Roots(*one_point_at_a_time(solve, *values))
@@ -996,7 +1000,7 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
         def solve(tube, alpha, fluid, m):
             return _solve_critical_voltage(tube, alpha, fluid, layers, order, m=m, family=family)
 
-        roots = Roots(*one_point_at_a_time(solve, *values, jax.lax.stop_gradient(m)))
+        roots = Roots(*one_point_at_a_time(solve, *values, detached(m)))
     return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "voltage", family)
 
 

@@ -3,6 +3,7 @@ tracing and gets the same bits; what it cannot key (tracers, debugging) goes thr
 damaged, foreign or unsafe entry is never run; every public entry point survives three processes
 sharing one cache."""
 
+import ast
 import json
 import os
 import pickle
@@ -333,3 +334,44 @@ def test_cpu_options_only_on_the_cpu_backend():
     assert fun._top_jit is None
     np.testing.assert_array_equal(fun(jnp.arange(2.0), 4), [0.0, 4.0])
     assert fun._top_jit is not None
+
+
+_LOOP_PROBE = """
+import os, sys
+import jax
+jax.config.update("jax_enable_x64", True)
+import jax.numpy as jnp
+import jaxdea
+loop = jax.jit(lambda x: jax.lax.fori_loop(0, 5, lambda i, y: jnp.sin(y) + y, x))
+hlo = loop.lower(jnp.ones(10_000)).compile().as_text()  # 80 kB a step: above XLA's 1 KiB default
+print(repr(os.environ.get("XLA_FLAGS", "")))
+print("xla_cpu_small_call" in hlo)
+"""
+
+
+def _probe(env_extra):
+    env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "JAXDEA_XLA_FLAGS")}
+    env.update(env_extra, JAXDEA_CACHE_DIR="off")
+    out = subprocess.run([sys.executable, "-c", _LOOP_PROBE], env=env, capture_output=True, text=True,
+                         timeout=300, check=True)
+    flags, hoisted = out.stdout.strip().splitlines()[-2:]
+    return ast.literal_eval(flags), hoisted == "True"
+
+
+def test_import_sets_the_small_loop_threshold_where_it_still_acts():
+    """A fresh process importing jaxdea gets SMALL_LOOP_BYTES in XLA_FLAGS, and XLA compiles a loop
+    of 80 kB a step into one kernel (a small call), which XLA's default leaves to the thunk runtime;
+    a user's own backend options and JAXDEA_XLA_FLAGS=off leave XLA_FLAGS as they are."""
+    flags, hoisted = _probe({})
+    assert f"xla_cpu_small_while_loop_byte_threshold={compiled.SMALL_LOOP_BYTES}" in flags
+    assert hoisted
+    assert _probe({"JAXDEA_XLA_FLAGS": "off"}) == ("", False)
+    own = "--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=0"
+    assert _probe({"XLA_FLAGS": own}) == (own, False)
+
+
+def test_configure_xla_leaves_a_started_backend_and_the_users_flags_alone():
+    jax.devices()  # started: XLA has read its flags, a new value would not act
+    environ = {"XLA_FLAGS": "--xla_dump_to=/tmp/x"}
+    assert not compiled.configure_xla(environ)
+    assert environ == {"XLA_FLAGS": "--xla_dump_to=/tmp/x"}

@@ -413,6 +413,45 @@ def test_value_and_slope_on_wall_equals_forward_mode(case):
     np.testing.assert_allclose(df, df_ref, rtol=1e-11, atol=1e-13 * scale)
 
 
+@pytest.mark.parametrize("case", ["at_rest_voltage", "acoustic", "thick"])
+def test_lane_generators_give_the_walls_values(case):
+    """The curves' lanes take the generators as polynomials in α̂ and the electric block's column
+    once per α̂ (lane_generators, electric_column): (f, f') and the scan's (f, ℓ) with its slopes
+    equal those formed from the wall at every evaluation, to rounding."""
+    from jaxdea.dispersion import (
+        generator_polynomials,
+        lane_generators,
+        scale_and_slope_on_wall,
+        value_and_slope_on_wall,
+    )
+    from jaxdea.scalar import value_and_slope
+
+    tube, fluid, layers, alpha = jd.Tube(voltage=0.0, **PAPER), None, \
+        transfer.Layers(16, "magnus6", graded=True), 0.89
+    if case == "at_rest_voltage":
+        tube = jd.Tube(voltage=0.0, lambda_i=1.2, lambda_z=1.1, eta=0.7, gent=6.0)
+    elif case == "acoustic":
+        fluid = jd.Fluid()
+    elif case == "thick":
+        tube, layers, alpha = jd.Tube(voltage=0.0, eta=0.3), transfer.Layers(64, "magnus6", True), 20.0
+    wall = discretize(tube, layers)
+    omegas = jnp.linspace(0.05, 6.0, 25)
+    generators = lane_generators(generator_polynomials(wall, decoupled=True), alpha)
+    for gens in (None, generators):
+        assert (gens is None) or set(gens) == {"mechanical", "electric", "electric_column"}
+    lanes = [jax.jit(jax.vmap(lambda o, g=g: value_and_slope_on_wall(wall, o, alpha, fluid, 0,
+                                                                       decoupled=True, generators=g)))(omegas)
+             for g in (None, generators)]
+    scans = [jax.jit(jax.vmap(lambda o, g=g: value_and_slope(
+        scale_and_slope_on_wall(wall, alpha, fluid, 0, True, g), o)))(omegas) for g in (None, generators)]
+    scale = float(jnp.max(jnp.abs(lanes[0][0])))
+    for got, ref in ((lanes[1][0], lanes[0][0]), (scans[1][0][0], scans[0][0][0])):
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-13 * scale)
+    for got, ref in ((lanes[1][1], lanes[0][1]), (scans[1][1][0], scans[0][1][0])):
+        np.testing.assert_allclose(got, ref, rtol=1e-11, atol=1e-13 * scale)
+    np.testing.assert_allclose(scans[1][0][1], scans[0][0][1], rtol=1e-13, atol=1e-12)  # ℓ
+
+
 @pytest.mark.parametrize("case", ["at_rest_voltage", "acoustic", "paper", "thick", "coupled"])
 def test_scale_and_slope_on_wall_equals_forward_mode(case):
     """The scan's (f, ℓ) with the carried slope (scale_and_slope_on_wall, ℓ' = tr(QᵀZ)) equals

@@ -101,6 +101,31 @@ def test_same_call_twice_in_one_process():
     _assert_calls_repeat(calls)
 
 
+def test_python_numpy_and_jax_inputs_give_the_same_bits():
+    """Inputs as Python floats, NumPy values or JAX arrays (float64, or weakly typed) are one case:
+    canonical() makes concrete numbers float64 NumPy arrays (no device operation), keeps float64
+    JAX arrays and converts the others, and the roots and curves come out bit-identical."""
+    from jaxdea.params import canonical
+
+    tube, *values = canonical(TUBE, 0.5, np.float32(2.0), 3, np.arange(3))
+    assert all(type(v) is np.ndarray and v.dtype == np.float64 for v in (tube.voltage, *values))
+    same = jnp.asarray(0.445, jnp.float64)
+    assert canonical(same) is same
+    weak = canonical(jnp.asarray(0.445))  # a weakly typed float: converted, strongly typed
+    assert weak.dtype == jnp.float64 and not weak.weak_type
+    as_jax = jax.tree_util.tree_map(lambda x: jnp.asarray(x, jnp.float64), TUBE)
+    grid = np.linspace(0.3, 0.6, 4)
+    for tube, alpha, grid_ in ((TUBE, 0.445, grid), (as_jax, jnp.asarray(0.445), jnp.asarray(grid)),
+                               (TUBE, np.float64(0.445), list(grid))):
+        got = (jd.frequencies(tube, alpha, n_roots=2, n_layers=30),
+               jd.dispersion_curve(tube, grid_, n_roots=2, n_layers=30))
+        if tube is TUBE and alpha == 0.445 and grid_ is grid:
+            first = got
+        for x, y in zip(jax.tree_util.tree_leaves(first), jax.tree_util.tree_leaves(got), strict=True):
+            assert isinstance(y, jax.Array)
+            np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+
+
 def _assert_calls_repeat(calls):
     for call in calls:
         a, b = call(), call()
