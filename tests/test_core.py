@@ -413,6 +413,24 @@ def test_value_and_slope_on_wall_equals_forward_mode(case):
     np.testing.assert_allclose(df, df_ref, rtol=1e-11, atol=1e-13 * scale)
 
 
+def _scanned_case(case):
+    """(wall, fluid, order, α̂) of the scan's and the lanes' propagation tests: the paper's tube at
+    V̂ = 0 (graded magnus6, N = 16, α̂ = 0.89) unless ``case`` changes it."""
+    tube, fluid, order, layers, alpha = jd.Tube(voltage=0.0, **PAPER), None, 0, \
+        transfer.Layers(16, "magnus6", graded=True), 0.89
+    if case == "at_rest_voltage":
+        tube = jd.Tube(voltage=0.0, lambda_i=1.2, lambda_z=1.1, eta=0.7, gent=6.0)
+    elif case == "acoustic":
+        fluid = jd.Fluid()
+    elif case == "paper":
+        fluid, order = jd.Fluid(coupling="paper", bessel_order=1), 1
+    elif case == "thick":
+        tube, layers, alpha = jd.Tube(voltage=0.0, eta=0.3), transfer.Layers(64, "magnus6", True), 20.0
+    elif case == "coupled":
+        tube = jd.Tube(voltage=0.15, lambda_i=0.95, **PAPER)
+    return discretize(tube, layers), fluid, order, alpha
+
+
 @pytest.mark.parametrize("case", ["at_rest_voltage", "acoustic", "thick"])
 def test_lane_generators_give_the_walls_values(case):
     """The curves' lanes take the generators as polynomials in α̂ and the electric block's column
@@ -426,15 +444,7 @@ def test_lane_generators_give_the_walls_values(case):
     )
     from jaxdea.scalar import value_and_slope
 
-    tube, fluid, layers, alpha = jd.Tube(voltage=0.0, **PAPER), None, \
-        transfer.Layers(16, "magnus6", graded=True), 0.89
-    if case == "at_rest_voltage":
-        tube = jd.Tube(voltage=0.0, lambda_i=1.2, lambda_z=1.1, eta=0.7, gent=6.0)
-    elif case == "acoustic":
-        fluid = jd.Fluid()
-    elif case == "thick":
-        tube, layers, alpha = jd.Tube(voltage=0.0, eta=0.3), transfer.Layers(64, "magnus6", True), 20.0
-    wall = discretize(tube, layers)
+    wall, fluid, _, alpha = _scanned_case(case)
     omegas = jnp.linspace(0.05, 6.0, 25)
     generators = lane_generators(generator_polynomials(wall, decoupled=True), alpha)
     for gens in (None, generators):
@@ -460,19 +470,7 @@ def test_scale_and_slope_on_wall_equals_forward_mode(case):
     from jaxdea.dispersion import scale_and_slope_on_wall
     from jaxdea.scalar import value_and_slope
 
-    tube, fluid, order, layers, alpha = jd.Tube(voltage=0.0, **PAPER), None, 0, \
-        transfer.Layers(16, "magnus6", graded=True), 0.89
-    if case == "at_rest_voltage":
-        tube = jd.Tube(voltage=0.0, lambda_i=1.2, lambda_z=1.1, eta=0.7, gent=6.0)
-    elif case == "acoustic":
-        fluid = jd.Fluid()
-    elif case == "paper":
-        fluid, order = jd.Fluid(coupling="paper", bessel_order=1), 1
-    elif case == "thick":
-        tube, layers, alpha = jd.Tube(voltage=0.0, eta=0.3), transfer.Layers(64, "magnus6", True), 20.0
-    elif case == "coupled":
-        tube = jd.Tube(voltage=0.15, lambda_i=0.95, **PAPER)
-    wall = discretize(tube, layers)
+    wall, fluid, order, alpha = _scanned_case(case)
     omegas = jnp.linspace(0.0, 6.0, 25)
     ref = jax.jit(jax.vmap(lambda o: value_and_slope(
         lambda x: characteristic_and_scale(wall, x, alpha, fluid, order, "adaptive"), o)))(omegas)
