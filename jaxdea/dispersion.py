@@ -64,7 +64,7 @@ from .transfer import (
 )
 
 U, W, PHI, T, S, D = range(6)
-OUTER_ROWS = jnp.array([PHI, T, S])
+OUTER_ROWS = np.array([PHI, T, S])
 MECHANICAL = np.array([U, W, T, S])
 ELECTRIC = np.array([PHI, D])
 """The two blocks of the longitudinal state that decouple at V̂ = 0 (:func:`value_and_slope_on_wall`)."""

@@ -178,9 +178,9 @@ class _State(NamedTuple):
 
 
 _RUNNING, _LOCATE_TURN, _LOCATE_ZERO = -1, -2, -3
-_E_S = jnp.array([1.0, 0.0])
-_E_OMEGA = jnp.array([0.0, 1.0])
-_EYE = jnp.eye(2)
+_E_S = np.array([1.0, 0.0])  # NumPy constants: importing jaxdea starts no JAX backend
+_E_OMEGA = np.array([0.0, 1.0])
+_EYE = np.eye(2)
 
 
 def _value_and_gradient(fun, x):
