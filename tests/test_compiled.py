@@ -375,3 +375,13 @@ def test_configure_xla_leaves_a_started_backend_and_the_users_flags_alone():
     environ = {"XLA_FLAGS": "--xla_dump_to=/tmp/x"}
     assert not compiled.configure_xla(environ)
     assert environ == {"XLA_FLAGS": "--xla_dump_to=/tmp/x"}
+
+
+def test_import_starts_no_backend():
+    """Importing jaxdea leaves JAX unstarted (no module-level JAX arrays): the user may still
+    configure JAX afterwards, and the small-loop flag can still act."""
+    script = ("import jax\nimport jaxdea\nfrom jax._src import xla_bridge\n"
+              "print(xla_bridge.backends_are_initialized())")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300,
+                         check=True, env={**os.environ, "JAXDEA_CACHE_DIR": "off"})
+    assert out.stdout.strip().splitlines()[-1] == "False"
