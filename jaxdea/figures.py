@@ -1063,7 +1063,7 @@ def _paper_figures(ctx: Context) -> None:
     figure_modes(ctx, fluid_filled=True, critical_stretch=True)
     # drawn while the threads still solve Figs. 8-10 (the paper coupling scans every point), which
     # :func:`solve_beside` leaves for last: less drawing trails the computations (warm run
-    # 10.45-10.53 -> 9.86-10.02 s with the first three moved here, measured)
+    # 10.45-10.53 -> 9.5-9.8 s, measured)
     figure_cross_sections(ctx)
     figure_dispersion_order_m(ctx)
     figure_static_response(ctx)
