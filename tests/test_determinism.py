@@ -115,14 +115,16 @@ def test_python_numpy_and_jax_inputs_give_the_same_bits():
     assert weak.dtype == jnp.float64 and not weak.weak_type
     as_jax = jax.tree_util.tree_map(lambda x: jnp.asarray(x, jnp.float64), TUBE)
     grid = np.linspace(0.3, 0.6, 4)
-    for tube, alpha, grid_ in ((TUBE, 0.445, grid), (as_jax, jnp.asarray(0.445), jnp.asarray(grid)),
-                               (TUBE, np.float64(0.445), list(grid))):
-        got = (jd.frequencies(tube, alpha, n_roots=2, n_layers=30),
-               jd.dispersion_curve(tube, grid_, n_roots=2, n_layers=30))
-        if tube is TUBE and alpha == 0.445 and grid_ is grid:
-            first = got
+
+    def solve(tube, alpha, grid):
+        return (jd.frequencies(tube, alpha, n_roots=2, n_layers=30),
+                jd.dispersion_curve(tube, grid, n_roots=2, n_layers=30))
+
+    first = solve(TUBE, 0.445, grid)
+    for args in ((as_jax, jnp.asarray(0.445), jnp.asarray(grid)), (TUBE, np.float64(0.445), list(grid))):
+        got = solve(*args)
         for x, y in zip(jax.tree_util.tree_leaves(first), jax.tree_util.tree_leaves(got), strict=True):
-            assert isinstance(y, jax.Array)
+            assert isinstance(x, jax.Array) and isinstance(y, jax.Array)
             np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
 
 
