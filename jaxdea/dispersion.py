@@ -94,6 +94,37 @@ def initial_basis(wall: Wall, omega, alpha, fluid: Fluid | None = None, order: i
     return jnp.stack([col_u, col_w, col_d], axis=-1)
 
 
+@jax.custom_jvp
+def determinant(a):
+    """det(a) of a small square matrix (the value of ``jnp.linalg.det``) whose derivative is
+    d det(a)[ȧ] = Σ_ij C_ij ȧ_ij, with the cofactors C_ij = (−1)^{i+j} det(minor_ij): no solve and
+    no division, so it is finite at a singular a (every root is one).
+
+    ``jnp.linalg.det``'s own derivative (4×4 and larger) solves with the LU factors and handles a
+    rank deficiency only in the last pivot. At V̂ = 0 the wall is electrically decoupled and the
+    order-m outer-row matrix Out·Q has the row Φ = (0, 0, 0, x): partial pivoting puts that row
+    last, so at a root the near-zero pivot comes before it, and the solve divides by it. Batched
+    (8 points at V = 0, m = 1–3) that gave ±inf and NaN derivatives where the point alone was
+    finite. Up to 3×3 ``jnp.linalg.det`` is a closed form, already division-free; derivatives of
+    any order."""
+    return jnp.linalg.det(a)
+
+
+@determinant.defjvp
+def _determinant_jvp(primals, tangents):
+    (a,), (a_dot,) = primals, tangents
+    n = a.shape[-1]
+    if n <= 3:
+        return jax.jvp(jnp.linalg.det, (a,), (a_dot,))
+    rows = np.arange(n)
+    total = 0.0
+    for i in range(n):
+        for j in range(n):
+            minor = a[..., rows != i, :][..., :, rows != j]
+            total = total + (-1.0) ** (i + j) * determinant(minor) * a_dot[..., i, j]
+    return determinant(a), total
+
+
 def characteristic_and_scale(wall: Wall, omega, alpha, fluid=None, order=0, method="taylor"):
     """(f, log_scale) with det(B A S) = f · exp(log_scale); f = det(B Q_N) ∈ [−1, 1].
 
@@ -282,7 +313,7 @@ def _exponentials_and_tangents(generators, omega, w_of=_squared):
 
 def _det_and_slope(rows, rows_dot, q, z):
     """(f, f') = (det(B Q), D det(B Q)[B Z] − f tr(Qᵀ Z)) from B Q, B Z (:func:`value_and_slope_on_wall`)."""
-    f, f_dot = jax.jvp(jnp.linalg.det, (rows,), (rows_dot,))
+    f, f_dot = jax.jvp(determinant, (rows,), (rows_dot,))
     return f, f_dot - f * jnp.sum(q * z)
 
 
@@ -565,7 +596,7 @@ def characteristic_and_scale_of_w(wall: Wall, omega_squared, alpha, fluid=None, 
     basis = initial_basis_of_w(wall, omega_squared, alpha, fluid, order, m, family)
     q, log_scale = propagate_basis_of_w(wall, omega_squared, alpha, basis, method, m, family)
     out = outer_conditions(wall, alpha, m, family, pressure_outer)
-    return jnp.linalg.det(out @ q), log_scale
+    return determinant(out @ q), log_scale
 
 
 def characteristic_of_w(wall: Wall, omega_squared, alpha, fluid=None, order=0, method="taylor",
@@ -590,7 +621,7 @@ def characteristic_at_rest(wall: Wall, exponentials, alpha, fluid=None, order=0,
         q, _ = carry_basis(initial_basis(wall, zero, alpha, fluid, order), exponentials)
         return jnp.linalg.det(q[OUTER_ROWS, :])
     q, _ = carry_basis(initial_basis_of_w(wall, zero, alpha, fluid, order, m, family), exponentials)
-    return jnp.linalg.det(outer_conditions(wall, alpha, m, family) @ q)
+    return determinant(outer_conditions(wall, alpha, m, family) @ q)
 
 
 def reference_determinant_of_w(wall: Wall, omega_squared, alpha, fluid=None, order=0, m=0,

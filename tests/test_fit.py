@@ -9,6 +9,7 @@ A VHB-like tube: μ = 1e5 Pa, ρ_s = 1000 kg/m³, ε = 4.7 ε_0, R_i = 5 mm, L =
 (m ≤ 3, n ≤ 3) is at V̂ = 0.086, 21 kV: the data at 2 and 5 kV are well below it.
 """
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -136,6 +137,64 @@ def test_jacobian_matches_central_differences():
             scale = np.max(np.abs(central)) + np.max(np.abs(f)) / abs(values[i])
             np.testing.assert_allclose(jac[:, i], central, rtol=0, atol=1e-6 * scale,
                                        err_msg=NAMES[i])
+
+
+def test_determinant_derivative_is_the_cofactor_sum_at_a_decoupled_root():
+    """d det(a)[ȧ] = tr(adj(a) ȧ) at a singular 4×4 of the V = 0 structure (row Φ = (0, 0, 0, x),
+    rank 3: the LU's zero pivot is not the last), the adjugate from NumPy minors; a regular matrix
+    matches jnp.linalg.det's derivative, and the second derivative central differences."""
+    from jaxdea.dispersion import determinant
+
+    rng = np.random.default_rng(3)
+    block = rng.standard_normal((3, 3))
+    block[:, 2] = block[:, :2] @ np.array([0.3, -1.1])  # singular mechanical block
+    a = np.zeros((4, 4))
+    a[0, 3], a[1:, :3] = -0.55, block
+    tangent = rng.standard_normal((4, 4))
+
+    def adjugate(x):
+        out = np.empty_like(x)
+        for i in range(4):
+            for j in range(4):
+                minor = np.delete(np.delete(x, i, 0), j, 1)
+                out[j, i] = (-1) ** (i + j) * np.linalg.det(minor)
+        return out
+
+    batch = jax.jit(jax.vmap(lambda x, t: jax.jvp(determinant, (x,), (t,))[1]))
+    slopes = batch(jnp.broadcast_to(a, (8, 4, 4)), jnp.broadcast_to(tangent, (8, 4, 4)))
+    np.testing.assert_allclose(slopes, np.trace(adjugate(a) @ tangent), rtol=1e-13)
+    regular = rng.standard_normal((4, 4))
+    np.testing.assert_allclose(jax.jvp(determinant, (regular,), (tangent,))[1],
+                               jax.jvp(jnp.linalg.det, (regular,), (tangent,))[1], rtol=1e-12)
+    second = jax.grad(jax.grad(lambda s: determinant(regular + s * tangent)))(0.0)
+    h = 1e-4
+    central = sum(c * float(np.linalg.det(regular + k * h * tangent))
+                  for c, k in ((1, 1), (-2, 0), (1, -1))) / h**2
+    assert abs(second - central) < 1e-6 * max(1.0, abs(central))
+
+
+@pytest.mark.slow
+def test_batched_jacobian_at_zero_voltage_equals_the_point_alone():
+    """At V = 0 the wall is electrically decoupled: the outer-row matrix Out·Q of order m has the
+    row Φ = (0, 0, 0, x), so at a root its LU puts the near-zero pivot before the last, where
+    ``jnp.linalg.det``'s derivative divides by it. In a batch of 8 (m = 1, 2, 3; the second
+    branch) that gave a NaN row for (m, n) = (2, 3) while the point alone was finite; the
+    cofactor derivative of :func:`jaxdea.dispersion.determinant` gives the same row both ways."""
+    values = jnp.array([TRUTH[k] for k in NAMES[:5]] + [0.8793051947943465, 1.0386270426677653,
+                                                        1.1771011315898126, TRUTH["gent"], 1.0,
+                                                        1.0])
+    n = jnp.array([1.0, 2, 3, 1, 2, 3, 1, 2])
+    m = jnp.array([2.0, 2, 2, 1, 1, 1, 3, 3])
+    roots = mode_roots(values, jnp.zeros(8), n, m, 2, N_LAYERS, None, None, False)
+    _, _, jac = model_and_jacobian(values, jnp.zeros(8), n, m, roots[:, 1], N_LAYERS, None, None,
+                                   False)
+    assert np.all(np.isfinite(jac))
+
+    def alone(vals):
+        tube, alpha, fluid, hz = dimensionless(vals, 0.0, 3.0)
+        return jd.frequency(tube, alpha, roots[2, 1], fluid, N_LAYERS, m=2) * hz
+
+    np.testing.assert_allclose(jac[2], jax.jacfwd(alone)(values), rtol=1e-10, atol=0.0)
 
 
 @pytest.mark.slow
