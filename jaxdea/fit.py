@@ -10,6 +10,13 @@ theory_m.md), refined by :func:`jaxdea.frequency` from the current root and conv
 (:mod:`jaxdea.units`). :func:`fit` minimises ½ Σ r_j², r_j = (f_model − f_data)_j/σ_j, over the free
 parameters θ mapped onto their bounds, θ = lo + (hi − lo)·sigmoid(u).
 
+Discretisation. By default the model is the library's accurate one (graded sixth-order Magnus
+sublayers, N from :func:`jaxdea.transfer.auto_layer_count` for the data's largest α̂, m and
+branch, roots to ≤ 1e-8 and in practice ~1e-12), chosen at the starts and checked again at the
+estimate. The laminate error is a systematic error of the model, and a weakly determined
+parameter absorbs it: the paper's midpoint laminate (N = 30, errors ~1e-6 relative) moved the
+Gent constant of a silicone tube by 0.2–0.4 % on exact data, where its own sensitivity is ~1e-3.
+
 Solver. A small Levenberg–Marquardt loop in NumPy (Marquardt's diagonal scaling; the damping is
 divided by 3 after an accepted step and multiplied by 4 after a rejected one) on the unconstrained u,
 with the exact Jacobian ∂r/∂θ from ``jax.jacfwd`` through the implicit root derivatives (never
@@ -19,17 +26,37 @@ re-seeded from the accepted iterate (the Newton guesses of the next residual), b
 re-checked with the global root scan, and unlabelled peaks are re-assigned to modes with
 :func:`scipy.optimize.linear_sum_assignment`; the problem is tiny (≤ 11 parameters) and its cost
 is the residual/Jacobian evaluation, so a NumPy loop adds nothing measurable (and no dependency
-beyond scipy).
-A coarse grid of starts inside the bounds (best ``n_starts`` by initial cost, plus ``initial``
-when given) guards against a poor initial guess.
+beyond scipy). Starts: ``initial`` when given, and the best (by initial cost) of a grid inside the
+bounds, or of a Latin hypercube where the grid would exceed :data:`MAX_GRID` points. A parameter
+that stops on a bound (where the sigmoid's slope vanishes) is restarted from inside its bounds,
+and the lower cost is kept.
+
+Unlabelled peaks. Given θ, each peak is matched to a mode (m ≤ m_max, 1 ≤ n ≤ n_max, branch <
+n_branches) or declared an outlier, minimising the total cost Σ min(r², τ²) (τ = ``outlier_sigma``
+with σ given, otherwise |log f_model/f_data| ≤ ``threshold``), one peak per mode and voltage
+(:func:`assign_modes`). The model's curves carry each branch across the voltages, and the total
+separates by voltage once θ is given, so the per-voltage matchings are the global one. The first
+assignment of a start uses the wide relative tolerance ``threshold``, the later ones τ; assignment
+and fit alternate until the labels settle (the robust cost never increases), and the starts are
+compared by that robust cost, so that leaving peaks unmatched is never free.
 
 Uncertainty. At the optimum, cov(θ) = s² (JᵀJ)⁻¹ with J = ∂r/∂θ in the physical parameters; s² = 1
 when ``sigma_Hz`` is given (the 95 % interval is θ ± 1.95996 √cov, normal quantile), otherwise
-s² = Σr²/(N − p) and the interval uses Student's t with N − p degrees of freedom. A Jacobian
-whose log-scaled singular values fall below 1e-8 of the largest is rank-deficient: the data do not
+s² = Σr²/(N − p) and the interval uses Student's t with N − p degrees of freedom. Where that
+interval would leave the bounds, the side is replaced by the profile-likelihood one (the others
+re-fitted at each value, the end where Σr² rises by q² s²), which is the bound itself when the
+profile stays below: intervals never leave the bounds, and may be one-sided. A Jacobian whose
+log-scaled singular values fall below 1e-8 of the largest is rank-deficient: the data do not
 determine the combination of parameters given by the null vector (e.g. μ, ρ_s and ε scaled
-together leave every f and V̂ unchanged; at V = 0 alone, μ and ρ_s enter only as μ/ρ_s); a
-:class:`IdentifiabilityWarning` names it and the intervals of the parameters in it are NaN.
+together leave every f and V̂ unchanged; at V = 0 alone, μ and ρ_s enter only as μ/ρ_s); the
+intervals of the parameters in it are NaN. An :class:`IdentifiabilityWarning` names that
+combination, every parameter whose interval covers half its bound range or more, and every pair
+correlated beyond :data:`CORRELATION_LIMIT`, and says which data would help.
+
+Quality. The result reports χ²/dof and the unmatched fraction; a fit that leaves more than
+``max_unmatched`` of the peaks unmatched (:attr:`FitStatus.TOO_FEW_MATCHED`) or, with σ given, whose
+χ² exceeds its upper 1e-4 quantile (:attr:`FitStatus.POOR_FIT`) is not CONVERGED, and a
+:class:`FitQualityWarning` says so in words, as it does for a parameter stopped on a bound.
 """
 
 from __future__ import annotations
@@ -48,6 +75,7 @@ import numpy as np
 
 from .params import Fluid, Tube, require_x64
 from .roots import frequencies, frequency
+from .transfer import Layers, laminate, validate_scheme
 
 NAMES = ("shear_modulus", "density", "permittivity", "inner_radius", "length", "eta", "lambda_i",
          "lambda_z", "gent", "fluid_density", "fluid_speed")
@@ -58,8 +86,35 @@ UNITS = dict(shear_modulus="Pa", density="kg/m^3", permittivity="F/m", inner_rad
              fluid_speed="m/s")
 RANK_TOLERANCE = 1e-8
 """Relative singular value of the log-scaled Jacobian below which it counts as rank-deficient."""
+CORRELATION_LIMIT = 0.99
+"""|correlation| of two estimates beyond which :class:`IdentifiabilityWarning` names the pair."""
+POOR_FIT_PROBABILITY = 1e-4
+"""With σ given, a χ² whose upper tail probability is below this is :attr:`FitStatus.POOR_FIT`."""
+BOUND_TOLERANCE = 1e-6
+"""A parameter within this fraction of its bound range from a bound has stopped on that bound."""
+MAX_GRID = 81
+"""Largest grid of starts; beyond it (grid_points^p) the starts are a Latin hypercube of this size."""
 CURVE_CHUNK = 8
 """Points per compiled batch of :func:`fitted_frequencies` (the smallest batch of :func:`fit`)."""
+HELP = dict(
+    shear_modulus="peaks at non-zero voltages (at V = 0 only μ/ρ_s enters) or a fixed density",
+    density="a fixed shear modulus, or peaks at several voltages (V̂ ∝ V sqrt(ε/μ) separates μ "
+            "from ρ_s)",
+    permittivity="peaks over a wider voltage range, nearer the first instability (ε enters only "
+                 "through V̂ ∝ V sqrt(ε/μ))",
+    inner_radius="modes of several orders m and axial numbers n, or a measured radius",
+    length="several axial modes n (L enters only through α̂_n = 2nπR_i/(λ_z L)), or a measured "
+           "length",
+    eta="ring modes (m = 2, 3) beside axisymmetric ones and several n (the wall sets their ratio), "
+        "or a measured wall",
+    lambda_i="ring modes (m ≥ 1) and peaks at several voltages, or a measured inflation",
+    lambda_z="several axial modes n and voltages, or a measured axial stretch",
+    gent="larger stretches or voltages nearer the first instability (the Gent stiffening grows "
+         "with I_1 − 3)",
+    fluid_density="modes of several n (the fluid's added mass depends on α̂)",
+    fluid_speed="modes of higher frequency (compressibility shows as Ω/α̂ nears ĉ_f)",
+)
+"""What data would pin each parameter down (the text of :class:`IdentifiabilityWarning`)."""
 
 
 class FitStatus(enum.IntEnum):
@@ -69,10 +124,18 @@ class FitStatus(enum.IntEnum):
     MAX_ITERATIONS = 1  # the iteration limit was reached first
     NOT_FINITE = 2  # no start gave a finite model (a labelled branch missing, an unstable state)
     ASSIGNMENT_CHANGING = 3  # the mode assignment of unlabelled peaks did not settle
+    TOO_FEW_MATCHED = 4  # more than max_unmatched of the peaks match no mode
+    POOR_FIT = 5  # σ given and χ² beyond its upper POOR_FIT_PROBABILITY quantile
 
 
 class IdentifiabilityWarning(UserWarning):
-    """The data do not determine some combination of the free parameters (rank-deficient J)."""
+    """The data do not determine some parameters or combinations of them (rank-deficient J, an
+    interval over half the bound range, a correlation beyond :data:`CORRELATION_LIMIT`)."""
+
+
+class FitQualityWarning(UserWarning):
+    """The fit does not explain the data (too few peaks matched, χ² far above its degrees of
+    freedom) or a parameter stopped on a bound."""
 
 
 class FitResult(NamedTuple):
@@ -80,19 +143,26 @@ class FitResult(NamedTuple):
 
     Attributes:
         estimate: {name: value} of the free parameters.
-        interval: {name: (low, high)}, 95 % confidence intervals (NaN where not identifiable).
+        interval: {name: (low, high)}, 95 % confidence intervals inside the bounds (NaN where not
+            identifiable; a bound where the profile stays below the 95 % level there).
         covariance: (p, p) covariance of the free parameters, in ``names`` order.
         correlation: (p, p) correlation matrix.
         residuals: (f_model − f_data)/σ per data point (Hz when no σ given; NaN if unmatched).
         assignment: (N, 3) int array of (m, n, branch) per data point; (−1, −1, −1) for a peak
-            that matches no mode (excluded from the fit).
+            that matches no mode (an outlier, excluded from the fit).
         status: :class:`FitStatus`.
         iterations: Levenberg–Marquardt iterations of the chosen start (all its rounds of
             branch re-checks and re-assignments).
         names: the free parameter names, in the order of ``covariance``.
         parameters: {name: value} of every parameter of the model, free (the estimates) and fixed.
-        settings: the model's discretisation and fluid: {"n_layers", "coupling" (None: empty
-            tube), "bessel_order"} (:func:`fitted_frequencies` evaluates the fitted model with it).
+        settings: the model's discretisation and fluid: {"n_layers", "scheme", "graded",
+            "coupling" (None: empty tube), "bessel_order"} (:func:`fitted_frequencies` evaluates
+            the fitted model with it).
+        chi2: Σ r² over the matched peaks.
+        dof: matched peaks minus free parameters.
+        chi2_per_dof: chi2/dof (Hz² without σ: the residual variance s²).
+        unmatched_fraction: the share of peaks assigned to no mode.
+        at_bound: {name: "lower" or "upper"} of the parameters stopped on a bound.
     """
 
     estimate: dict
@@ -106,6 +176,11 @@ class FitResult(NamedTuple):
     names: tuple
     parameters: dict
     settings: dict
+    chi2: float
+    dof: int
+    chi2_per_dof: float
+    unmatched_fraction: float
+    at_bound: dict
 
 
 # ---------------------------------------------------------------------------------------------
@@ -175,7 +250,7 @@ def _by_family(m, fun):
 
 
 class _Problem(NamedTuple):
-    """The fixed part of a fit: data, names, bounds, discretisation."""
+    """The fixed part of a fit: data, names, bounds, discretisation, outlier thresholds."""
 
     voltage: np.ndarray
     frequency: np.ndarray
@@ -186,9 +261,11 @@ class _Problem(NamedTuple):
     upper: np.ndarray
     base: np.ndarray  # the full value vector (fixed values; free entries overwritten)
     free_index: np.ndarray
-    n_layers: int
+    n_layers: object  # int (equal midpoint sublayers) or transfer.Layers
     coupling: str | None
     bessel_order: int | None
+    threshold: float = 0.1  # relative tolerance of a match (|log f_model/f_data|)
+    outlier: float = 5.0  # τ, the residual in σ beyond which a peak is an outlier (σ given)
 
 
 def _values(problem: _Problem, theta):
@@ -243,40 +320,72 @@ def _seed(problem: _Problem, theta, labels):
 # mode identification
 
 
-def assign_modes(problem: _Problem, theta, m_max: int, n_max: int, n_branches: int,
-                 threshold: float | None):
-    """Labels (m, n, branch) of the peaks: at each voltage, the minimum-cost one-to-one matching of
-    the peaks to the model modes (m ≤ m_max, 1 ≤ n ≤ n_max, branch < n_branches) with cost
-    |log f_model − log f_data| (:func:`scipy.optimize.linear_sum_assignment`). A peak whose cost
-    exceeds ``threshold`` matches no mode: (−1, −1, −1).
-
-    Returns:
-        (labels (N, 3) int, cost (N,)).
-    """
-    from scipy.optimize import linear_sum_assignment  # scipy: imported where it is used
-
+def _mode_table(problem: _Problem, theta, m_max, n_max, n_branches):
+    """(grid (v, n, m) rows, roots (rows, n_branches), Hz per unit Ω) of every candidate mode at
+    every distinct voltage of the data."""
     voltages = np.unique(problem.voltage)
     grid = np.array([(v, n, m) for v in voltages for m in range(m_max + 1)
                      for n in range(1, n_max + 1)])
     roots = _roots(problem, theta, grid[:, 0], grid[:, 1], grid[:, 2].astype(int), n_branches)
     scale = float(np.asarray(dimensionless(_values(problem, theta), 0.0, 1.0)[3]))
+    return grid, roots, scale
+
+
+def assign_modes(problem: _Problem, theta, m_max: int, n_max: int, n_branches: int,
+                 wide: bool = False):
+    """Labels (m, n, branch) of the peaks that minimise Σ min(c, τ²) at θ (module docstring).
+
+    At each voltage, the peaks are matched one-to-one to the model modes (m ≤ m_max,
+    1 ≤ n ≤ n_max, branch < n_branches) or to an outlier slot of their own
+    (:func:`scipy.optimize.linear_sum_assignment` on the table [c | diag τ²]). The cost of a
+    match is c = ((f_model − f_data)/σ)² with τ = ``problem.outlier`` when σ is given and not
+    ``wide``; otherwise c = (log(f_model/f_data)/threshold)² with τ = 1 (a peak further than
+    ``threshold`` in |log f| is an outlier).
+
+    Returns:
+        (labels (N, 3) int, (−1, −1, −1) for an outlier; the robust cost Σ min(c, τ²)).
+    """
+    from scipy.optimize import linear_sum_assignment  # scipy: imported where it is used
+
+    grid, roots, scale = _mode_table(problem, theta, m_max, n_max, n_branches)
+    relative = wide or not problem.has_sigma
+    tau2 = 1.0 if relative else problem.outlier**2
     labels = np.full((problem.voltage.size, 3), -1, dtype=int)
-    cost = np.full(problem.voltage.size, np.inf)
-    for v in voltages:
+    total = 0.0
+    for v in np.unique(problem.voltage):
         peaks = np.flatnonzero(problem.voltage == v)
         rows = np.flatnonzero(grid[:, 0] == v)
         modes = [(int(grid[r, 2]), int(grid[r, 1]), k, roots[r, k] * scale)
                  for r in rows for k in range(n_branches) if np.isfinite(roots[r, k])]
-        if not modes:
-            continue
-        model = np.log([mode[3] for mode in modes])
-        table = np.abs(np.log(problem.frequency[peaks])[:, None] - model[None, :])
-        pick, chosen = linear_sum_assignment(table)
+        model = np.array([mode[3] for mode in modes])
+        data = problem.frequency[peaks]
+        if relative:
+            table = (np.log(model)[None, :] - np.log(data)[:, None]) ** 2 / problem.threshold**2
+        else:
+            table = ((model[None, :] - data[:, None]) / problem.sigma[peaks][:, None]) ** 2
+        slots = np.full((peaks.size, peaks.size), 1e30)
+        np.fill_diagonal(slots, tau2)
+        pick, chosen = linear_sum_assignment(np.hstack([table.reshape(peaks.size, -1), slots]))
         for p, c in zip(pick, chosen, strict=True):
-            cost[peaks[p]] = table[p, c]
-            if threshold is None or table[p, c] <= threshold:
+            if c < len(modes):
                 labels[peaks[p]] = modes[c][:3]
-    return labels, cost
+                total += table[p, c]
+            else:
+                total += tau2
+    return labels, total
+
+
+def _robust_cost(problem: _Problem, r, labels):
+    """Σ min(c, τ²) of a fit (:func:`assign_modes`, not wide) from its residuals ``r`` of the
+    matched peaks: what the starts and rounds of an unlabelled fit are compared by."""
+    active = labels[:, 0] >= 0
+    unmatched = int(np.sum(~active))
+    if problem.has_sigma:
+        return float(r @ r) + unmatched * problem.outlier**2
+    f_model = problem.frequency[active] + r  # σ = 1 Hz: r is f_model − f_data in Hz
+    with np.errstate(invalid="ignore"):
+        ratio = np.log(f_model / problem.frequency[active]) / problem.threshold
+    return float(ratio @ ratio) + unmatched
 
 
 # ---------------------------------------------------------------------------------------------
@@ -319,6 +428,8 @@ def levenberg_marquardt(problem: _Problem, theta0, labels, max_iterations=100, x
     r = residual(f)
     if not np.all(np.isfinite(r)) or not np.all(np.isfinite(jac[active])):
         return theta, omega, r, jac[active] / sigma[active, None], 0, FitStatus.NOT_FINITE
+    if theta.size == 0:  # every parameter held (a profile of a one-parameter fit)
+        return theta, omega, r, jac[active] / sigma[active, None], 0, FitStatus.CONVERGED
     cost, damping, iterations = 0.5 * r @ r, 1e-3, 0
     status = FitStatus.MAX_ITERATIONS
     while iterations < max_iterations:
@@ -375,7 +486,8 @@ def _fit_labelled(problem, theta0, labels, max_iterations, max_outer=5):
 
 
 def uncertainty(problem: _Problem, theta, r, jac):
-    """(covariance, correlation, intervals, null combination or None) at the optimum."""
+    """(covariance, correlation, Wald intervals, null combination or None, quantile q, s²) at the
+    optimum."""
     from scipy.stats import norm, t  # scipy: imported where it is used
 
     p = theta.size
@@ -400,15 +512,133 @@ def uncertainty(problem: _Problem, theta, r, jac):
         correlation = covariance / np.outer(std, std)
     intervals = {name: (theta[i] - quantile * std[i], theta[i] + quantile * std[i])
                  for i, name in enumerate(problem.free)}
-    return covariance, correlation, intervals, null
+    return covariance, correlation, intervals, null, float(quantile), variance
 
 
-def _warn_null(names, null):
-    terms = " · ".join(f"{name}^{c:+.3f}" for name, c in zip(names, null, strict=True)
-                       if abs(c) > 0.1)
-    warnings.warn(f"the Jacobian is rank-deficient: the data do not determine the combination "
-                  f"{terms} (null vector of ∂r/∂log θ); the intervals of those parameters are NaN "
-                  f"(fix one of them)", IdentifiabilityWarning, stacklevel=3)
+def _pinned(problem: _Problem, k: int, value: float) -> _Problem:
+    """``problem`` with free parameter k held at ``value`` (the others free)."""
+    keep = np.arange(len(problem.free)) != k
+    base = problem.base.copy()
+    base[problem.free_index[k]] = value
+    return problem._replace(free=tuple(n for i, n in enumerate(problem.free) if keep[i]),
+                            lower=problem.lower[keep], upper=problem.upper[keep], base=base,
+                            free_index=problem.free_index[keep])
+
+
+def profile_end(problem: _Problem, theta, labels, k: int, side: int, rise: float,
+                max_iterations: int, max_evaluations: int = 10):
+    """The end on ``side`` (−1 lower, +1 upper) of the profile-likelihood interval of parameter k.
+
+    P(t) = min over the other free parameters of χ² = Σr² with θ_k = t (Levenberg–Marquardt from
+    the last profile point); the end is where P rises by ``rise`` = q² s² above P(θ̂), found by
+    regula falsi (Illinois) on sqrt(P − P̂) − q s, which is linear in t for a quadratic profile,
+    between θ̂ and the bound. Where P at the bound stays below, the end is the bound: the interval is
+    one-sided. NaN if the profile is not finite.
+    """
+    bound = problem.lower[k] if side < 0 else problem.upper[k]
+    best = _profile_cost(problem, theta, labels, k, theta[k], max_iterations)[0]
+    level = math.sqrt(rise)
+    others = np.delete(theta, k)
+
+    def gap(t):
+        nonlocal others
+        cost, fitted = _profile_cost(problem, np.insert(others, k, t), labels, k, t,
+                                     max_iterations)
+        if np.isfinite(cost):
+            others = fitted
+        return math.sqrt(max(cost - best, 0.0)) - level if np.isfinite(cost) else np.nan
+
+    g_bound = gap(bound)
+    if not np.isfinite(g_bound):
+        return np.nan
+    if g_bound <= 0.0:
+        return float(bound)
+    a, g_a, b, g_b, last = float(theta[k]), -level, float(bound), g_bound, 0
+    for _ in range(max_evaluations):
+        x = b - g_b * (b - a) / (g_b - g_a)
+        g_x = gap(x)
+        if not np.isfinite(g_x):
+            return np.nan
+        if abs(g_x) <= 1e-3 * level:
+            return x
+        if g_x > 0:  # the end lies between a and x
+            b, g_b = x, g_x
+            if last > 0:
+                g_a *= 0.5
+            last = 1
+        else:
+            a, g_a = x, g_x
+            if last < 0:
+                g_b *= 0.5
+            last = -1
+    return b - g_b * (b - a) / (g_b - g_a)
+
+
+def _profile_cost(problem, theta, labels, k, value, max_iterations):
+    """(Σr², the other parameters) of the fit with θ_k held at ``value``, from ``theta``."""
+    sub = _pinned(problem, k, value)
+    others = np.delete(theta, k)
+    lower, upper = sub.lower, sub.upper
+    start = np.clip(others, lower + 1e-9 * (upper - lower), upper - 1e-9 * (upper - lower))
+    fitted, _, r, _, _, status = levenberg_marquardt(sub, start, labels, max_iterations)
+    if status == FitStatus.NOT_FINITE or not np.all(np.isfinite(r)):
+        return np.nan, others
+    return float(r @ r), fitted
+
+
+def readable_intervals(problem: _Problem, theta, labels, intervals, quantile, variance,
+                       max_iterations):
+    """The Wald intervals, each side that leaves the bounds replaced by the profile-likelihood end
+    (:func:`profile_end`, a bound where the profile stays below the 95 % level)."""
+    out = {}
+    rise = quantile**2 * variance
+    for k, name in enumerate(problem.free):
+        low, high = intervals[name]
+        if not (np.isfinite(low) and np.isfinite(high)):
+            out[name] = (low, high)
+            continue
+        if low < problem.lower[k]:
+            low = profile_end(problem, theta, labels, k, -1, rise, max_iterations)
+        if high > problem.upper[k]:
+            high = profile_end(problem, theta, labels, k, +1, rise, max_iterations)
+        out[name] = (float(low), float(high))
+    return out
+
+
+def identifiability_messages(problem: _Problem, null, intervals, correlation):
+    """The sentences of :class:`IdentifiabilityWarning` (empty: every parameter is determined)."""
+    names, parts, involved = problem.free, [], set()
+    if null is not None:
+        terms = " · ".join(f"{name}^{c:+.3f}" for name, c in zip(names, null, strict=True)
+                           if abs(c) > 0.1)
+        parts.append(f"the Jacobian is rank-deficient: the data do not determine the combination "
+                     f"{terms} (null vector of ∂r/∂log θ); the intervals of those parameters are "
+                     f"NaN (fix one of them)")
+        involved |= {name for name, c in zip(names, null, strict=True) if abs(c) > 0.1}
+    loose = []
+    for k, name in enumerate(names):
+        low, high = intervals[name]
+        if np.isfinite(low) and np.isfinite(high) and \
+                high - low >= 0.5 * (problem.upper[k] - problem.lower[k]):
+            loose.append(f"{name} (95 % interval [{low:.4g}, {high:.4g}] within bounds "
+                         f"[{problem.lower[k]:.4g}, {problem.upper[k]:.4g}])")
+            involved.add(name)
+    if loose:
+        parts.append("the data do not pin down " + "; ".join(loose))
+    pairs = []
+    with np.errstate(invalid="ignore"):
+        for i in range(len(names)):
+            for j in range(i + 1, len(names)):
+                if abs(correlation[i, j]) > CORRELATION_LIMIT:
+                    pairs.append(f"{names[i]} and {names[j]} ({correlation[i, j]:+.4f})")
+                    involved |= {names[i], names[j]}
+    if pairs:
+        parts.append(f"estimates correlated beyond ±{CORRELATION_LIMIT}: " + ", ".join(pairs)
+                     + " (the data determine a combination of them)")
+    if parts:
+        parts.append("what would help: " + "; ".join(f"{name}: {HELP[name]}" for name in names
+                                                     if name in involved))
+    return parts
 
 
 # ---------------------------------------------------------------------------------------------
@@ -540,9 +770,22 @@ def _validate(data, free, fixed, fluid):
 # public
 
 
+class _Outcome(NamedTuple):
+    """One start's fit."""
+
+    theta: np.ndarray
+    r: np.ndarray
+    jac: np.ndarray
+    iterations: int
+    status: FitStatus
+    labels: np.ndarray
+    cost: float  # what starts are compared by: ½Σr² (labelled) or the robust cost (unlabelled)
+
+
 def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | None = None,
-        n_layers: int = 30, m_max: int = 2, n_max: int = 3, n_branches: int = 2,
-        threshold: float = 0.1, n_starts: int = 3, grid_points: int = 3,
+        n_layers: int | None = None, scheme: str | None = None, m_max: int = 2, n_max: int = 3,
+        n_branches: int = 2, threshold: float = 0.1, outlier_sigma: float = 5.0,
+        max_unmatched: float = 0.25, n_starts: int = 3, grid_points: int = 3,
         max_iterations: int = 100, max_reassignments: int = 10) -> FitResult:
     """Material and geometry parameters from measured resonance frequencies (SI units).
 
@@ -554,22 +797,31 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
             arrays, DataFrame) with columns ``voltage_V``, ``frequency_Hz``,
             optional ``sigma_Hz`` (> 0) and optional integer labels ``m`` (≥ 0), ``n`` (≥ 1) and
             ``branch`` (≥ 0, default 0: the lowest root of that (m, n)). Without labels each peak is
-            assigned to a mode (m ≤ m_max, n ≤ n_max, branch < n_branches) and the assignment is
-            redone as the parameters move until it settles.
+            assigned to a mode (m ≤ m_max, n ≤ n_max, branch < n_branches) or left unmatched as an
+            outlier, and the assignment is redone as the parameters move until it settles.
         free: {name: (lower, upper)} of the parameters to estimate (names in ``NAMES``).
         fixed: {name: value} of the others; every name must be free or fixed (the fluid names
             only with a fluid; ``gent`` may be ``inf``).
         fluid: None (empty tube), ``"acoustic"``, or a :class:`~jaxdea.Fluid` whose coupling and
             bessel_order are used (its ratios come from ``fluid_density``, ``fluid_speed``).
         initial: optional {name: value} start for free parameters (tried besides the grid).
-        n_layers: sublayers N of the model (static).
+        n_layers, scheme: the model's discretisation, as in :func:`jaxdea.frequencies`: None, None
+            (default): graded sixth-order Magnus with N for roots to ≤ 1e-8 at the data's largest
+            α̂, m and branch (checked again at the estimate); an integer N alone: N equal midpoint
+            sublayers (the paper's laminate at N = 30).
         m_max, n_max, n_branches: the modes unlabelled peaks may be assigned to.
-        threshold: a peak whose |log f_model − log f_data| exceeds this after the first fit
-            matches no mode (assignment (−1, −1, −1), left out of the fit).
-        n_starts: the number of grid starts (the lowest initial cost) that are fitted; 0 (with
+        threshold: the relative tolerance |log f_model − log f_data| of a match: of the first
+            assignment of each start, and of every assignment without σ (beyond it a peak is an
+            outlier: assignment (−1, −1, −1), left out of the fit).
+        outlier_sigma: with σ given, the residual |f_model − f_data|/σ beyond which a peak is an
+            outlier (after the first assignment); its cost τ² in the robust criterion.
+        max_unmatched: the largest share of unmatched peaks of a CONVERGED fit (beyond it:
+            :attr:`FitStatus.TOO_FEW_MATCHED`).
+        n_starts: the number of starts (the lowest initial cost) that are fitted; 0 (with
             ``initial``): ``initial`` only.
-        grid_points: grid starts per free parameter (at fractions (k + ½)/grid_points of each
-            bound interval, in the logit-scaled coordinates).
+        grid_points: candidate starts per free parameter (at fractions (k + ½)/grid_points of
+            each bound interval); beyond :data:`MAX_GRID` candidates in all, a Latin hypercube of
+            :data:`MAX_GRID` points instead (fixed seed).
         max_iterations: Levenberg–Marquardt iterations per fit.
         max_reassignments: outer assign–fit rounds for unlabelled peaks.
 
@@ -580,10 +832,14 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
         ValueError: naming the parameter or column: unknown names, a name both free and fixed or
             neither, bounds not finite with lower < upper, missing or non-finite columns,
             frequencies or σ ≤ 0, no more data rows than free parameters, an ``initial`` value
-            outside its bounds.
+            outside its bounds, bad options.
 
     Warns:
-        IdentifiabilityWarning: when the Jacobian is rank-deficient, naming the combination.
+        IdentifiabilityWarning: naming a rank-deficient combination, a parameter whose interval
+            covers half its bounds or more, a pair correlated beyond :data:`CORRELATION_LIMIT`, and
+            the data that would help.
+        FitQualityWarning: status TOO_FEW_MATCHED or POOR_FIT, or a parameter stopped on a bound,
+            in words.
 
     Example:
         >>> result = fit({"voltage_V": v, "frequency_Hz": f, "m": m, "n": n},
@@ -599,8 +855,10 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
 
         data = read_peaks(data)
     problem, labels = _validate(data, free, fixed, fluid)
-    if not isinstance(n_layers, (int, np.integer)) or n_layers < 1:
-        raise ValueError(f"n_layers must be an integer >= 1, got {n_layers!r}")
+    if n_layers is not None and (not isinstance(n_layers, (int, np.integer))
+                                 or isinstance(n_layers, bool) or n_layers < 1):
+        raise ValueError(f"n_layers must be None or an integer >= 1, got {n_layers!r}")
+    validate_scheme(scheme)
     for name, value, low in (("m_max", m_max, 0), ("n_max", n_max, 1), ("n_branches", n_branches, 1),
                              ("n_starts", n_starts, 0 if initial is not None else 1),
                              ("grid_points", grid_points, 1),
@@ -608,41 +866,130 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
                              ("max_reassignments", max_reassignments, 1)):
         if not isinstance(value, (int, np.integer)) or value < low:
             raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
-    if not (threshold > 0):
-        raise ValueError(f"threshold must be > 0, got {threshold!r}")
-    problem = problem._replace(n_layers=int(n_layers))
-    starts = _starts(problem, initial, grid_points)
+    for name, value in (("threshold", threshold), ("outlier_sigma", outlier_sigma)):
+        if not (isinstance(value, (int, float, np.floating)) and 0 < value < np.inf):
+            raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    if not (isinstance(max_unmatched, (int, float, np.floating)) and 0 <= max_unmatched <= 1):
+        raise ValueError(f"max_unmatched must be a number in [0, 1], got {max_unmatched!r}")
+    problem = problem._replace(threshold=float(threshold), outlier=float(outlier_sigma))
+    initial_starts, candidates = _starts(problem, initial, grid_points)
+    if labels is None:
+        reach = (n_max, m_max, n_branches)
+    else:
+        reach = (int(labels[:, 1].max()), int(labels[:, 0].max()), int(labels[:, 2].max()) + 1)
+    problem = problem._replace(n_layers=_discretisation(
+        problem, initial_starts + candidates, reach, n_layers, scheme))
 
-    def run(theta0):
-        """(θ, r, J, iterations, status, labels) of one start."""
+    def run(problem, theta0):
         if labels is not None:
-            return (*_fit_labelled(problem, theta0, labels, max_iterations), labels)
-        current, _ = assign_modes(problem, theta0, m_max, n_max, n_branches, None)
-        iterations, outcome = 0, None
-        for round_ in range(max_reassignments):
-            outcome = _fit_labelled(problem, theta0, current, max_iterations)
-            iterations += outcome[3]
-            if outcome[4] == FitStatus.NOT_FINITE:
-                break
-            theta0 = outcome[0]
-            new, _ = assign_modes(problem, theta0, m_max, n_max, n_branches, threshold)
-            if np.array_equal(new, current):
-                return (*outcome[:3], iterations, outcome[4], current)
-            current = new
-        status = outcome[4] if outcome[4] == FitStatus.NOT_FINITE else \
-            FitStatus.ASSIGNMENT_CHANGING
-        return (*outcome[:3], iterations, status, current)
+            theta, r, jac, its, status = _fit_labelled(problem, theta0, labels, max_iterations)
+            cost = 0.5 * float(r @ r) if np.all(np.isfinite(r)) else np.inf
+            return _Outcome(theta, r, jac, its, status, labels, cost)
+        return _fit_unlabelled(problem, theta0, (m_max, n_max, n_branches), max_iterations,
+                               max_reassignments)
 
     best = None
-    for theta0 in _best_starts(problem, starts, labels, n_starts, m_max, n_max, n_branches):
-        outcome = run(theta0)
-        r = outcome[1]
-        cost = 0.5 * float(r @ r) if np.all(np.isfinite(r)) else np.inf
-        if best is None or cost < best[0] or (best[2][4] != FitStatus.CONVERGED
-                                              and outcome[4] == FitStatus.CONVERGED
-                                              and cost <= best[0]):
-            best = (cost, theta0, outcome)
-    theta, r, jac, iterations, status, final_labels = best[2]
+    for theta0 in _best_starts(problem, (initial_starts, candidates), labels, n_starts, m_max,
+                               n_max, n_branches):
+        best = _better(best, run(problem, theta0))
+    best = _from_inside(problem, best, run)
+    final = _discretisation(problem, [best.theta], reach, n_layers, scheme)
+    if final != problem.n_layers:  # the estimate needs more sublayers than the starts did
+        problem = problem._replace(n_layers=final)
+        best = _from_inside(problem, _better(None, run(problem, best.theta)), run)
+    return _result(problem, best, max_unmatched, max_iterations)
+
+
+def _better(best, outcome):
+    """The lower-cost outcome (a CONVERGED one wins a tie)."""
+    if best is None or outcome.cost < best.cost or (
+            best.status != FitStatus.CONVERGED and outcome.status == FitStatus.CONVERGED
+            and outcome.cost <= best.cost):
+        return outcome
+    return best
+
+
+def _on_bound(problem, theta):
+    """{index: "lower"/"upper"} of the parameters within BOUND_TOLERANCE of their bound range."""
+    span = problem.upper - problem.lower
+    out = {}
+    for k in range(theta.size):
+        if theta[k] - problem.lower[k] <= BOUND_TOLERANCE * span[k]:
+            out[k] = "lower"
+        elif problem.upper[k] - theta[k] <= BOUND_TOLERANCE * span[k]:
+            out[k] = "upper"
+    return out
+
+
+def _from_inside(problem, best, run, fractions=(0.25, 0.5, 0.75), passes=2):
+    """Restart each parameter stopped on a bound from inside (θ_k at ``fractions`` of its bound
+    range, the others at the estimate) and keep the lowest cost: on a bound the sigmoid's slope
+    vanishes, so the iteration stalls there even where the cost falls inside."""
+    for _ in range(passes):
+        if best.status == FitStatus.NOT_FINITE:
+            return best
+        stuck = _on_bound(problem, best.theta)
+        if not stuck:
+            return best
+        previous = best
+        for k in stuck:
+            for fraction in fractions:
+                theta0 = best.theta.copy()
+                theta0[k] = problem.lower[k] + fraction * (problem.upper[k] - problem.lower[k])
+                best = _better(best, run(problem, theta0))
+        if best is previous:
+            return best
+    return best
+
+
+def _fit_unlabelled(problem, theta0, modes, max_iterations, max_reassignments):
+    """Alternate assignment (:func:`assign_modes`; the first wide, then with τ) and fit until the
+    labels settle: the robust cost decreases at every step."""
+    current, _ = assign_modes(problem, theta0, *modes, wide=True)
+    iterations, outcome = 0, None
+    for _ in range(max_reassignments):
+        if not np.any(current[:, 0] >= 0):
+            break
+        theta, r, jac, its, status = _fit_labelled(problem, theta0, current, max_iterations)
+        iterations += its
+        outcome = (theta, r, jac, status, current)
+        if status == FitStatus.NOT_FINITE:
+            break
+        theta0 = theta
+        new, _ = assign_modes(problem, theta0, *modes)
+        if np.array_equal(new, current):
+            return _Outcome(theta, r, jac, iterations, status, current,
+                            _robust_cost(problem, r, current))
+        current = new
+    if outcome is None:  # nothing matched at this start
+        return _Outcome(theta0, np.full(0, np.nan), np.full((0, theta0.size), np.nan), iterations,
+                        FitStatus.NOT_FINITE, current, np.inf)
+    theta, r, jac, status, fitted = outcome
+    status = status if status == FitStatus.NOT_FINITE else FitStatus.ASSIGNMENT_CHANGING
+    cost = _robust_cost(problem, r, fitted) if np.all(np.isfinite(r)) else np.inf
+    return _Outcome(theta, r, jac, iterations, status, fitted, cost)
+
+
+def _discretisation(problem, thetas, reach, n_layers, scheme):
+    """The static discretisation of the model: :func:`jaxdea.transfer.laminate` of ``n_layers``,
+    ``scheme``; for the accurate default the largest N over ``thetas`` at the largest n, m and
+    branch count of ``reach`` = (n, m, roots)."""
+    n_top, m_top, n_roots = reach
+    chosen = None
+    for theta in thetas:
+        tube, alpha, _, _ = dimensionless(_values(problem, theta), 0.0, float(n_top))
+        layers = laminate(n_layers, scheme, tube, float(alpha), n_roots, m_top)
+        if not isinstance(layers, Layers):
+            return layers  # an explicit midpoint N
+        if chosen is None or layers.count > chosen.count:
+            chosen = layers
+    return chosen
+
+
+def _result(problem, best, max_unmatched, max_iterations):
+    """The :class:`FitResult` of the chosen outcome: uncertainty, readable intervals, quality
+    status and the warnings."""
+    theta, r, jac, iterations, status, final_labels, _ = best
     active = final_labels[:, 0] >= 0
     residuals = np.full(problem.voltage.size, np.nan)
     residuals[active] = r if r.size == active.sum() else np.nan
@@ -650,24 +997,62 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
     known = NAMES if problem.coupling is not None else NAMES[:-2]
     parameters = {k: float(v) for k, v in zip(NAMES, _values(problem, theta), strict=True)
                   if k in known}
-    settings = dict(n_layers=problem.n_layers, coupling=problem.coupling,
+    layers = problem.n_layers
+    settings = dict(n_layers=int(getattr(layers, "count", layers)),
+                    scheme=getattr(layers, "scheme", "midpoint"),
+                    graded=bool(getattr(layers, "graded", False)), coupling=problem.coupling,
                     bessel_order=problem.bessel_order)
-    if status == FitStatus.NOT_FINITE or not np.all(np.isfinite(jac)):
+    estimate = dict(zip(problem.free, theta.tolist(), strict=True))
+    unmatched = float(np.mean(~active))
+    dof = int(active.sum()) - p
+    chi2 = float(r @ r) if r.size and np.all(np.isfinite(r)) else np.nan
+    chi2_per_dof = chi2 / dof if dof > 0 else np.nan
+    at_bound = {problem.free[k]: side for k, side in _on_bound(problem, theta).items()}
+    if status == FitStatus.NOT_FINITE or not np.all(np.isfinite(jac)) or r.size == 0:
         nan = np.full((p, p), np.nan)
-        return FitResult(dict(zip(problem.free, theta.tolist(), strict=True)),
-                         {k: (np.nan, np.nan) for k in problem.free}, nan, nan, residuals,
-                         final_labels, FitStatus.NOT_FINITE, iterations, problem.free, parameters,
-                         settings)
-    covariance, correlation, intervals, null = uncertainty(problem, theta, r, jac)
-    if null is not None:
-        _warn_null(problem.free, null)
-    return FitResult(dict(zip(problem.free, theta.tolist(), strict=True)), intervals, covariance,
-                     correlation, residuals, final_labels, status, iterations, problem.free,
-                     parameters, settings)
+        return FitResult(estimate, {k: (np.nan, np.nan) for k in problem.free}, nan, nan,
+                         residuals, final_labels, FitStatus.NOT_FINITE, iterations, problem.free,
+                         parameters, settings, chi2, dof, chi2_per_dof, unmatched, at_bound)
+    covariance, correlation, intervals, null, quantile, variance = uncertainty(problem, theta, r,
+                                                                                jac)
+    intervals = readable_intervals(problem, theta, final_labels, intervals, quantile, variance,
+                                   max_iterations)
+    messages = identifiability_messages(problem, null, intervals, correlation)
+    if messages:
+        warnings.warn("; ".join(messages), IdentifiabilityWarning, stacklevel=3)
+    quality = []
+    if status == FitStatus.CONVERGED and unmatched > max_unmatched:
+        status = FitStatus.TOO_FEW_MATCHED
+        quality.append(f"only {int(active.sum())} of {active.size} peaks match a mode "
+                       f"({100 * unmatched:.0f} % unmatched, more than max_unmatched = "
+                       f"{100 * max_unmatched:.0f} %): the modes searched (m_max, n_max, "
+                       f"n_branches), the bounds or outlier_sigma may not fit these data")
+    if status == FitStatus.CONVERGED and problem.has_sigma and dof > 0:
+        from scipy.stats import chi2 as chi2_distribution  # scipy: imported where it is used
+
+        tail = float(chi2_distribution.sf(chi2, dof))
+        if tail < POOR_FIT_PROBABILITY:
+            status = FitStatus.POOR_FIT
+            quality.append(f"χ²/dof = {chi2_per_dof:.3g} with {dof} degrees of freedom "
+                           f"(probability {tail:.2g} for the model with the σ given): the model "
+                           f"does not explain the data within σ (σ too small, a wrong mode "
+                           f"assignment, a parameter held at a wrong value)")
+    for name, side in at_bound.items():
+        k = problem.free.index(name)
+        value = problem.lower[k] if side == "lower" else problem.upper[k]
+        quality.append(f"{name} stopped on its {side} bound {value:.6g}: the data pull it beyond "
+                       f"(restarts inside the bounds found no lower χ²); widen the bound or fix "
+                       f"the parameter")
+    if quality:
+        warnings.warn("; ".join(quality), FitQualityWarning, stacklevel=3)
+    return FitResult(estimate, intervals, covariance, correlation, residuals, final_labels,
+                     status, iterations, problem.free, parameters, settings, chi2, dof,
+                     chi2_per_dof, unmatched, at_bound)
 
 
 def _starts(problem: _Problem, initial, grid_points):
-    """Candidate starts: ``initial`` (validated inside the bounds) and a grid in u."""
+    """Candidate starts: ``initial`` (validated inside the bounds), and a grid of ``grid_points``
+    per parameter or, beyond :data:`MAX_GRID` points, a Latin hypercube of MAX_GRID points."""
     starts = []
     if initial is not None:
         if not isinstance(initial, Mapping):
@@ -690,24 +1075,28 @@ def _starts(problem: _Problem, initial, grid_points):
                                  f"({problem.lower[i]!r}, {problem.upper[i]!r})")
             theta.append(value)
         starts.append(np.array(theta))
-    fractions = (np.arange(grid_points) + 0.5) / grid_points
-    axes = [problem.lower[i] + (problem.upper[i] - problem.lower[i]) * fractions
-            for i in range(len(problem.free))]
-    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(problem.free))
-    return starts, list(grid)
+    p = len(problem.free)
+    if grid_points**p <= MAX_GRID:
+        fractions = (np.arange(grid_points) + 0.5) / grid_points
+        grid = np.stack(np.meshgrid(*[fractions] * p, indexing="ij"), axis=-1).reshape(-1, p)
+    else:  # Latin hypercube: each parameter's range cut in MAX_GRID strata, one point in each
+        rng = np.random.default_rng(0)
+        grid = np.stack([(rng.permutation(MAX_GRID) + rng.uniform(size=MAX_GRID)) / MAX_GRID
+                         for _ in range(p)], axis=1)
+    return starts, list(problem.lower + (problem.upper - problem.lower) * grid)
 
 
 def _best_starts(problem, starts, labels, n_starts, m_max, n_max, n_branches):
-    """``initial`` (first, if given) and the ``n_starts`` grid starts of lowest initial cost
-    (assignment cost for unlabelled peaks, Σ r² of the seeded branches otherwise)."""
+    """``initial`` (first, if given) and the ``n_starts`` candidates of lowest initial cost (the
+    wide robust cost of :func:`assign_modes` for unlabelled peaks, Σ r² of the seeded branches
+    otherwise)."""
     initial, starts = starts
     if n_starts == 0:
         return initial
     costs = []
     for theta in starts:
         if labels is None:
-            _, cost = assign_modes(problem, theta, m_max, n_max, n_branches, None)
-            costs.append(float(np.sum(cost)))
+            costs.append(assign_modes(problem, theta, m_max, n_max, n_branches, wide=True)[1])
         else:
             seed = _seed(problem, theta, labels)
             scale = float(np.asarray(dimensionless(_values(problem, theta), 0.0, 1.0)[3]))
@@ -743,9 +1132,12 @@ def fitted_frequencies(result: FitResult, voltage_V, m, n, branch=0) -> np.ndarr
             raise ValueError(f"{name} must hold integers >= {low}")
     m, n, branch = m.astype(int), n.astype(int), branch.astype(int)
     settings = result.settings
+    layers = settings["n_layers"]
+    if settings.get("scheme", "midpoint") != "midpoint" or settings.get("graded", False):
+        layers = Layers(int(layers), settings["scheme"], bool(settings.get("graded", False)))
     base = np.array([result.parameters.get(k, 1.0) for k in NAMES], dtype=np.float64)
     problem = _Problem(voltage, np.ones_like(voltage), np.ones_like(voltage), False, (),
-                       np.zeros(0), np.zeros(0), base, np.zeros(0, int), settings["n_layers"],
+                       np.zeros(0), np.zeros(0), base, np.zeros(0, int), layers,
                        settings["coupling"], settings["bessel_order"])
     out = np.full(voltage.size, np.nan)
     if voltage.size:

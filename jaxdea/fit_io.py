@@ -25,7 +25,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .fit import NAMES, UNITS, FitResult, IdentifiabilityWarning, fit, fitted_frequencies
+from .fit import (
+    NAMES,
+    UNITS,
+    FitQualityWarning,
+    FitResult,
+    IdentifiabilityWarning,
+    fit,
+    fitted_frequencies,
+)
 
 COLUMNS = ("voltage_V", "frequency_Hz", "sigma_Hz", "m", "n", "branch")
 """The columns of a peak table, in the order :func:`write_peaks` writes them."""
@@ -34,8 +42,8 @@ LABEL_LOW = dict(m=0, n=1, branch=0)
 TOP_KEYS = ("free", "fixed", "fluid", "options")
 FREE_KEYS = ("lower", "upper", "initial")
 FLUID_KEYS = ("coupling", "bessel_order")
-OPTION_KEYS = ("n_layers", "m_max", "n_max", "n_branches", "threshold", "n_starts", "grid_points",
-               "max_iterations", "max_reassignments")
+OPTION_KEYS = ("n_layers", "scheme", "m_max", "n_max", "n_branches", "threshold", "outlier_sigma",
+               "max_unmatched", "n_starts", "grid_points", "max_iterations", "max_reassignments")
 
 FORMAT = f"""\
 fluid = "acoustic"   optional, before the tables (leave it out for an empty tube); or a table
@@ -46,10 +54,12 @@ fluid = "acoustic"   optional, before the tables (leave it out for an empty tube
 [fixed]   every other parameter: NAME = value (gent = inf: neo-Hookean)
           NAME one of {', '.join(NAMES[:5])} (Pa, kg/m^3, F/m, m, m),
           {', '.join(NAMES[5:9])} (and fluid_density, fluid_speed with a fluid)
-[options] of jaxdea.fit: n_layers = 30, m_max = 2, n_max = 3, n_branches = 2 (the modes unlabelled
-          peaks may be assigned to), threshold = 0.1 (|log f_model - log f_data| beyond which a peak
-          is left unmatched), n_starts = 3 (0 with initial values: those alone), grid_points = 3,
-          max_iterations = 100, max_reassignments = 10
+[options] of jaxdea.fit: n_layers, scheme (default: the accurate graded magnus6 laminate; n_layers
+          alone: equal midpoint sublayers), m_max = 2, n_max = 3, n_branches = 2 (the modes
+          unlabelled peaks may be assigned to), threshold = 0.1 (|log f_model - log f_data| beyond
+          which a peak is an outlier without sigma_Hz), outlier_sigma = 5 (with sigma_Hz),
+          max_unmatched = 0.25, n_starts = 3 (0 with initial values: those alone),
+          grid_points = 3, max_iterations = 100, max_reassignments = 10
 """
 
 
@@ -174,7 +184,8 @@ def _plain(x):
 
 def write_fit(result: FitResult, data, path, warnings_=()) -> Path:
     """Save a fit as JSON: status, iterations, the estimates, 95 % intervals, units, covariance and
-    correlation (in ``names`` order), every parameter value, the model settings and one record per
+    correlation (in ``names`` order), every parameter value, the model settings, χ², dof, χ²/dof,
+    the unmatched fraction, the parameters stopped on a bound and one record per
     peak (voltage_V, frequency_Hz, sigma_Hz, model_Hz, residual, m, n, branch; m = n = branch = −1
     for an unmatched peak, whose model_Hz and residual are null). NaN and ±inf are written as null.
 
@@ -199,6 +210,8 @@ def write_fit(result: FitResult, data, path, warnings_=()) -> Path:
         units={k: UNITS[k] for k in result.names}, covariance=result.covariance,
         correlation=result.correlation, parameters=result.parameters, settings=result.settings,
         unmatched=[int(i) for i in np.flatnonzero(result.assignment[:, 0] < 0)],
+        chi2=result.chi2, dof=result.dof, chi2_per_dof=result.chi2_per_dof,
+        unmatched_fraction=result.unmatched_fraction, at_bound=result.at_bound,
         warnings=list(warnings_), points=points)
     path = Path(path)
     path.write_text(json.dumps(_plain(document), indent=1) + "\n", encoding="utf-8")
@@ -358,8 +371,11 @@ def parse_fit_config(data) -> FitConfig:
         fixed[name] = _number(f"fixed.{name}", value, allow_inf=name == "gent")
     options = dict(_table("options", data.get("options", {}), OPTION_KEYS))
     for name, value in options.items():
-        if name == "threshold":
-            options[name] = _number("options.threshold", value)
+        if name in ("threshold", "outlier_sigma", "max_unmatched"):
+            options[name] = _number(f"options.{name}", value)
+        elif name == "scheme":
+            if not isinstance(value, str):
+                raise ValueError(f"options.scheme: expected a string, got {value!r}")
         elif isinstance(value, bool) or not isinstance(value, int):
             raise ValueError(f"options.{name}: expected an integer, got {value!r}")
     if initial and len(initial) != len(free):
@@ -393,7 +409,8 @@ def summary(result: FitResult, data, source="data", caught=()) -> str:
     and the assignment of every peak (unmatched ones listed)."""
     rows = result.assignment.shape[0]
     lines = [f"fit of {rows} peaks from {source}: {len(result.names)} free parameters, status "
-             f"{result.status.name}, {result.iterations} iterations", "",
+             f"{result.status.name}, {result.iterations} iterations, chi2/dof "
+             f"{result.chi2_per_dof:.4g}, {100 * result.unmatched_fraction:.0f} % unmatched", "",
              f"{'parameter':<16}{'estimate':>14}{'± 95 %':>12}   {'95 % interval':<30}unit"]
     for name in result.names:
         value, (low, high) = result.estimate[name], result.interval[name]
@@ -438,9 +455,11 @@ def run_fit(data_path, config_path, out=None):
         raise ValueError(f"cannot write into {folder}: {exc.strerror or exc}") from None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", IdentifiabilityWarning)
+        warnings.simplefilter("always", FitQualityWarning)
         result = fit(data, config.free, config.fixed, config.fluid, initial=config.initial,
                      **config.options)
-    messages = [str(w.message) for w in caught if issubclass(w.category, IdentifiabilityWarning)]
+    messages = [str(w.message) for w in caught
+                if issubclass(w.category, (IdentifiabilityWarning, FitQualityWarning))]
     try:
         write_fit(result, data, paths[0], messages)
         plot_fit(result, data, paths[1])
