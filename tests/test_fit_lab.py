@@ -62,9 +62,9 @@ def test_exact_peaks_give_every_parameter_to_1e6_including_the_weak_gent_constan
     data = exact if labelled else {k: exact[k] for k in ("voltage_V", "frequency_Hz")}
     result = fit(data, FREE, fixed_for(FREE), m_max=2, n_max=3, n_branches=1)
     assert result.status == FitStatus.CONVERGED
-    assert (result.settings["scheme"], result.settings["graded"]) == ("magnus6", True)
     for name in FREE:
         assert abs(result.estimate[name] / SILICONE[name] - 1.0) <= 1e-6, name
+    assert (result.settings["scheme"], result.settings["graded"]) == ("magnus6", True)
     np.testing.assert_array_equal(result.assignment, np.stack(
         [exact["m"], exact["n"], 0 * exact["m"]], axis=1))
     assert result.unmatched_fraction == 0.0 and result.at_bound == {}
