@@ -2,10 +2,9 @@
 elastomer tubes, empty or filled with an inviscid compressible fluid (see theory.md).
 
 64-bit floats are required: ``jax.config.update("jax_enable_x64", True)`` before use.
+Importing jaxdea changes nothing in the process; :func:`configure` opts in to the on-disk program
+cache and XLA's loop threshold (:mod:`jaxdea.compiled`).
 """
-
-import jax
-import jax.numpy as jnp
 
 from . import compiled, units
 from .accuracy import Estimate, frequencies_with_error
@@ -16,6 +15,7 @@ from .base_state import (
     thickness_ratio,
     with_thickness_ratio,
 )
+from .compiled import Configuration, configure
 from .counting import CountStatus, RootCount, count_roots
 from .curves import Curve, dispersion_curve
 from .design import DesignResult, DesignStatus, design_for_frequency, maximise_tunability, tunability
@@ -49,6 +49,7 @@ from .trace import Branch, BranchEnd, trace_branch
 __all__ = [
     "Branch",
     "BranchEnd",
+    "Configuration",
     "CountStatus",
     "Curve",
     "DesignResult",
@@ -67,6 +68,7 @@ __all__ = [
     "Tube",
     "axial_wavenumber",
     "characteristic",
+    "configure",
     "count_roots",
     "critical_voltage",
     "critical_voltages",
@@ -105,22 +107,4 @@ __all__ = [
     "write_peaks",
 ]
 __version__ = "0.1.0"
-del jnp
 
-
-def _enable_compilation_cache():
-    """Keep compiled solvers on disk between processes (compilation dominates a first call): XLA
-    programs in <root>/xla unless the user configured a JAX cache, exported programs in
-    <root>/programs (:mod:`jaxdea.compiled`); root ``JAXDEA_CACHE_DIR``, default ~/.cache/jaxdea,
-    ``off`` for neither. A root or folder that another user owns or may write is not used
-    (:class:`jaxdea.compiled.CacheWarning`)."""
-    if compiled.cache_off() or jax.config.jax_compilation_cache_dir is not None:
-        return
-    folder = compiled.private_folder("xla")
-    if folder is None:
-        return
-    jax.config.update("jax_compilation_cache_dir", str(folder))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
-
-
-_enable_compilation_cache()

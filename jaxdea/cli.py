@@ -10,6 +10,7 @@ bad configuration, reported in one line on stderr without a traceback).
 import argparse
 import importlib.util
 import itertools
+import os
 import sys
 import tempfile
 import time
@@ -278,25 +279,27 @@ number, ĉ_f, ρ̂_f and h/R_i, empty and fluid-filled, consistent acoustic mode
 coupling) and the static response, each as a PNG plus the CSV behind it."""
 
 
-CACHE_HELP = """Compiled programs are kept under JAXDEA_CACHE_DIR (default ~/.cache/jaxdea; 'off'
-for none): JAX's compilations in xla/, jaxdea's exported programs in programs/. Only the first
-call of a solver in a process pays for tracing and compiling once they are there. Deleting the
-cache is always safe: the next run compiles anew."""
+CACHE_HELP = """Compiled programs are kept under JAXDEA_CACHE_DIR (default ~/.cache/jaxdea, also when
+it is set but empty; 'off' for none): JAX's compilations in xla/, jaxdea's exported programs in
+programs/, next to the CACHEDIR.TAG that marks the folder as jaxdea's. Only the first call of a
+solver in a process pays for tracing and compiling once they are there. 'clear' deletes only
+those (a folder without the tag is left alone); deleting them is always safe: the next run
+compiles anew."""
 
 
 def _cache(args):
     from . import compiled
 
-    root = compiled.cache_root()
-    if root is None:
+    if os.environ.get("JAXDEA_CACHE_DIR", "").lower() == "off":
         print("the cache is off (JAXDEA_CACHE_DIR=off)")
         return 0
+    root = compiled.configured_root()
     if args.action == "clear":
         existed = root.exists()
-        compiled.clear_cache()
-        print(f"removed {root}" if existed else f"nothing to remove at {root}")
+        compiled.clear_cache(root)
+        print(f"removed jaxdea's cache at {root}" if existed else f"nothing to remove at {root}")
         return 0
-    files = [p for p in root.rglob("*") if p.is_file()] if root.exists() else []
+    files = [p for name in compiled.SUBFOLDERS for p in (root / name).rglob("*") if p.is_file()]
     size = sum(p.stat().st_size for p in files)
     print(f"{root}: {len(files)} files, {size / 1e6:.1f} MB")
     return 0
@@ -387,6 +390,10 @@ def main(argv=None):
     except SystemExit as exc:  # --help (0) or a usage error (2, message already printed)
         return 0 if exc.code is None else int(exc.code)
     jax.config.update("jax_enable_x64", True)
+    if args.command != "cache":
+        from . import compiled
+
+        compiled.configure()  # the on-disk program cache and XLA's loop threshold
     try:
         return args.run(args)
     except OSError as exc:  # one line, never a traceback

@@ -36,6 +36,8 @@ jax.config.update("jax_enable_x64", True)  # jaxdea refuses to compute in float3
 import jax.numpy as jnp  # noqa: E402
 
 import jaxdea as jd  # noqa: E402
+
+jd.configure()  # opt in: compiled programs cached on disk, XLA's loop threshold
 from jaxdea.fit import NAMES, dimensionless, fit, mode_roots  # noqa: E402
 from jaxdea.units import VACUUM_PERMITTIVITY, Scales, tube_from_si  # noqa: E402
 

@@ -39,6 +39,8 @@ import numpy as np
 
 jax.config.update("jax_enable_x64", True)  # jaxdea refuses to compute in float32
 import jaxdea as jd  # noqa: E402
+
+jd.configure()  # opt in: compiled programs cached on disk, XLA's loop threshold
 from jaxdea import design  # noqa: E402
 
 FAST = os.environ.get("JAXDEA_NOTEBOOK_FAST") == "1"

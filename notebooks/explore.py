@@ -33,6 +33,8 @@ from IPython.display import Image, display
 
 jax.config.update("jax_enable_x64", True)  # jaxdea refuses to compute in float32
 import jaxdea as jd  # noqa: E402
+
+jd.configure()  # opt in: compiled programs cached on disk, XLA's loop threshold
 from jaxdea.explore import explorer_data  # noqa: E402
 
 FAST = os.environ.get("JAXDEA_NOTEBOOK_FAST") == "1"

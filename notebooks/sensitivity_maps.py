@@ -31,6 +31,8 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 import jaxdea as jd  # noqa: E402
 
+jd.configure()  # opt in: compiled programs cached on disk, XLA's loop threshold
+
 FAST = os.environ.get("JAXDEA_NOTEBOOK_FAST") == "1"
 k = 4 if FAST else 16
 tube = jd.Tube(lambda_z=1.2, eta=0.85)

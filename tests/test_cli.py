@@ -436,7 +436,8 @@ def _error_cases(tmp_path):
         (["table", "extra"], {}, "unrecognized arguments: extra"),
         (["cache"], {}, "the following arguments are required: action"),
         (["cache", "wipe"], {}, "invalid choice: 'wipe'"),
-        (["cache", "clear"], {"JAXDEA_CACHE_DIR": str(a_file)}, f"{a_file}: Not a directory"),
+        (["cache", "clear"], {"JAXDEA_CACHE_DIR": str(a_file)}, f"{a_file} is not a jaxdea cache"),
+        (["cache", "clear"], {"JAXDEA_CACHE_DIR": str(tmp_path)}, f"{tmp_path} is not a jaxdea cache"),
     ]
     if "fit" in _subcommand_parsers()[1]:
         cases += [
@@ -519,9 +520,17 @@ def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("JAXDEA_CACHE_DIR", str(root))
     (root / "programs").mkdir(parents=True)
     (root / "programs" / "entry.jaxexport").write_bytes(b"x" * 2000)
+    (root / "mine.txt").write_text("the user's")
     assert cli.main(["cache", "info"]) == 0
     assert f"{root}: 1 files" in capsys.readouterr().out
+    assert cli.main(["cache", "clear"]) == 2  # no marker: not jaxdea's folder, nothing deleted
+    assert "is not a jaxdea cache" in capsys.readouterr().err
+    assert (root / "programs" / "entry.jaxexport").exists()
+    (root / "mine.txt").unlink()
+    from jaxdea import compiled
+
+    assert compiled.claim_root(root) is None  # only jaxdea's folders: marked as its cache
     assert cli.main(["cache", "clear"]) == 0
-    assert f"removed {root}" in capsys.readouterr().out and not root.exists()
+    assert f"removed jaxdea's cache at {root}" in capsys.readouterr().out and not root.exists()
     monkeypatch.setenv("JAXDEA_CACHE_DIR", "off")
     assert cli.main(["cache", "clear"]) == 0 and "off" in capsys.readouterr().out
