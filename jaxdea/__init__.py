@@ -6,6 +6,8 @@ Importing jaxdea changes nothing in the process; :func:`configure` opts in to th
 cache and XLA's loop threshold (:mod:`jaxdea.compiled`).
 """
 
+from importlib import metadata as _metadata
+
 from . import compiled, units
 from .accuracy import Estimate, frequencies_with_error
 from .base_state import (
@@ -106,5 +108,8 @@ __all__ = [
     "write_fit",
     "write_peaks",
 ]
-__version__ = "0.1.0"
+try:
+    __version__ = _metadata.version("jaxdea")
+except _metadata.PackageNotFoundError:  # a source tree that is not installed
+    __version__ = "0+unknown"
 
