@@ -3,19 +3,17 @@
 This is the code a researcher would write from docs/theory/axisymmetric.md §1–4, independent of jaxdea (no
 import of it): the same corrected physics and the same discretisation, in plain NumPy/SciPy loops.
 
-* Base state (docs/theory/axisymmetric.md §1): λ(r̂) = r̂/sqrt(λ_z(r̂² − r̂_i²) + 1), D̂_r = V̂/(r̂
-ln(r̂_o/r̂_i)),
+* Base state (docs/theory/axisymmetric.md §1): λ(r̂) = r̂/sqrt(λ_z(r̂² − r̂_i²) + 1),
+  D̂_r = V̂/(r̂ ln(r̂_o/r̂_i)),
   ΔP̂ = ∫ 2W_1(λ² − λ_r²) dr̂/r̂ − V̂²(1 − r̂_i²/r̂_o²)/(2 r̂_i² ln²(r̂_o/r̂_i)) by ``scipy.integrate.quad``,
   p̂ = 2W_1λ_r² + D̂_r² − τ̂_rr (gauge P̂_o = 0, P̂_i = ΔP̂), Gent W_1 = 1/(2[1 − (I_1 − 3)/G]),
   W_11 = 2W_1²/G.
 * Closed-form moduli combinations a, b, c, d, g, q (docs/theory/axisymmetric.md §3, corrected Eq. 33) and the
-6×6
-  state matrix M(r̂) (corrected Eq. 40).
+  6×6 state matrix M(r̂) (corrected Eq. 40).
 * Laminate (Eqs. 42–44): N equal sublayers, T_k = ``scipy.linalg.expm``((ĥ/N) M(r̂_k)) at the
   mid-radii, A = T_N ⋯ T_1 (plain 6×6 products).
 * Characteristic function (docs/theory/axisymmetric.md §4): det(B A S) with B the rows Φ, T̄, S̄ at r̂_o and S
-the 6×3
-  initial basis (follower pressure ΔP̂ at r̂_i; the consistent acoustic fluid coupling with the
+  the 6×3 initial basis (follower pressure ΔP̂ at r̂_i; the consistent acoustic fluid coupling with the
   pole-free pair N_0 = r̂_i J_0(x), D_0 = −x J_1(x), or r̂_i I_0(x̃), x̃ I_1(x̃), from
   ``scipy.special``). ``normalise=True`` returns det(B Q) with A S = Q R the QR factorisation
   (diag R > 0): the same zeros and sign, in [−1, 1]; Q is unique, so this is the very function that

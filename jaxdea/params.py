@@ -78,9 +78,8 @@ class Fluid:
     Attributes:
         density_ratio: ρ̂_f = ρ_f / ρ_s > 0.
         speed_ratio: ĉ_f = c_f / c_s > 0.
-        coupling: static, ``"acoustic"`` (consistent, docs/theory/axisymmetric.md §4(c)) or ``"paper"`` (the
-        paper's
-            Eq. 45 follower-pressure model, docs/theory/axisymmetric.md §4(b)).
+        coupling: static, ``"acoustic"`` (consistent, docs/theory/axisymmetric.md §4(c)) or
+            ``"paper"`` (the paper's Eq. 45 follower-pressure model, docs/theory/axisymmetric.md §4(b)).
         bessel_order: static int ν ≥ 0 of the paper's coupling function (``"paper"`` only);
             ``None`` means ν = n, the axial mode number, inferred from a concrete α̂.
     """
