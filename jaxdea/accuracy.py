@@ -123,9 +123,9 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
             level follows the roots of that order.
 
     Returns:
-        :class:`Estimate`.
+        An instance of :class:`Estimate`.
 
-    Example:
+    Examples:
         >>> est = frequencies_with_error(Tube(), 0.445, rtol=1e-10)
         >>> est.omega, est.error
     """

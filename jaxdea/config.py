@@ -411,7 +411,7 @@ def parse_config(data, default_name: str = "sweep") -> SweepConfig:
         default_name: file stem of the outputs when ``output.name`` is absent.
 
     Returns:
-        :class:`SweepConfig`.
+        An instance of :class:`SweepConfig`.
 
     Raises:
         ValueError: "sweep config: …" naming the offending key and what is allowed there.

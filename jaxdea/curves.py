@@ -483,13 +483,13 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
             roots of that order at every α̂ (:func:`jaxdea.frequencies`).
 
     Returns:
-        :class:`Curve` (omega, status of shape (M, K); ``scanned`` says where the scan ran).
+        An instance of :class:`Curve` (omega, status of shape (M, K); ``scanned`` says where the scan ran).
 
     Raises:
         ValueError: naming the parameter, for invalid concrete inputs (as ``frequencies``; alpha
             must also be 1-D and non-empty).
 
-    Example:
+    Examples:
         >>> c = dispersion_curve(Tube(), np.linspace(0.05, 5, 100), n_roots=4, n_layers=10)
         >>> c.omega.shape, int(c.scanned.sum())   # (100, 4), 1
     """

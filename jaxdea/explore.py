@@ -179,7 +179,7 @@ def explore(tube: Tube | None = None, fluid: Fluid | None = None, *, n_modes: in
     Raises:
         ImportError: without ipywidgets (``pip install jaxdea[explore]``).
 
-    Example:
+    Examples:
         >>> app = jaxdea.explore(jaxdea.Tube(voltage=0.05, lambda_i=0.9, lambda_z=1.2))
         >>> app.controls["voltage"].value = 0.02   # redraws; app.data holds the curves
         >>> app.set(filled="filled", m=2)          # several controls, one redraw

@@ -21,7 +21,7 @@ points crowd there, V̂ = V̂_cr(1 − (1 − t)²) for t uniform: Ω falls like
 points are left blank (NaN, ``status`` = ``"past critical"`` in the CSV). V̂_cr is solved directly
 (:func:`jaxdea.critical_voltage`'s problem), so a blank point never hides a wrong branch.
 
-The tube loses stability earlier in a non-axisymmetric order m (theory_m.md): for λ_i = 0.9 the
+The tube loses stability earlier in a non-axisymmetric order m (docs/theory/order_m.md): for λ_i = 0.9 the
 ring mode (m, n) = (2, 1) at V̂ ≈ 0.029, a tenth of the axisymmetric V̂_cr. The first instability
 (the smallest V̂_cr over m ≤ 4, n ≤ max_mode, as :func:`jaxdea.first_instability`) is shaded on the
 figures against V̂ (Figs. 2, 5) and stated on those against n (Figs. 3, 4, 6, 7; the curves past it
@@ -987,7 +987,7 @@ def static_response(ctx: Context):
 
 
 def figure_static_response(ctx: Context) -> None:
-    """V̂ against λ_i at fixed ΔP̂ (theory.md Eq. 1.1 solved for V̂²), pull-in points marked.
+    """V̂ against λ_i at fixed ΔP̂ (docs/theory/axisymmetric.md Eq. 1.1 solved for V̂²), pull-in points marked.
 
     The pull-in point is the first maximum of V̂(λ_i) (:func:`jaxdea.base_state.pull_in`). For the
     ideal-dielectric tube held at fixed λ_z there is none: V̂ rises monotonically at every ΔP̂ (the

@@ -68,7 +68,7 @@ def read_peaks(path) -> dict:
             missing column, a cell that is not a number, NaN or ±inf, a frequency or σ ≤ 0, a label
             that is not an integer in range, no data rows.
 
-    Example:
+    Examples:
         >>> peaks = read_peaks("peaks.csv")   # voltage_V,frequency_Hz,sigma_Hz / 2000,41.3,0.2 / …
         >>> peaks["frequency_Hz"], peaks["sigma_Hz"]
         >>> result = jd.fit(peaks, free, fixed)
@@ -128,7 +128,7 @@ def write_peaks(path, data) -> Path:
     """Write peaks (a mapping with the columns of :func:`read_peaks`) as CSV; floats are written
     with their shortest exact representation, so :func:`read_peaks` gives them back bit for bit.
 
-    Example:
+    Examples:
         >>> write_peaks("peaks.csv", {"voltage_V": [2e3, 5e3], "frequency_Hz": [41.3, 40.2]})
         >>> read_peaks("peaks.csv")["frequency_Hz"]     # array([41.3, 40.2])
     """
@@ -178,7 +178,7 @@ def write_fit(result: FitResult, data, path, warnings_=()) -> Path:
     peak (voltage_V, frequency_Hz, sigma_Hz, model_Hz, residual, m, n, branch; m = n = branch = −1
     for an unmatched peak, whose model_Hz and residual are null). NaN and ±inf are written as null.
 
-    Example:
+    Examples:
         >>> result = jd.fit(peaks, free, fixed)
         >>> write_fit(result, peaks, "peaks_fit.json")
         >>> estimate = json.load(open("peaks_fit.json"))["estimate"]
@@ -222,7 +222,7 @@ def plot_fit(result: FitResult, data, path=None, points: int = 41):
         Its first axes hold one line per mode, labelled "(m, n, branch) = (…)", whose data are the
         voltages and the model frequencies.
 
-    Example:
+    Examples:
         >>> fig = plot_fit(result, peaks, "peaks_fit.png")
         >>> fig.axes[0].lines[0].get_xydata()           # (V, f_model in Hz) of the first mode
     """

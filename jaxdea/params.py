@@ -44,7 +44,7 @@ validated as XLA will see them (a subnormal α̂ or λ is 0 inside the solvers).
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class Tube:
-    """A pre-stretched dielectric elastomer tube (all quantities dimensionless, theory.md §0).
+    """A pre-stretched dielectric elastomer tube (all quantities dimensionless, docs/theory/axisymmetric.md §0).
 
     Attributes:
         voltage: V̂ = sqrt(ε/μ) V / R_i.
@@ -78,8 +78,8 @@ class Fluid:
     Attributes:
         density_ratio: ρ̂_f = ρ_f / ρ_s > 0.
         speed_ratio: ĉ_f = c_f / c_s > 0.
-        coupling: static, ``"acoustic"`` (consistent, theory.md §4(c)) or ``"paper"`` (the paper's
-            Eq. 45 follower-pressure model, theory.md §4(b)).
+        coupling: static, ``"acoustic"`` (consistent, docs/theory/axisymmetric.md §4(c)) or
+            ``"paper"`` (the paper's Eq. 45 follower-pressure model, docs/theory/axisymmetric.md §4(b)).
         bessel_order: static int ν ≥ 0 of the paper's coupling function (``"paper"`` only);
             ``None`` means ν = n, the axial mode number, inferred from a concrete α̂.
     """
@@ -190,7 +190,7 @@ def validate_broadcast(kind, values: dict) -> None:
 
 
 def gent_limit_excess(lambda_i, lambda_z, eta):
-    """max over the wall of I_1 − 3 (attained at a face; I_1 is convex in λ², theory.md §1);
+    """max over the wall of I_1 − 3 (attained at a face; I_1 is convex in λ², docs/theory/axisymmetric.md §1);
     inf where extreme inputs overflow (such a wall is past any locking limit)."""
     with np.errstate(all="ignore"):
         excess = _face_excess(lambda_i, lambda_z, eta, np)

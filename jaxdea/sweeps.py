@@ -368,7 +368,7 @@ def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_
         roots = frequencies_unchecked(*point, omega_max, n_roots, n_layers, nu, m, family)
     alpha_point = as_float(point[1])
     growth = ()
-    if n_growth:  # the scan in Ω² = −s² (the 8×8 path at m = 0: theory_m.md §6)
+    if n_growth:  # the scan in Ω² = −s² (the 8×8 path at m = 0: docs/theory/order_m.md §6)
         growth = (growth_rates_unchecked(*point, None, n_growth, n_layers, nu, as_float(m),
                                          _growth_family(family)).omega,)
     if jac_names is None:
@@ -534,7 +534,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         client: a Dask ``distributed.Client`` (extra ``jaxdea[dask]``): the chunks are sent as
             tasks to its workers, each solving on all its own devices (``devices`` must then be
             None), and gathered in grid order. None: solve in this process.
-        m: the circumferential order (theory_m.md): an integer >= 0 (a fixed order, not an axis;
+        m: the circumferential order (docs/theory/order_m.md): an integer >= 0 (a fixed order, not an axis;
             0 the axisymmetric longitudinal family, as :func:`jaxdea.frequencies`), or a 1-D array
             of integers >= 0: a grid axis ``m`` (one compiled program for every order; at m = 0 the
             longitudinal family's roots through the order-m system).
@@ -548,7 +548,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
             of :mod:`jaxdea.leaves`; exactly one of ``alpha`` / ``n`` is required.
 
     Returns:
-        :class:`SweepResult` with Ω of shape (*grid_shape, n_roots) in the order of ``axes``.
+        An instance of :class:`SweepResult` with Ω of shape (*grid_shape, n_roots) in the order of ``axes``.
 
     Raises:
         ValueError: an unknown or repeated axis, a missing ``alpha``/``n``, bad settings, an
@@ -556,7 +556,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
             not 0), naming m. Values of the other axes are not validated point by point: an invalid
             point gives NaN, status INVALID.
 
-    Example:
+    Examples:
         >>> res = sweep(Tube(lambda_z=1.2), voltage=np.linspace(0, 0.2, 5), n=np.arange(1, 11))
         >>> res.omega.shape  # (5, 10, 3)
         >>> sweep(Tube(lambda_z=1.2), m=np.arange(4), alpha=0.445).omega.shape  # (4, 1, 3)

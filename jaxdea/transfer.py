@@ -1,4 +1,5 @@
-"""Laminate discretisation of the wall and propagation across it (theory.md §3, paper Eqs. 42–44).
+"""Laminate discretisation of the wall and propagation across it (docs/theory/axisymmetric.md §3, paper Eqs.
+42–44).
 
 The wall is cut into N equal sublayers of thickness h = ĥ/N, and sublayer k is crossed by
 T_k = exp(G_k), either ``jax.scipy.linalg.expm`` (the reference) or the equal-to-rounding
@@ -31,9 +32,9 @@ Two propagators:
 
 Mode families (static ``family``, :mod:`jaxdea.state_matrix`): ``"longitudinal"`` (the 6×6 matrix
 above, the default: its code path and values are those of the axisymmetric library), ``"order_m"``
-(the 8×8 M_m of theory_m.md §3 with a traced order ``m``, 8×4 basis) and ``"torsional"`` (2×2, 2×1
+(the 8×8 M_m of docs/theory/order_m.md §3 with a traced order ``m``, 8×4 basis) and ``"torsional"`` (2×2, 2×1
 basis). Everything here is written for any matrix size. Every propagator also exists as a function
-of w = Ω² (``…_of_w``), which may be negative (unstable states, theory_m.md §6): the generator is a
+of w = Ω² (``…_of_w``), which may be negative (unstable states, docs/theory/order_m.md §6): the generator is a
 polynomial in w with real coefficients, so no complex arithmetic is needed there.
 
 The order-m family propagates the balanced state D⁻¹Y, D = diag(I, cI) on [displacements |
@@ -226,7 +227,7 @@ def grading_length(tube: Tube, geo=None):
     vary there.
 
     The coefficients of M hold 1/r̂ (the geometry and D̂_r ∝ 1/r̂: length r̂ from the axis) and the
-    energy's W_1, W_11 (theory.md Eq. 33). Near Gent locking W_1 ∝ 1/(G − (I_1 − 3)) and
+    energy's W_1, W_11 (docs/theory/axisymmetric.md Eq. 33). Near Gent locking W_1 ∝ 1/(G − (I_1 − 3)) and
     G − (I_1 − 3) ≈ d_0 + c(r̂ − r̂_i) (I_1 is largest at the inner face: λ(r̂) tends monotonically to
     λ_z^{-1/2}, where I_1 is smallest), a boundary layer of thickness W_1/|W_1'| = d_0/c (1.6e-3 of
     a 0.52 wall at 99 % of locking, G = 4); far from locking it is long (≈ G) and ℓ = r̂_i."""
@@ -305,12 +306,12 @@ class Wall(NamedTuple):
 
 
 def layer_coefficients(tube: Tube, r, moduli: str = "closed") -> Coefficients:
-    """State-matrix coefficients at radii r̂ (theory.md §3).
+    """State-matrix coefficients at radii r̂ (docs/theory/axisymmetric.md §3).
 
     ``moduli="closed"`` (default) evaluates the corrected Eq. (33) forms with W_1, W_11 from the
     energy by autodiff (exact for every energy W(I_1)); ``"tensor"`` pushes forward the full
-    autodiff Hessian of Ω(F, D_L) (theory.md §2), the general route, equal to rounding (tests) but
-    far costlier to compile and to differentiate.
+    autodiff Hessian of Ω(F, D_L) (docs/theory/axisymmetric.md §2), the general route, equal to rounding (tests)
+    but far costlier to compile and to differentiate.
     """
     bs = base_state(tube, r)
     lz, gent = as_float(tube.lambda_z), as_float(tube.gent)
@@ -354,8 +355,8 @@ def voltage_expansion(tube: Tube, n_layers) -> tuple[Wall, Wall, Wall]:
     """(W_0, W_1, W_2) with every leaf of :func:`discretize` at voltage V̂ equal to W_0 + V̂ W_1 + V̂² W_2.
 
     The wall is exactly quadratic in V̂ at fixed stretches: the geometry and λ(r̂) do not depend on
-    it, D̂_r ∝ V̂ (Eq. 8), the coefficients of theory.md Eq. (33) hold V̂ through D̂_r and D̂_r² only,
-    and ΔP̂ and p̂ through the electric integral ∝ V̂² (Eq. 1.1). The three terms are the Taylor
+    it, D̂_r ∝ V̂ (Eq. 8), the coefficients of docs/theory/axisymmetric.md Eq. (33) hold V̂ through D̂_r and
+    D̂_r² only, and ΔP̂ and p̂ through the electric integral ∝ V̂² (Eq. 1.1). The three terms are the Taylor
     coefficients at V̂ = 0 (forward mode, exact), so a search in V̂ (:func:`jaxdea.critical_voltage`)
     forms the base state once instead of at every V̂ (its first call: about 0.3 s less tracing and
     compilation, measured; the roots equal to rounding).
@@ -541,7 +542,7 @@ def _expm_of_power_polys_jvp(primals, tangents):
 
 INERTIA = inertia_matrix(LONGITUDINAL)
 """E with M(r̂; Ω) = M(r̂; 0) − Ω² E: Ω enters the state matrix only through the inertia terms of
-the traction rows (theory.md §3), the same at every radius."""
+the traction rows (docs/theory/axisymmetric.md §3), the same at every radius."""
 
 
 def _poly_add(*polys):
@@ -649,7 +650,7 @@ def _magnus6_generator(b1, b2, b3, add, scale, commutator):
 VOLTAGE_DEGREE = 4
 """Degree in V̂ of the state matrix at fixed stretches: the wall is quadratic in V̂
 (:func:`voltage_expansion`) and its only divisor, the shear modulus c − εd² = 2W_1λ_r², does not
-depend on V̂, so the entries hold at most (p − εd²)² (theory.md §3)."""
+depend on V̂, so the entries hold at most (p − εd²)² (docs/theory/axisymmetric.md §3)."""
 
 
 def _stacked_add(*polys):
