@@ -1,5 +1,5 @@
 """jaxdea: differentiable dispersion (every circumferential order m) of pre-stretched, voltage-driven soft dielectric
-elastomer tubes, empty or filled with an inviscid compressible fluid (see theory.md).
+elastomer tubes, empty or filled with an inviscid compressible fluid (see docs/theory/axisymmetric.md).
 
 64-bit floats are required: ``jax.config.update("jax_enable_x64", True)`` before use.
 Importing jaxdea changes nothing in the process; :func:`configure` opts in to the on-disk program
