@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import ast
 import html
+import os
 import re
 from pathlib import Path
 
@@ -64,6 +65,16 @@ def api_markdown(init_file: Path) -> str:
             path = f"jaxdea.{module}" if name == module else f"jaxdea.{module}.{name}"
             lines += [f"::: {path}", "    options:", "      heading_level: 3", ""]
     return "\n".join(lines)
+
+
+def on_config(config):
+    """The notebooks run at build time on their quick grids (``JAXDEA_NOTEBOOK_FAST=1``, unless the
+    environment says otherwise), sharing one compile cache; ``JAXDEA_DOCS_EXECUTE=0`` shows them
+    unexecuted (a fast build: the docs test of the default tier)."""
+    os.environ.setdefault("JAXDEA_NOTEBOOK_FAST", "1")
+    if os.environ.get("JAXDEA_DOCS_EXECUTE") == "0":
+        config["plugins"]["mkdocs-jupyter"].config["execute"] = False
+    return config
 
 
 def on_page_markdown(markdown, page, config, files):

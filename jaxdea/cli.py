@@ -19,17 +19,24 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from .plotstyle import LABELS, OMEGA_LABEL, SYMBOLS  # axis labels: the style of every figure
+
 TABLE_HELP = """Lowest three frequencies Ω of the paper's tube (η = 0.85, λ_z = 1.2, G = 97.2) for
 λ_i = 0.9 and 1.1, V̂ = 0 and 0.2, axial modes n = 1..3: empty, filled with the consistent
-acoustic fluid (ρ̂_f = 0.13, ĉ_f = 0.27) and with the paper's coupling (Bessel order ν = n)."""
+acoustic fluid (ρ̂_f = 0.13, ĉ_f = 0.27) and with the paper's coupling (Bessel order ν = n).
+A row past the tube's first instability (V̂ ≥ V̂_first over m ≤ 4, n ≤ 3) is marked; where V̂ ≥ V̂_cr
+of the axisymmetric mode n its lowest root is imaginary and Ω_1 is the next branch (said so)."""
 
 
-def paper_table(n_layers=30, n_modes=3, n_roots=3):
-    """Rows (lambda_i, voltage, n, alpha, model, roots) of the paper's-tube table."""
+def paper_table(n_layers=30, n_modes=3, n_roots=3, log=None):
+    """Rows (lambda_i, voltage, n, alpha, model, roots) of the paper's-tube table; ``log(message)``
+    reports the progress, model by model."""
     import jaxdea as jd
 
     rows = []
     for model in ("empty", "acoustic", "paper"):
+        if log is not None:
+            log(f"  {model}: {2 * 2 * n_modes} cases" + (" (compiling the solvers once…)" if not rows else ""))
         for lambda_i in (0.9, 1.1):
             for voltage in (0.0, 0.2):
                 tube = jd.Tube(voltage=voltage, lambda_i=lambda_i, lambda_z=1.2, eta=0.85)
@@ -42,11 +49,48 @@ def paper_table(n_layers=30, n_modes=3, n_roots=3):
     return rows
 
 
+def table_stability(rows, n_layers=30, m_max=4, n_max=3):
+    """({λ_i: (V̂_first, m, n)} of :func:`jaxdea.first_instability` over m ≤ ``m_max``, n ≤ ``n_max``,
+    {(λ_i, n): V̂_cr of the axisymmetric mode n}) of the tubes of :func:`paper_table`'s ``rows``;
+    both independent of V̂ and of the fluid."""
+    import jaxdea as jd
+
+    first, critical = {}, {}
+    for lambda_i, _, n, alpha, _, _ in rows:
+        tube = jd.Tube(lambda_i=lambda_i, lambda_z=1.2, eta=0.85)
+        if lambda_i not in first:
+            found = jd.first_instability(tube, n_max=n_max, m_max=m_max, n_layers=n_layers)
+            first[lambda_i] = (float(found.voltage), int(found.m), int(found.n))
+        if (lambda_i, n) not in critical:
+            critical[lambda_i, n] = float(jd.critical_voltage(tube, alpha, n_layers=n_layers))
+    return first, critical
+
+
+def row_notes(voltage, first, v_cr) -> str:
+    """What a table row must say about its state: past the first instability (the rule of
+    :func:`jaxdea.plotstyle.past_first_instability`), and whether its lowest root has gone imaginary."""
+    from .plotstyle import past_first_instability
+
+    notes = []
+    v_first, m, n = first
+    if past_first_instability(voltage, v_first):
+        notes.append(f"UNSTABLE: past the first instability (m, n) = ({m}, {n}) at V̂_first = {v_first:.4f}")
+    if np.isfinite(v_cr) and voltage >= v_cr:
+        notes.append(f"lowest root imaginary (V̂ ≥ V̂_cr = {v_cr:.4f}): Ω_1 is the next branch")
+    return "; ".join(notes)
+
+
 def _table(args):
     if args.n_layers < 1:
         return _error("table", "--n-layers must be >= 1")
     t0 = time.perf_counter()
-    rows = paper_table(n_layers=args.n_layers)
+    log = None if args.quiet else (lambda message: print(message, file=sys.stderr, flush=True))
+    if log:
+        log("solving 36 cases of the paper's tube…")
+    rows = paper_table(n_layers=args.n_layers, log=log)
+    if log:
+        log("  the first instability and the critical voltages…")
+    first, critical = table_stability(rows, n_layers=args.n_layers)
     header = f"{'model':>8} {'λ_i':>5} {'V̂':>5} {'n':>2} {'α̂':>8}   Ω_1 … Ω_3"
     print(TABLE_HELP.replace("\n", " "))
     print(header)
@@ -54,34 +98,14 @@ def _table(args):
     for lambda_i, voltage, n, alpha, model, roots in rows:
         values = "  ".join(f"{float(w):12.8f}" for w in roots.omega)
         flags = "" if int(roots.status.max()) == 0 else f"  status {roots.status.tolist()}"
-        print(f"{model:>8} {lambda_i:5.2f} {voltage:5.2f} {n:2d} {alpha:8.5f}   {values}{flags}")
+        notes = row_notes(voltage, first[lambda_i], critical[lambda_i, n])
+        print(f"{model:>8} {lambda_i:5.2f} {voltage:5.2f} {n:2d} {alpha:8.5f}   {values}{flags}"
+              + (f"  [{notes}]" if notes else ""))
     print(f"({len(rows)} cases, N = {args.n_layers} sublayers, {time.perf_counter() - t0:.1f} s)")
     return 0
 
 
-# axis labels (matplotlib mathtext): the symbol, and the dimensionless quantity it stands for
-SYMBOLS = {
-    "voltage": r"$\hat V$", "lambda_i": r"$\lambda_i$", "lambda_z": r"$\lambda_z$", "eta": r"$\eta$",
-    "gent": r"$G$", "length_ratio": r"$L/R_o$", "thickness_ratio": r"$h/R_i$",
-    "density_ratio": r"$\hat\rho_f$", "speed_ratio": r"$\hat c_f$", "alpha": r"$\hat\alpha$", "n": r"$n$",
-    "m": r"$m$",
-}
-LABELS = {
-    "voltage": r"voltage $\hat V = V\sqrt{\varepsilon/\mu}\,/R_i$",
-    "lambda_i": r"inner circumferential stretch $\lambda_i = r_i/R_i$",
-    "lambda_z": r"axial stretch $\lambda_z = l/L$",
-    "eta": r"radius ratio $\eta = R_i/R_o$",
-    "gent": r"Gent constant $G$",
-    "length_ratio": r"length ratio $L/R_o$",
-    "thickness_ratio": r"deformed wall thickness $h/R_i$",
-    "density_ratio": r"density ratio $\hat\rho_f = \rho_f/\rho_s$",
-    "speed_ratio": r"sound speed ratio $\hat c_f = c_f/c_s$",
-    "alpha": r"axial wavenumber $\hat\alpha = \alpha R_i$",
-    "n": r"axial mode number $n$ ($\hat\alpha = 2n\pi\eta/(\lambda_z L/R_o)$)",
-    "m": r"circumferential order $m$ (modes $\propto \cos m\theta$)",
-}
 INTEGER_AXES = ("n", "m")  # axes of integers: integer ticks
-OMEGA_LABEL = r"frequency $\Omega = \omega R_i/c_s$,  $c_s = \sqrt{\mu/\rho_s}$"
 LINE_STYLES = ("-", "--", ":", "-.")
 
 
@@ -92,10 +116,20 @@ def plot_sweep(result, x_name, path, title=None):
     Returns:
         The matplotlib Figure (not shown; no pyplot state is touched).
     """
+    from .plotstyle import style
+
+    with style():
+        return _draw_sweep(result, x_name, path, title)
+
+
+def _draw_sweep(result, x_name, path, title):
+    """:func:`plot_sweep`'s drawing, in the figures' style."""
     from matplotlib import colormaps
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
     from matplotlib.ticker import MaxNLocator
+
+    from .plotstyle import SAVE_DPI
 
     names = list(result.axes)
     x = np.asarray(result.axes[x_name])
@@ -129,7 +163,7 @@ def plot_sweep(result, x_name, path, title=None):
     _si_axes(ax, result, x_name)
     ax.set_title(title or _auto_title(result, others), fontsize="medium")
     ax.grid(alpha=0.3)
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=SAVE_DPI)
     return fig
 
 
@@ -241,8 +275,7 @@ def _fit(args):
         _, report, paths = run_fit(args.data, args.config, args.out)
     except ValueError as exc:
         return _error("fit", " ".join(str(exc).split()))
-    if not args.quiet:
-        print(report)
+    print(report)  # the result itself: --quiet leaves it
     for path in paths:
         print(path)
     return 0
@@ -259,13 +292,18 @@ def _figures(args):
     return 0
 
 
-DESCRIPTION = """Axisymmetric dispersion of pre-stretched, voltage-driven (fluid-filled) dielectric
-elastomer tubes, with exact gradients (JAX). All quantities are dimensionless: lengths / R_i, the
-frequency Ω = ω R_i/c_s with c_s = sqrt(μ/ρ_s), the voltage V̂ = V sqrt(ε/μ)/R_i."""
+DESCRIPTION = """Dispersion and stability of pre-stretched, voltage-driven dielectric elastomer tubes,
+empty or filled with a compressible fluid, for every circumferential order m (axisymmetric and
+torsional m = 0, bending m = 1, ovalisation and ring modes m >= 2): frequencies, dispersion curves,
+critical voltages, the first instability, growth rates and mode shapes, with exact gradients (JAX).
+All quantities are dimensionless: lengths / R_i, the frequency Ω = ω R_i/c_s with
+c_s = sqrt(μ/ρ_s), the voltage V̂ = V sqrt(ε/μ)/R_i. Negative voltages are accepted: only V²
+enters the physics, so -V gives the results of V."""
 EXAMPLES = """examples:
   jaxdea sweep examples/sweep.toml            Ω over a grid of V̂ and n: CSV, NPZ and a plot
   jaxdea figures --out figures                the paper's figures, PNG plus CSV
   jaxdea table --n-layers 30                  the lowest frequencies of the paper's tube
+  jaxdea fit peaks.csv --config fit.toml      parameters from measured resonance peaks
   jaxdea COMMAND --help                       the options of a command"""
 SWEEP_HELP = """Solve the lowest frequencies Ω over a grid of parameters described by CONFIG, a TOML or
 JSON file, and write NAME.csv (one row per grid point: axes, α̂, Ω_k, status_k and, with the
@@ -317,11 +355,13 @@ def build_parser():
     parser = _Parser(prog="jaxdea", description=DESCRIPTION, epilog=EXAMPLES,
                                      formatter_class=formatter)
     parser.add_argument("--quiet", action="store_true",
-                        help="no progress bars or status lines (written paths are still printed)")
+                        help="no progress bars or status lines (results and written paths are still "
+                        "printed)")
     # --quiet is accepted after the command too; SUPPRESS keeps a global --quiet from being reset
     quiet = argparse.ArgumentParser(add_help=False)
     quiet.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
-                       help="no progress bars or status lines (written paths are still printed)")
+                       help="no progress bars or status lines (results and written paths are still "
+                       "printed)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     from .config import FORMAT

@@ -638,7 +638,8 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
             :func:`design_for_frequency`.
 
     Returns:
-        An instance of :class:`DesignResult` (``tunability`` is T at the optimum, negative where Ω falls with V̂).
+        An instance of :class:`DesignResult` (``tunability`` is T at the optimum, negative where Ω falls
+        with V̂).
 
     Raises:
         ValueError: a bad input, naming the parameter and its allowed range.
