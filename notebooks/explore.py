@@ -25,9 +25,6 @@
 import os
 
 import jax
-import matplotlib
-
-matplotlib.use("Agg")
 import numpy as np
 from IPython.display import Image, display
 
