@@ -353,6 +353,7 @@ class Context:
     pool: concurrent.futures.Executor | None = None  # :meth:`curves_of`
     since: float = dataclasses.field(default_factory=time.perf_counter)  # when the last figure was saved
     captions: dict = dataclasses.field(default_factory=dict)  # {figure name: caption} (:meth:`save`)
+    figures: dict = dataclasses.field(default_factory=dict)  # {figure name: the Figure} (:meth:`save`)
 
     def log(self, message: str) -> None:
         if self.progress:
@@ -419,7 +420,7 @@ class Context:
         """Write the figure (PNG at :data:`SAVE_DPI`, stamped with :func:`figures_stamp`) and its
         table (CSV); keep its caption for the index (:func:`write_index`)."""
         png, csv_path = self.out / f"{name}.png", self.out / f"{name}.csv"
-        self.captions[name] = caption
+        self.captions[name], self.figures[name] = caption, fig
         # constrained layout keeps the legends and titles inside the canvas: no tight-bbox pass
         fig.savefig(png, dpi=SAVE_DPI, metadata=plotstyle.png_metadata(figures_stamp()))
         for row in table.rows:  # the setting behind every number: the paper's laminate
@@ -1054,6 +1055,9 @@ def figure_cross_sections(ctx: Context):
                              rf"$\lambda_i = {SHAPE_STRETCH}$, $\hat V = {SHAPE_VOLTAGE}$: cross-sections, "
                              "displacement exaggerated")
     table = Table(name)
+    v_first, m_first, n_first = ctx.stability().first(SHAPE_STRETCH)
+    first = dict(v_first=v_first, m_first=m_first, n_first=n_first,
+                 past_first_instability=bool(past_first_instability(SHAPE_VOLTAGE, v_first)))
     for ax, m in zip(panels, SHAPE_ORDERS, strict=True):
         omega, r, fields = shapes[m]
         faces, u = r[[0, -1]], fields[0][[0, -1]]
@@ -1064,7 +1068,7 @@ def figure_cross_sections(ctx: Context):
             for t, rd in zip(theta, outline, strict=True):
                 table.add(m=m, n=1, lambda_i=SHAPE_STRETCH, voltage=SHAPE_VOLTAGE, alpha_hat=alpha,
                           omega=omega, face=face, radius=r_face, u_bar=u_face, epsilon=epsilon, theta=t,
-                          radius_deformed=rd)
+                          radius_deformed=rd, **first)
             ax.plot(r_face * np.cos(theta), r_face * np.sin(theta), color="0.6", ls="--", lw=1)
             ax.plot(outline * np.cos(theta), outline * np.sin(theta), color=color, lw=1.6)
         ax.set_aspect("equal")
@@ -1310,6 +1314,12 @@ def make_figures(out="figures", *, quick: bool = False, progress: bool = True,
         progress: print a line per figure and progress bars.
         n_layers: sublayers N of the laminate (laminate error ~1e-5 relative at 30).
     """
+    return run_figures(out, quick=quick, progress=progress, n_layers=n_layers).written
+
+
+def run_figures(out="figures", *, quick: bool = False, progress: bool = True, n_layers: int = 30) -> Context:
+    """:func:`make_figures`, returning its :class:`Context`: ``written`` (the paths), ``figures``
+    and ``captions`` (by figure name) and the solved data."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
@@ -1325,7 +1335,7 @@ def make_figures(out="figures", *, quick: bool = False, progress: bool = True,
     order = {name: k for k, name in enumerate(FIGURE_ORDER)}
     ctx.written.append(write_index(out, dict(sorted(ctx.captions.items(), key=lambda c: order[c[0]]))))
     ctx.log(f"{len(ctx.written)} files in {out} ({time.perf_counter() - start:.0f} s)")
-    return ctx.written
+    return ctx
 
 
 FIGURE_ORDER = ("fig2_voltage_empty", "fig3_modes_empty", "fig4_modes_critical_empty", "fig5_voltage_fluid",
