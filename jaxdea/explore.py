@@ -555,6 +555,9 @@ def _app_class():
             with self._lock:
                 self.selection = (float(alpha), int(branch))
                 self.mode = self._mode(*self.selection) if self.data is not None else None
+                if self.mode is not None:  # the α̂ and branch controls show what is selected
+                    self.pick["alpha"].value = self.mode[0]
+                    self.pick["branch"].value = int(branch)
                 self._draw()
                 return self.mode
 
@@ -657,15 +660,16 @@ def _app_class():
             # the default view: every branch unless the highest squeezes the others (a thickness
             # branch far above them), then the lower ones with room
             finite = d.omega[np.isfinite(d.omega)]
-            top = float(np.max(finite)) if finite.size else 1.0
+            top, shown = (float(np.max(finite)) if finite.size else 1.0), self.n_modes
             if self.n_modes > 2:
                 lower = d.omega[:, : self.n_modes - 1]
                 lower = lower[np.isfinite(lower)]
                 if lower.size and top > 2.0 * np.max(lower):
-                    top = 1.5 * float(np.max(lower))
+                    top, shown = 1.5 * float(np.max(lower)), self.n_modes - 1
             ax.set_ylim(0.0, 1.05 * top)
-            speed_top = np.nanmax(d.phase_velocity[d.alpha >= 0.2 * d.alpha[-1]], initial=1.0)
-            axv.set_ylim(0.0, 1.1 * speed_top if np.isfinite(speed_top) else 1.0)
+            speeds = d.phase_velocity[d.alpha >= 0.2 * d.alpha[-1], :shown]
+            speed_top = np.nanmax(speeds, initial=0.0) if speeds.size else 0.0
+            axv.set_ylim(0.0, 1.1 * speed_top if np.isfinite(speed_top) and speed_top > 0 else 1.0)
 
         def _draw_mode(self):
             axes = self.mode_axes

@@ -177,6 +177,7 @@ def test_empty_mode_panel_draws_no_axes_and_no_legend():
     fresh.select(float(fresh.data.alpha[fresh.data.axial_index[0]]), 0)
     assert fresh.mode_axes.axison and fresh.mode_axes.get_legend() is not None
     assert "branch 1" in fresh.mode_label.value
+    assert fresh.pick["alpha"].value == pytest.approx(fresh.mode[0]) and fresh.pick["branch"].value == 0
 
 
 def test_default_view_is_not_squeezed_by_a_far_branch(app):
@@ -187,10 +188,10 @@ def test_default_view_is_not_squeezed_by_a_far_branch(app):
     lower, highest = np.nanmax(omega[:, :-1]), np.nanmax(omega)
     top = app.axes[0].get_ylim()[1]
     assert lower < top
-    if highest > 2.0 * lower:
-        assert top < highest
-    else:
-        assert top >= highest
+    assert highest > 2.0 * lower  # the paper's tube: the third branch near Ω ≈ 18 at small α̂
+    assert top < 0.5 * highest
+    speeds = app.data.phase_velocity[app.data.alpha >= 0.2 * app.data.alpha[-1]]
+    assert np.nanmax(speeds[:, :-1]) < app.axes[1].get_ylim()[1] < np.nanmax(speeds)
 
 
 def test_explorer_keeps_the_matplotlib_backend():
