@@ -353,6 +353,7 @@ class Context:
     pool: concurrent.futures.Executor | None = None  # :meth:`curves_of`
     since: float = dataclasses.field(default_factory=time.perf_counter)  # when the last figure was saved
     captions: dict = dataclasses.field(default_factory=dict)  # {figure name: caption} (:meth:`save`)
+    figures: dict = dataclasses.field(default_factory=dict)  # {figure name: the Figure} (:meth:`save`)
 
     def log(self, message: str) -> None:
         if self.progress:
@@ -419,7 +420,7 @@ class Context:
         """Write the figure (PNG at :data:`SAVE_DPI`, stamped with :func:`figures_stamp`) and its
         table (CSV); keep its caption for the index (:func:`write_index`)."""
         png, csv_path = self.out / f"{name}.png", self.out / f"{name}.csv"
-        self.captions[name] = caption
+        self.captions[name], self.figures[name] = caption, fig
         # constrained layout keeps the legends and titles inside the canvas: no tight-bbox pass
         fig.savefig(png, dpi=SAVE_DPI, metadata=plotstyle.png_metadata(figures_stamp()))
         for row in table.rows:  # the setting behind every number: the paper's laminate
@@ -596,6 +597,7 @@ def figure_voltage(ctx: Context, fluid_filled: bool):
                                    + r" tube: lowest frequency of the axial modes $n$ = 1, 2, 3"
                                    + r" ($\lambda_z = 1.2$)")
     table = Table(name)
+    fluid_branch = []  # phase velocities of the acoustic coupling's lowest (fluid) branch
     for coupling, solved in by_coupling.items():
         for (i, j), sol in zip(keys, solved, strict=True):
             li, n, voltages = STRETCHES[i], MODES[j], grids[i, j][0]
@@ -613,6 +615,9 @@ def figure_voltage(ctx: Context, fluid_filled: bool):
                       past=past_first_instability(x, first["v_first"]))
             _plot(ax_w, x, y, jumps, **kw)
             _plot(ax_c, x, y / sol.alpha[0], jumps, **kw)
+            if coupling == "acoustic":
+                fluid_branch.append(sol.omega / sol.alpha[0])
+    _note_fluid_branch(ax_c, fluid_branch)
     shades = []
     for ax in (ax_w, ax_c):
         ax.set_xlim(0.0, ax.get_xlim()[1])
@@ -633,9 +638,27 @@ def figure_voltage(ctx: Context, fluid_filled: bool):
                "V̂_cr(n) of the axisymmetric mode. The shaded regions (plain for λ_i = 0.9, hatched for "
                "1.1) lie past the tube's first instability, the smallest critical voltage over the "
                "orders m ≤ 4 and modes n searched (" + _plain_first(stability, STRETCHES) + "); the "
-               "curves are faded there. An open circle marks the first point after a branch change.")
+               "curves are faded there. An open circle marks the first point after a branch change."
+               + (" The acoustic coupling's lowest root is the fluid (Korteweg) branch: its phase velocity "
+                  "lies just below ĉ_f for every n and λ_i, so its six curves coincide in (b) (the box "
+                  "gives their range)." if fluid_filled else ""))
     ctx.save(name, fig, table, caption)
     return fig, (ax_w, ax_c)
+
+
+def _note_fluid_branch(ax, curves) -> None:
+    """Say where the acoustic coupling's phase velocities lie: its lowest root is the fluid
+    (Korteweg) branch, just below ĉ_f for every n, λ_i and V̂, so those curves coincide."""
+    if not curves:
+        return
+    speeds = np.concatenate(curves)
+    speeds = speeds[np.isfinite(speeds) & (speeds > 0.5 * PAPER_FLUID["speed_ratio"])]
+    typical, high = np.median(speeds), np.max(speeds)
+    ax.annotate(rf"acoustic coupling: its {len(curves)} curves coincide near $\hat c_p$ = {typical:.3f}"
+                "\n" rf"(the fluid branch, just below $\hat c_f$ = {PAPER_FLUID['speed_ratio']})",
+                (0.03, high), xycoords=("axes fraction", "data"), xytext=(0, 12),
+                textcoords="offset points", ha="left", va="bottom", fontsize=7.5,
+                bbox=dict(fc="white", ec="0.6", lw=0.5, pad=2))
 
 
 def _plain_first(stability: Stability, stretches) -> str:
@@ -703,14 +726,7 @@ def figure_modes(ctx: Context, fluid_filled: bool, critical_stretch: bool):
                         alpha=plotstyle.PAST_ALPHA if unstable else 1.0)
             if coupling == "acoustic":
                 fluid_branch.append(omega / sol.alpha)
-    if fluid_branch:  # the acoustic curves coincide: say so where they lie
-        speeds = np.concatenate(fluid_branch)
-        low, high = np.nanmin(speeds), np.nanmax(speeds)
-        ax_c.annotate(rf"acoustic coupling: every curve lies in $\hat c_p$ = {low:.3f}–{high:.3f}"
-                      "\n" r"(the fluid branch, just below $\hat c_f$ = 0.27)",
-                      (0.03, high), xycoords=("axes fraction", "data"), xytext=(0, 14),
-                      textcoords="offset points", ha="left", va="bottom", fontsize=7.5,
-                      bbox=dict(fc="white", ec="0.6", lw=0.5, pad=2))
+    _note_fluid_branch(ax_c, fluid_branch)
     for ax in (ax_w, ax_c):
         ax.set_ylim(bottom=0.0)
     _axes_labels(ax_w, SHORT_LABELS["n"], SHORT_LABELS["omega"])
@@ -1054,6 +1070,10 @@ def figure_cross_sections(ctx: Context):
                              rf"$\lambda_i = {SHAPE_STRETCH}$, $\hat V = {SHAPE_VOLTAGE}$: cross-sections, "
                              "displacement exaggerated")
     table = Table(name)
+    v_first, m_first, n_first = ctx.stability().first(SHAPE_STRETCH)
+    first = dict(v_first=v_first, m_first=m_first, n_first=n_first,
+                 past_first_instability=bool(past_first_instability(SHAPE_VOLTAGE, v_first)))
+    reach = 1.1 * max(float(shapes[m][1][-1]) * 1.0 + 0.15 for m in SHAPE_ORDERS)  # r̂_o + max |ε ū|
     for ax, m in zip(panels, SHAPE_ORDERS, strict=True):
         omega, r, fields = shapes[m]
         faces, u = r[[0, -1]], fields[0][[0, -1]]
@@ -1064,10 +1084,12 @@ def figure_cross_sections(ctx: Context):
             for t, rd in zip(theta, outline, strict=True):
                 table.add(m=m, n=1, lambda_i=SHAPE_STRETCH, voltage=SHAPE_VOLTAGE, alpha_hat=alpha,
                           omega=omega, face=face, radius=r_face, u_bar=u_face, epsilon=epsilon, theta=t,
-                          radius_deformed=rd)
+                          radius_deformed=rd, **first)
             ax.plot(r_face * np.cos(theta), r_face * np.sin(theta), color="0.6", ls="--", lw=1)
             ax.plot(outline * np.cos(theta), outline * np.sin(theta), color=color, lw=1.6)
         ax.set_aspect("equal")
+        ax.set_xlim(-reach, reach)
+        ax.set_ylim(-reach, reach)
         ax.set_title(rf"$m = {m}$: $\Omega = {omega:.4f}$")
         _axes_labels(ax, r"$x/R_i$", r"$y/R_i$" if m == SHAPE_ORDERS[0] else "")
     plotstyle.legend_below(fig, [line_handle("base state (undisturbed faces)", color="0.6", ls="--", lw=1),
@@ -1310,6 +1332,12 @@ def make_figures(out="figures", *, quick: bool = False, progress: bool = True,
         progress: print a line per figure and progress bars.
         n_layers: sublayers N of the laminate (laminate error ~1e-5 relative at 30).
     """
+    return run_figures(out, quick=quick, progress=progress, n_layers=n_layers).written
+
+
+def run_figures(out="figures", *, quick: bool = False, progress: bool = True, n_layers: int = 30) -> Context:
+    """:func:`make_figures`, returning its :class:`Context`: ``written`` (the paths), ``figures``
+    and ``captions`` (by figure name) and the solved data."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
@@ -1325,7 +1353,7 @@ def make_figures(out="figures", *, quick: bool = False, progress: bool = True,
     order = {name: k for k, name in enumerate(FIGURE_ORDER)}
     ctx.written.append(write_index(out, dict(sorted(ctx.captions.items(), key=lambda c: order[c[0]]))))
     ctx.log(f"{len(ctx.written)} files in {out} ({time.perf_counter() - start:.0f} s)")
-    return ctx.written
+    return ctx
 
 
 FIGURE_ORDER = ("fig2_voltage_empty", "fig3_modes_empty", "fig4_modes_critical_empty", "fig5_voltage_fluid",

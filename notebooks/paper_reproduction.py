@@ -22,9 +22,6 @@ import tempfile
 from pathlib import Path
 
 import jax
-import matplotlib
-
-matplotlib.use("Agg")
 import numpy as np
 
 jax.config.update("jax_enable_x64", True)
@@ -42,7 +39,7 @@ def show(path):
         from IPython.display import Image, display
     except ImportError:
         return
-    display(Image(filename=str(path)))
+    display(Image(filename=str(path), width=900))  # 300 dpi files: shown at page width
 
 
 out = Path(tempfile.mkdtemp(prefix="jaxdea-figures-"))
