@@ -36,7 +36,7 @@ def paper_table(n_layers=30, n_modes=3, n_roots=3, log=None):
     rows = []
     for model in ("empty", "acoustic", "paper"):
         if log is not None:
-            log(f"  {model}: {2 * 2 * n_modes} cases" + (" (compiling the solvers once…)" if not rows else ""))
+            log(f"  {model}: {2 * 2 * n_modes} cases")
         for lambda_i in (0.9, 1.1):
             for voltage in (0.0, 0.2):
                 tube = jd.Tube(voltage=voltage, lambda_i=lambda_i, lambda_z=1.2, eta=0.85)
@@ -86,7 +86,7 @@ def _table(args):
     t0 = time.perf_counter()
     log = None if args.quiet else (lambda message: print(message, file=sys.stderr, flush=True))
     if log:
-        log("solving 36 cases of the paper's tube…")
+        log("solving 36 cases of the paper's tube (a first run is compiling the solvers, once…)")
     rows = paper_table(n_layers=args.n_layers, log=log)
     if log:
         log("  the first instability and the critical voltages…")

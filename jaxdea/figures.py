@@ -646,9 +646,10 @@ def figure_voltage(ctx: Context, fluid_filled: bool):
     return fig, (ax_w, ax_c)
 
 
-def _note_fluid_branch(ax, curves) -> None:
+def _note_fluid_branch(ax, curves, side: str = "left") -> None:
     """Say where the acoustic coupling's phase velocities lie: its lowest root is the fluid
-    (Korteweg) branch, just below ĉ_f for every n, λ_i and V̂, so those curves coincide."""
+    (Korteweg) branch, just below ĉ_f for every n, λ_i and V̂, so those curves coincide. The note
+    sits just above them, at the ``side`` of the axes that the other curves leave free."""
     if not curves:
         return
     speeds = np.concatenate(curves)
@@ -656,8 +657,8 @@ def _note_fluid_branch(ax, curves) -> None:
     typical, high = np.median(speeds), np.max(speeds)
     ax.annotate(rf"acoustic coupling: its {len(curves)} curves coincide near $\hat c_p$ = {typical:.3f}"
                 "\n" rf"(the fluid branch, just below $\hat c_f$ = {PAPER_FLUID['speed_ratio']})",
-                (0.03, high), xycoords=("axes fraction", "data"), xytext=(0, 12),
-                textcoords="offset points", ha="left", va="bottom", fontsize=7.5,
+                (0.03 if side == "left" else 0.97, high), xycoords=("axes fraction", "data"),
+                xytext=(0, 12), textcoords="offset points", ha=side, va="bottom", fontsize=7.5,
                 bbox=dict(fc="white", ec="0.6", lw=0.5, pad=2))
 
 
@@ -726,7 +727,7 @@ def figure_modes(ctx: Context, fluid_filled: bool, critical_stretch: bool):
                         alpha=plotstyle.PAST_ALPHA if unstable else 1.0)
             if coupling == "acoustic":
                 fluid_branch.append(omega / sol.alpha)
-    _note_fluid_branch(ax_c, fluid_branch)
+    _note_fluid_branch(ax_c, fluid_branch, side="right")
     for ax in (ax_w, ax_c):
         ax.set_ylim(bottom=0.0)
     _axes_labels(ax_w, SHORT_LABELS["n"], SHORT_LABELS["omega"])
@@ -834,6 +835,7 @@ def figure_fluid_parameter(ctx: Context, axis: str) -> Table:
                              + (": every state past the first instability" if all_past else ""))
         if log:
             panels[iv].set_xscale("log")
+            plotstyle.plain_log(panels[iv].xaxis)
         panels[iv].set_ylim(bottom=0.0)
         _axes_labels(panels[iv], xlabel, SHORT_LABELS["omega"])
     panels[0].set_xlim(grid[0], grid[-1])
@@ -1024,7 +1026,7 @@ def figure_dispersion_order_m(ctx: Context):
             ax.plot(alphas[on_mode], omega[on_mode, 0], "*", color=ORDER_COLORS[m], ms=6)
         second = max(np.nanmax(curves[m][0][:, 1]) for m in CURVE_ORDERS)
         highest = max(np.nanmax(curves[m][0]) for m in CURVE_ORDERS)
-        top = 1.05 * min(highest, 2.0 * second)  # every root, unless the third ones squeeze the others
+        top = 1.05 * min(highest, 1.1 * second)  # the third roots (a thickness branch) would squeeze the rest
         ax.set_ylim(0.0, top)
         ax.set_xlim(alphas[0], alphas[-1])
         note = ""
@@ -1114,8 +1116,6 @@ def figure_comparison(ctx: Context, tables: dict):
     """Where and by how much the paper's coupling differs from the consistent acoustic one:
     |Ω_paper − Ω_acoustic|/Ω_acoustic of the lowest root, against n (Fig. 6 data) and ĉ_f (Fig. 8).
     Returns (figure, axes)."""
-    from matplotlib.ticker import FormatStrFormatter
-
     name = "comparison_couplings"
     ctx.log(f"[{name}] paper's coupling against the acoustic one")
     fig, panels = new_figure(2, title="The paper's fluid coupling against the consistent acoustic "
@@ -1150,8 +1150,7 @@ def figure_comparison(ctx: Context, tables: dict):
                 kw = dict(color=VOLTAGE_COLORS[voltage], marker="o", ms=2.5)
             plotstyle.plot_marked(ax, x, rel, unstable, ls=_style(None, li), **kw)
         ax.set_yscale("log")
-        ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
-        ax.yaxis.set_minor_formatter(FormatStrFormatter("%g"))
+        plotstyle.plain_log(ax.yaxis)
         _axes_labels(ax, xlabel, r"$|\Omega_{paper} - \Omega_{acoustic}|\,/\,\Omega_{acoustic}$")
         ax.set_title("(a) against the axial mode (Fig. 6 data)" if xname == "n"
                      else r"(b) against $\hat c_f$ (Fig. 8 data)")
@@ -1269,10 +1268,17 @@ def figure_static_response(ctx: Context):
     ax.plot(stability.map_stretches, envelope, color="k", ls="--", lw=1.8)
     ax.fill_between(stability.map_stretches, envelope, 10.0, color="0.5", alpha=0.13, lw=0)
     ax.axvline(lock, color="gray", ls=":", lw=1)
+    from matplotlib.ticker import FixedLocator, FormatStrFormatter, NullLocator
+
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_ylim(0.01, 3.0)
     ax.set_xlim(stretches[0], 1.15 * lock)
+    for axis, ticks in ((ax.xaxis, (0.6, 0.8, 1.0, 1.5, 2.0, 3.0, 5.0, 10.0)),
+                        (ax.yaxis, (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0))):
+        axis.set_major_locator(FixedLocator(ticks))
+        axis.set_major_formatter(FormatStrFormatter("%g"))
+        axis.set_minor_locator(NullLocator())
     _axes_labels(ax, plotstyle.LABELS["lambda_i"], SHORT_LABELS["voltage"])
     handles = [line_handle(rf"$\Delta\hat P = {dp:g}$", color=COLORS[c]) for c, dp in enumerate(curves)]
     handles += [line_handle(r"first instability $\hat V_{first}(\lambda_i)$ ($n = 1$, $m \leq 4$; "

@@ -112,6 +112,16 @@ def patch_handle(label: str, **kw):
     return Patch(label=label, **kw)
 
 
+def plain_log(axis) -> None:
+    """Label a logarithmic axis with plain numbers at 1, 2 and 5 times the powers of ten (0.05, 0.1,
+    0.2, …), not 10^k alone."""
+    from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
+
+    axis.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
+    axis.set_major_formatter(FormatStrFormatter("%g"))
+    axis.set_minor_formatter(NullFormatter())
+
+
 def past_first_instability(voltage, v_first):
     """The one rule that marks a state past the first instability: V̂ ≥ V̂_first (False where
     V̂_first is NaN: none found). Arrays broadcast."""

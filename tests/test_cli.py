@@ -534,3 +534,45 @@ def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
     assert f"removed jaxdea's cache at {root}" in capsys.readouterr().out and not root.exists()
     monkeypatch.setenv("JAXDEA_CACHE_DIR", "off")
     assert cli.main(["cache", "clear"]) == 0 and "off" in capsys.readouterr().out
+
+
+def test_help_says_what_jaxdea_does_and_that_only_the_square_of_the_voltage_matters(capsys):
+    assert cli.main(["--help"]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "Axisymmetric dispersion" not in out
+    assert "every circumferential order m" in out and "stability" in out
+    assert "Negative voltages are accepted: only V² enters the physics" in out
+
+
+def test_quiet_keeps_the_fit_report(monkeypatch, capsys, tmp_path):
+    """--quiet drops progress, not results: the fit's table of estimates is still printed."""
+    from jaxdea import fit_io
+
+    report = "parameter  estimate  95 % interval"
+    monkeypatch.setattr(fit_io, "run_fit", lambda data, config, out: (None, report, [tmp_path / "x.json"]))
+    assert cli.main(["--quiet", "fit", "peaks.csv", "--config", "fit.toml"]) == 0
+    out = capsys.readouterr().out
+    assert report in out and "x.json" in out
+
+
+def test_table_marks_rows_past_the_first_instability_and_imaginary_lowest_roots(monkeypatch, capsys):
+    """The rule of every figure (V̂ ≥ V̂_first) marks table rows; where V̂ ≥ V̂_cr(n) the lowest root is
+    imaginary and the row says that Ω_1 is the next branch."""
+    import types
+
+    roots = types.SimpleNamespace(omega=np.array([0.5, 0.9, 1.2]), status=np.zeros(3, int))
+    rows = [(li, v, 1, 0.445, "empty", roots) for li in (0.9, 1.1) for v in (0.0, 0.2)]
+    monkeypatch.setattr(cli, "paper_table", lambda n_layers, log=None: rows)
+    monkeypatch.setattr(cli, "table_stability", lambda rows, n_layers: (
+        {0.9: (0.0293, 2, 1), 1.1: (0.1062, 2, 1)}, {(0.9, 1): 0.2959, (1.1, 1): 0.1976}))
+    assert cli.main(["table"]) == 0
+    captured = capsys.readouterr()
+    lines = [line for line in captured.out.splitlines() if line.lstrip().startswith("empty")]
+    assert len(lines) == 4
+    stable_09, past_09, stable_11, past_11 = lines
+    assert "UNSTABLE" not in stable_09 and "UNSTABLE" not in stable_11
+    assert "UNSTABLE" in past_09 and "V̂_first = 0.0293" in past_09 and "imaginary" not in past_09
+    assert "UNSTABLE" in past_11 and "lowest root imaginary (V̂ ≥ V̂_cr = 0.1976)" in past_11
+    assert "compiling" in captured.err  # progress on stderr, the table on stdout
+    assert cli.main(["--quiet", "table"]) == 0
+    assert capsys.readouterr().err == ""
