@@ -519,7 +519,10 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
     with_derivatives = jax.vmap(lambda w, s, x: _with_derivatives(Roots(w, s), (tube, x, fluid, m),
                                                                   layers, order, "omega",
                                                                   family).omega)
-    return curve._replace(alpha=alpha, omega=with_derivatives(curve.omega, curve.status, alpha))
+    # a JAX array: a NumPy grid mapped here beside a traced m or tube failed JAX's check of the
+    # custom-derivative constants (AssertionError: non-canonical constant of type ndarray)
+    return curve._replace(alpha=alpha, omega=with_derivatives(curve.omega, curve.status,
+                                                              jnp.asarray(alpha)))
 
 
 def critical_path_unchecked(tubes, alphas, abscissa, starts, orders, n_layers, family=ORDER_M):
