@@ -118,12 +118,13 @@ from .roots import (
     _with_derivatives,
     critical_function,
     critical_voltage_unchecked,
+    inaccurate_where,
     scan_roots,
     scanned_function,
 )
 from .scalar import Status, iterate_lanes, lanes_from_slots, value_and_slope
 from .state_matrix import LONGITUDINAL, ORDER_M
-from .transfer import discretize, laminate
+from .transfer import checked_laminate, discretize
 
 HISTORY = 12  # rows of the predictor (its order chosen per branch, :func:`_extrapolate`)
 SHARE_OF_GAP = 0.25  # a lane may move at most this share of the distance to its neighbours
@@ -503,7 +504,7 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
     order, family = _order_inputs(tube, 1.0, fluid, n_layers, scheme, m, torsional)
     n_roots = validate_count("n_roots", n_roots)
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
-    layers = laminate(n_layers, scheme, tube, alpha, n_roots, m)
+    layers, short = checked_laminate(n_layers, scheme, tube, alpha, n_roots, m)
     values = detached((tube, alpha, fluid))
     if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
         # one propagation compiled, not both: V̂ = 0 decouples the electric block (a program each)
@@ -512,6 +513,7 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
         curve = _solve_curve(*values, n_roots, layers, order, decoupled=decoupled)
     else:
         curve = _solve_curve(*values, n_roots, layers, order, detached(m), family)
+    curve = curve._replace(status=inaccurate_where(short, Roots(curve.omega, curve.status)).status)
     if not traced((tube, alpha, fluid, m)):
         # concrete inputs carry no tangents: the implicit derivatives would leave the values as
         # they are (tracing their attachment over the rows cost 0.4 ms a call, measured)
@@ -519,7 +521,10 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
     with_derivatives = jax.vmap(lambda w, s, x: _with_derivatives(Roots(w, s), (tube, x, fluid, m),
                                                                   layers, order, "omega",
                                                                   family).omega)
-    return curve._replace(alpha=alpha, omega=with_derivatives(curve.omega, curve.status, alpha))
+    # a JAX array: a NumPy grid mapped here beside a traced m or tube failed JAX's check of the
+    # custom-derivative constants (AssertionError: non-canonical constant of type ndarray)
+    return curve._replace(alpha=alpha, omega=with_derivatives(curve.omega, curve.status,
+                                                              jnp.asarray(alpha)))
 
 
 def critical_path_unchecked(tubes, alphas, abscissa, starts, orders, n_layers, family=ORDER_M):

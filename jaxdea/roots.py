@@ -89,6 +89,7 @@ from .scalar import (
 from .state_matrix import LONGITUDINAL, ORDER_M
 from .transfer import (
     Wall,
+    checked_laminate,
     discretize,
     laminate,
     split_layers,
@@ -684,6 +685,18 @@ def invalid_where(ok, roots: Roots) -> Roots:
                  jnp.where(ok, roots.status, Status.INVALID).astype(jnp.int32))
 
 
+def inaccurate_where(short, roots: Roots) -> Roots:
+    """INACCURATE where ``short`` (:func:`jaxdea.transfer.checked_laminate`: the default
+    discretisation has fewer sublayers than its rule asks for at the point) and the root converged;
+    the values are kept. ``short`` None: ``roots`` as they are."""
+    if short is None:
+        return roots
+    status = jnp.asarray(roots.status)
+    short = jnp.reshape(short, jnp.shape(short) + (1,) * (status.ndim - jnp.ndim(short)))
+    return Roots(roots.omega, jnp.where(short & (status == Status.CONVERGED), Status.INACCURATE,
+                                        status).astype(jnp.int32))
+
+
 def scan_roots(wall: Wall, fun, alpha, fluid, omega_max, n_roots: int, m=0.0,
                family=LONGITUDINAL, order=None) -> Roots:
     """The ``n_roots`` lowest roots of ``fun`` in (0, omega_max] (None: :func:`default_omega_max`)
@@ -799,15 +812,18 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
     """The ``n_roots`` lowest roots in (0, omega_max] with a status per root (module docstring).
 
     Returns:
-        An instance of :class:`Roots` (omega ascending, NaN-padded; status CONVERGED, NO_ROOT, NOT_FINITE, or
-        SUSPECT where a root's slope sign says that a root below it was not found).
+        An instance of :class:`Roots` (omega ascending, NaN-padded; status CONVERGED, NO_ROOT,
+        NOT_FINITE, SUSPECT where a root's slope sign says that a root below it was not found, or
+        INACCURATE: a root of the default discretisation at a point for which its rule asks more
+        sublayers than it has, the value kept; :func:`jaxdea.transfer.checked_laminate`: where the
+        geometry, α̂ or m are traced, N = 16 serves every point).
     """
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     n_roots = validate_count("n_roots", n_roots)
     if omega_max is not None:
         validate_positive("omega_max", omega_max)
     tube, alpha, fluid, omega_max, m = canonical(tube, alpha, fluid, omega_max, m)
-    layers = laminate(n_layers, scheme, tube, alpha, n_roots, m)
+    layers, short = checked_laminate(n_layers, scheme, tube, alpha, n_roots, m)
     values = detached((tube, alpha, fluid, omega_max))
     if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
         solve = functools.partial(_solve_frequencies, n_roots=n_roots, n_layers=layers, order=order)
@@ -818,7 +834,8 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
                                       family)
 
         roots = one_point_at_a_time(solve, *values, detached(m))
-    return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "omega", family)
+    return inaccurate_where(short, _with_derivatives(roots, (tube, alpha, fluid, m), layers, order,
+                                                     "omega", family))
 
 
 def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
@@ -890,17 +907,19 @@ def _solve_frequency(tube, alpha, guess, fluid, n_layers, order, m=0.0, family=L
 def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
                     n_layers: int | None = None, scheme: str | None = None, m=0,
                     torsional: bool = False) -> Roots:
-    """The root reached by safeguarded Newton from ``guess``, with its status (scalar Roots)."""
+    """The root reached by safeguarded Newton from ``guess``, with its status (scalar Roots;
+    INACCURATE as in :func:`solve_frequencies`)."""
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_positive("guess", guess)
     tube, alpha, guess, fluid, m = canonical(tube, alpha, guess, fluid, m)
-    layers = laminate(n_layers, scheme, tube, alpha, m=m)
+    layers, short = checked_laminate(n_layers, scheme, tube, alpha, m=m)
     values = detached((tube, alpha, guess, fluid))
     if family == LONGITUDINAL:
         roots = _solve_frequency(*values, layers, order)
     else:
         roots = _solve_frequency(*values, layers, order, detached(m), family)
-    return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "omega", family)
+    return inaccurate_where(short, _with_derivatives(roots, (tube, alpha, fluid, m), layers, order,
+                                                     "omega", family))
 
 
 def frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, n_layers: int | None = None,
@@ -988,10 +1007,11 @@ def _group_velocity(tube, alpha, omega, fluid, n_layers, order, m=0.0, family=LO
 def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
                            n_layers: int | None = None, scheme: str | None = None, m=0,
                            torsional: bool = False):
-    """(V̂_cr, status): the smallest V̂ > 0 with f(Ω = 0; V̂) = 0 (see :func:`critical_voltage`)."""
+    """(V̂_cr, status): the smallest V̂ > 0 with f(Ω = 0; V̂) = 0 (see :func:`critical_voltage`;
+    INACCURATE as in :func:`solve_frequencies`)."""
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
-    layers = laminate(n_layers, scheme, tube, alpha, m=m, at_rest=True)
+    layers, short = checked_laminate(n_layers, scheme, tube, alpha, m=m, at_rest=True)
     values = detached((tube, alpha, fluid))
     if family == LONGITUDINAL:
         solve = functools.partial(_solve_critical_voltage, n_layers=layers, order=order)
@@ -1001,7 +1021,8 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
             return _solve_critical_voltage(tube, alpha, fluid, layers, order, m=m, family=family)
 
         roots = Roots(*one_point_at_a_time(solve, *values, detached(m)))
-    return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "voltage", family)
+    return inaccurate_where(short, _with_derivatives(roots, (tube, alpha, fluid, m), layers, order,
+                                                     "voltage", family))
 
 
 def critical_function(tube, alpha, fluid, n_layers, order, v_end=None, m=0.0, family=LONGITUDINAL):
@@ -1098,11 +1119,13 @@ def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
     check_inputs(tube, 1.0, fluid, n_layers, scheme)
     family = mode_family(m, False, fluid)
     n_max = _validate_max("n_max", n_max, 1)
-    layers = laminate(n_layers, scheme, tube, mode_wavenumber(canonical(tube), n_max), m=m,
-                      at_rest=True)
+    layers, short = checked_laminate(n_layers, scheme, canonical(tube),
+                                     mode_wavenumber(canonical(tube), n_max), m=canonical(m),
+                                     at_rest=True)
     if family == LONGITUDINAL:
-        return _critical_voltages(canonical(tube), n_max, layers)
-    return _critical_voltages(canonical(tube), n_max, layers, as_float(m), family)
+        return inaccurate_where(short, _critical_voltages(canonical(tube), n_max, layers))
+    return inaccurate_where(short, _critical_voltages(canonical(tube), n_max, layers, as_float(m),
+                                                      family))
 
 
 def _validate_max(name, value, low):
@@ -1139,7 +1162,9 @@ class Instability(NamedTuple):
             (NaN where none of them has one below the pull-in limit), with implicit derivatives.
         m: its circumferential order (−1 where none).
         n: its axial mode number (0 where none).
-        status: CONVERGED, or NO_ROOT where no (m, n) loses stability below the pull-in limit.
+        status: CONVERGED, NO_ROOT where no (m, n) loses stability below the pull-in limit, or
+            INACCURATE where the default discretisation is coarser than its rule asks for
+            (traced geometry: :func:`solve_frequencies`).
         critical: V̂_cr of every (m, n), shape (m_max + 1, n_max) (values only; NaN: none below
             pull-in; 0: unstable already at V̂ = 0).
     """
@@ -1220,7 +1245,8 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
     n_max = _validate_max("n_max", n_max, 1)
     m_max = _validate_max("m_max", m_max, 0)
     tube = canonical(tube)
-    layers = laminate(n_layers, scheme, tube, mode_wavenumber(tube, n_max), m=m_max, at_rest=True)
+    layers, short = checked_laminate(n_layers, scheme, tube, mode_wavenumber(tube, n_max), m=m_max,
+                                     at_rest=True)
     voltage, status, growth = _instability_grid(jax.lax.stop_gradient(tube), n_max, m_max, layers)
     # the order: the modes unstable at V̂ = 0, fastest first (key −s₀ < 0), then the critical voltages
     key = jnp.where(voltage == 0.0, -growth, jnp.where(jnp.isnan(voltage), jnp.inf, voltage)).ravel()
@@ -1234,6 +1260,7 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
                  jnp.where(found, Status.CONVERGED, Status.NO_ROOT).astype(jnp.int32))
     root = _with_derivatives(root, (tube, alpha, None, jnp.maximum(m, 0).astype(jnp.float64)),
                              layers, 0, "voltage", ORDER_M)  # NaN (at V̂ = 0): a zero tangent
+    root = inaccurate_where(short, root)  # N from the worst (m_max, n_max)
     return Instability(jnp.where(at_zero, 0.0, root.omega), m, n, root.status, voltage)
 
 

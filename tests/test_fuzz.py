@@ -37,6 +37,7 @@ from hypothesis import strategies as st
 import jaxdea as jd
 from jaxdea import units
 from jaxdea.params import ALPHA_MIN, GENT_MIN, TINY
+from jaxdea.transfer import TRACED_LAYERS, laminate
 
 SMALL = 6
 LARGE = int(os.environ.get("JAXDEA_FUZZ_EXAMPLES", "1000"))  # examples per entry point, -m slow
@@ -263,17 +264,20 @@ def assert_no_root_below(tube, alpha, omega, fluid=None):
         f"a root below the first root {omega!r} was missed: f = {values}"
 
 
-def assert_statuses(omega, status):
+def assert_statuses(omega, status, found=(jd.Status.CONVERGED,)):
+    """A value where the status is one of ``found`` (INACCURATE too where the default
+    discretisation serves traced inputs), NaN elsewhere."""
     omega, status = np.asarray(omega), np.asarray(status)
     assert omega.shape == status.shape and status.dtype == np.int32
     assert set(np.unique(status)) <= {int(s) for s in jd.Status}
-    np.testing.assert_array_equal(np.isfinite(omega), status == jd.Status.CONVERGED)
+    np.testing.assert_array_equal(np.isfinite(omega), np.isin(status, found))
 
 
-def assert_roots(tube, alpha, fluid, roots, omega_max=None, complete=True):
+def assert_roots(tube, alpha, fluid, roots, omega_max=None, complete=True,
+                 found=(jd.Status.CONVERGED,)):
     """Statuses consistent, converged roots ascending, positive, below omega_max, genuine, and
     (``complete``) none missed below the first."""
-    assert_statuses(roots.omega, roots.status)
+    assert_statuses(roots.omega, roots.status, found)
     omega = np.asarray(roots.omega)
     found = omega[np.isfinite(omega)]
     np.testing.assert_array_equal(np.isfinite(omega), np.arange(omega.size) < found.size)
@@ -1219,7 +1223,14 @@ def traced(columns):
             assert np.all(np.isnan(np.asarray(fields[i])))
             continue
         t, a = _valid_tube(row), row["alpha"]
-        assert_roots(t, a, None, jd.Roots(roots.omega[i], roots.status[i]))
+        # the default discretisation of traced inputs (N = 16): its roots are INACCURATE exactly
+        # where the rule would give the point alone more sublayers
+        short = laminate(None, None, t, a).count > TRACED_LAYERS
+        found = np.asarray(roots.omega[i])[np.isfinite(np.asarray(roots.omega[i]))]
+        expected = jd.Status.INACCURATE if short else jd.Status.CONVERGED
+        assert np.all(np.asarray(roots.status[i])[: found.size] == expected), (row, roots.status[i])
+        assert_roots(t, a, None, jd.Roots(roots.omega[i], roots.status[i]),
+                     found=(jd.Status.CONVERGED, jd.Status.INACCURATE))
         if cv.status[i] == jd.Status.CONVERGED:
             assert_critical(t, a, float(cv.omega[i]))
         if _moderate(row, "voltage", limit=1e100):
