@@ -51,6 +51,7 @@ import numpy as np
 from .base_state import _squared_voltage, pull_in
 from .compiled import jit
 from .curves import _solve_critical_path, _solve_path
+from .files import atomic_write, save_figure, write_together
 from .leaves import apply_parameters
 from .modes import mode_shape
 from .params import Fluid, Tube, mode_wavenumber
@@ -117,7 +118,7 @@ class Table:
 
     def write(self, path: Path) -> None:
         names = list(dict.fromkeys(k for row in self.rows for k in row))
-        with open(path, "w", newline="") as fh:
+        with atomic_write(path) as tmp, open(tmp, "w", newline="") as fh:
             writer = csv.DictWriter(fh, fieldnames=names)
             writer.writeheader()
             for row in self.rows:
@@ -422,11 +423,13 @@ class Context:
         fig.set_dpi(SAVE_DPI)
         bbox = fig.get_tightbbox(fig.canvas.get_renderer()).padded(
             matplotlib.rcParams["savefig.pad_inches"])
-        fig.savefig(png, dpi=SAVE_DPI, bbox_inches=bbox)
-        plt.close(fig)
         for row in table.rows:  # the setting behind every number: the paper's laminate
             row["discretisation"] = f"midpoint, N = {self.n_layers}"
-        table.write(csv_path)
+        try:  # the PNG and its CSV together, or neither
+            write_together([(png, lambda tmp: save_figure(fig, tmp, dpi=SAVE_DPI, bbox_inches=bbox)),
+                            (csv_path, table.write)])
+        finally:
+            plt.close(fig)
         self.written += [png, csv_path]
         now = time.perf_counter()
         self.log(f"  wrote {png} and {csv_path.name} ({now - self.since:.1f} s)")

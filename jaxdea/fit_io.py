@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .files import atomic_write, save_figure, write_text, write_together
 from .fit import NAMES, UNITS, FitResult, IdentifiabilityWarning, fit, fitted_frequencies
 
 COLUMNS = ("voltage_V", "frequency_Hz", "sigma_Hz", "m", "n", "branch")
@@ -140,7 +141,7 @@ def write_peaks(path, data) -> Path:
     if any(column.size != columns[0].size for column in columns):
         raise ValueError("data columns must have the same length")
     path = Path(path)
-    with path.open("w", newline="", encoding="utf-8") as handle:
+    with atomic_write(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle)
         writer.writerow(names)
         for row in zip(*columns, strict=True):
@@ -201,7 +202,7 @@ def write_fit(result: FitResult, data, path, warnings_=()) -> Path:
         unmatched=[int(i) for i in np.flatnonzero(result.assignment[:, 0] < 0)],
         warnings=list(warnings_), points=points)
     path = Path(path)
-    path.write_text(json.dumps(_plain(document), indent=1) + "\n", encoding="utf-8")
+    write_text(path, json.dumps(_plain(document), indent=1) + "\n")
     return path
 
 
@@ -269,7 +270,7 @@ def plot_fit(result: FitResult, data, path=None, points: int = 41):
     for ax in (top, bottom):
         ax.grid(alpha=0.3)
     if path is not None:
-        fig.savefig(path, dpi=120)
+        save_figure(fig, path, dpi=120)
     return fig
 
 
@@ -441,9 +442,9 @@ def run_fit(data_path, config_path, out=None):
         result = fit(data, config.free, config.fixed, config.fluid, initial=config.initial,
                      **config.options)
     messages = [str(w.message) for w in caught if issubclass(w.category, IdentifiabilityWarning)]
-    try:
-        write_fit(result, data, paths[0], messages)
-        plot_fit(result, data, paths[1])
+    try:  # both or neither
+        write_together([(paths[0], lambda tmp: write_fit(result, data, tmp, messages)),
+                        (paths[1], lambda tmp: plot_fit(result, data, tmp))])
     except OSError as exc:
         raise ValueError(f"cannot write into {folder}: {exc.strerror or exc}") from None
     return result, summary(result, data, data_path.name, messages), paths

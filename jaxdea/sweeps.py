@@ -39,6 +39,7 @@ from jax.sharding import PartitionSpec as P
 
 from .compiled import cached_jit
 from .dispersion import characteristic_on_wall, mode_family
+from .files import atomic_write
 from .leaves import FLUID_LEAVES, TUBE_LEAVES, apply_parameters, check_names, get_parameter
 from .params import (
     Fluid,
@@ -225,14 +226,16 @@ class SweepResult:
 
     def to_csv(self, path) -> None:
         """Write one row per grid point (axes, α̂, Ω_k, status_k, derivatives, growth rates); header
-        line first."""
+        line first. The file is replaced whole or not at all (:mod:`jaxdea.files`)."""
         cols = self.columns()
         table = np.column_stack(list(cols.values()))
         fmt = ["%d" if name.startswith("status") else "%.17g" for name in cols]
-        np.savetxt(path, table, delimiter=",", header=",".join(cols), comments="", fmt=fmt)
+        with atomic_write(path) as tmp:
+            np.savetxt(tmp, table, delimiter=",", header=",".join(cols), comments="", fmt=fmt)
 
     def to_npz(self, path) -> None:
-        """Save everything (read back with :meth:`from_npz`)."""
+        """Save everything (read back with :meth:`from_npz`); ``.npz`` is appended to a path
+        without it, as :func:`numpy.savez` does. Replaced whole or not at all."""
         arrays = {f"axis:{name}": np.asarray(v) for name, v in self.axes.items()}
         arrays.update(omega=self.omega, status=self.status, alpha=self.alpha,
                       settings=np.array(json.dumps(self.settings)),
@@ -247,7 +250,10 @@ class SweepResult:
             arrays.update({si_name: values for si_name, values, _ in self._si_axes().values()})
             if self.growth_rate is not None:
                 arrays.update(growth_rate_per_s=self.growth_rate_per_s)
-        np.savez(path, **arrays)
+        if not hasattr(path, "write") and not str(path).endswith(".npz"):
+            path = f"{path}.npz"
+        with atomic_write(path) as tmp:
+            np.savez(tmp, **arrays)
 
     def to_xarray(self):
         """The result as an :class:`xarray.Dataset` (extra ``jaxdea[xarray]``).
@@ -308,14 +314,16 @@ class SweepResult:
 
     def to_netcdf(self, path) -> None:
         """Write :meth:`to_xarray` as a netCDF-4 file (extra ``jaxdea[xarray]``; read it back with
-        ``xarray.open_dataset``).
+        ``xarray.open_dataset``), whole or not at all.
 
         Raises:
             ImportError: xarray or netCDF4 is not installed (naming the extra).
         """
         if importlib.util.find_spec("netCDF4") is None:
             raise ImportError(f"SweepResult.to_netcdf needs netCDF4: {XARRAY_EXTRA}")
-        self.to_xarray().to_netcdf(path, engine="netcdf4")
+        dataset = self.to_xarray()
+        with atomic_write(path) as tmp:
+            dataset.to_netcdf(tmp, engine="netcdf4")
 
     def _attributes(self) -> dict:
         """The settings as netCDF attributes (numbers and strings; None left out, booleans as
