@@ -18,6 +18,8 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from .files import save_figure
+
 TABLE_HELP = """Lowest three frequencies Ω of the paper's tube (η = 0.85, λ_z = 1.2, G = 97.2) for
 λ_i = 0.9 and 1.1, V̂ = 0 and 0.2, axial modes n = 1..3: empty, filled with the consistent
 acoustic fluid (ρ̂_f = 0.13, ĉ_f = 0.27) and with the paper's coupling (Bessel order ν = n)."""
@@ -128,7 +130,7 @@ def plot_sweep(result, x_name, path, title=None):
     _si_axes(ax, result, x_name)
     ax.set_title(title or _auto_title(result, others), fontsize="medium")
     ax.grid(alpha=0.3)
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     return fig
 
 

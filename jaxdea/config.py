@@ -16,11 +16,11 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import tomllib
 from pathlib import Path
 
 import numpy as np
 
+from .files import load_document
 from .leaves import FLUID_LEAVES, NAMES, TUBE_LEAVES
 from .params import COUPLINGS, MATERIALS
 from .sweeps import SI_QUANTITIES
@@ -440,18 +440,15 @@ def load_config(path) -> SweepConfig:
     """Read and validate a ``.toml`` or ``.json`` sweep configuration.
 
     Raises:
-        ValueError: an unreadable file, an unknown suffix, a syntax error, or any error of
-            :func:`parse_config`.
+        ValueError: an unreadable file, an unknown suffix, a syntax error, a JSON key given twice,
+            nesting deeper than :data:`jaxdea.files.MAX_NESTING`, or any error of
+            :func:`parse_config`. A UTF-8 byte-order mark is accepted.
     """
     path = Path(path)
     if path.suffix not in (".toml", ".json"):
         _fail(f"{path}: the file must end in .toml or .json")
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        _fail(f"cannot read {path}: {exc.strerror or exc}")
-    try:
-        data = tomllib.loads(text) if path.suffix == ".toml" else json.loads(text)
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
-        _fail(f"{path} is no valid {path.suffix[1:].upper()}: {exc}")
+        data = load_document(path, path.suffix[1:])
+    except ValueError as exc:
+        _fail(str(exc))
     return parse_config(data, default_name=path.stem)

@@ -19,19 +19,25 @@ import csv
 import dataclasses
 import json
 import math
-import tomllib
+import re
 import warnings
 from pathlib import Path
 
 import numpy as np
 
-from .files import atomic_write, save_figure, write_text, write_together
+from .files import atomic_write, load_document, read_text, save_figure, write_text, write_together
 from .fit import NAMES, UNITS, FitResult, IdentifiabilityWarning, fit, fitted_frequencies
 
 COLUMNS = ("voltage_V", "frequency_Hz", "sigma_Hz", "m", "n", "branch")
 """The columns of a peak table, in the order :func:`write_peaks` writes them."""
 LABELS = ("m", "n", "branch")
 LABEL_LOW = dict(m=0, n=1, branch=0)
+LABEL_MAX = 2**31 - 1
+"""Largest label (m, n or branch) accepted: the range of a 32-bit integer."""
+NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|[+-]?(?:nan|inf|infinity)",
+                    re.IGNORECASE)
+"""A number in a peak table: plain decimal or scientific notation (nan and inf are read, then
+refused as not finite)."""
 TOP_KEYS = ("free", "fixed", "fluid", "options")
 FREE_KEYS = ("lower", "upper", "initial")
 FLUID_KEYS = ("coupling", "bessel_order")
@@ -62,12 +68,14 @@ def read_peaks(path) -> dict:
 
     Columns (header row, any order): ``voltage_V``, ``frequency_Hz`` (> 0), optional ``sigma_Hz``
     (> 0) and the optional labels ``m`` (≥ 0), ``n`` (≥ 1), ``branch`` (≥ 0); lines starting with
-    ``#`` and blank lines are skipped. Labels are integer arrays, the rest float64.
+    ``#`` and blank lines are skipped; a UTF-8 byte-order mark (Excel's "CSV UTF-8") is accepted.
+    Labels are integer arrays, the rest float64.
 
     Raises:
         ValueError: naming the file, column and line: an unreadable file, an unknown, repeated or
-            missing column, a cell that is not a number, NaN or ±inf, a frequency or σ ≤ 0, a label
-            that is not an integer in range, no data rows.
+            missing column, a cell that is not a number in plain decimal or scientific notation
+            (``2_86.62`` is refused), NaN or ±inf, a frequency or σ ≤ 0, a label that is not an
+            integer in [low, LABEL_MAX], a field past ``csv.field_size_limit()``, no data rows.
 
     Example:
         >>> peaks = read_peaks("peaks.csv")   # voltage_V,frequency_Hz,sigma_Hz / 2000,41.3,0.2 / …
@@ -76,14 +84,19 @@ def read_peaks(path) -> dict:
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_text(path)
     except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
     lines = [(k + 1, line) for k, line in enumerate(text.splitlines())
              if line.strip() and not line.lstrip().startswith("#")]
     if not lines:
         raise ValueError(f"{path}: no header row (expected the columns voltage_V, frequency_Hz)")
-    rows = list(csv.reader([line for _, line in lines]))
+    rows = []
+    for number, line in lines:
+        try:
+            rows.append(next(csv.reader([line]), []))
+        except csv.Error as exc:  # e.g. a field longer than csv.field_size_limit()
+            raise ValueError(f"{path}, line {number}: {exc}") from None
     header = [name.strip() for name in rows[0]]
     for name in header:
         if name not in COLUMNS:
@@ -110,17 +123,18 @@ def read_peaks(path) -> dict:
 
 def _cell(path, number, name, cell):
     where = f"{path}, line {number}, column {name!r}"
-    try:
-        value = float(cell)
-    except ValueError:
-        raise ValueError(f"{where}: {cell!r} is not a number") from None
+    if not NUMBER.fullmatch(cell):  # float() would also take 2_86.62, as 286.62
+        raise ValueError(f"{where}: {cell[:40]!r}{'...' if len(cell) > 40 else ''} is not a "
+                         "number (plain decimal or scientific notation, e.g. 286.62 or 2.8662e2)")
+    value = float(cell)
     if not math.isfinite(value):
         raise ValueError(f"{where}: {cell!r} is not a finite number")
     if name in ("frequency_Hz", "sigma_Hz") and value <= 0:
         raise ValueError(f"{where}: {cell} Hz, must be > 0")
     if name in LABELS:
-        if value != round(value) or value < LABEL_LOW[name]:
-            raise ValueError(f"{where}: {cell}, must be an integer >= {LABEL_LOW[name]}")
+        if value != round(value) or not LABEL_LOW[name] <= value <= LABEL_MAX:
+            raise ValueError(f"{where}: {cell}, must be an integer >= {LABEL_LOW[name]} and "
+                             f"<= {LABEL_MAX}")
         return int(value)
     return value
 
@@ -372,14 +386,7 @@ def parse_fit_config(data) -> FitConfig:
 def load_fit_config(path) -> FitConfig:
     """Read and check a ``jaxdea fit`` configuration from a TOML file (:func:`parse_fit_config`)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: invalid TOML: {exc}") from None
+    data = load_document(path, "toml")
     try:
         return parse_fit_config(data)
     except ValueError as exc:

@@ -269,8 +269,8 @@ def test_bad_config_names_the_key_and_exits_2(tmp_path, capsys, data, message):
 
 
 @pytest.mark.parametrize(("name", "text", "message"), [
-    ("bad.toml", "[axes]\nn = [1, 2\n", "bad.toml is no valid TOML"),
-    ("bad.json", '{"axes": ', "bad.json is no valid JSON"),
+    ("bad.toml", "[axes]\nn = [1, 2\n", "bad.toml: invalid TOML"),
+    ("bad.json", '{"axes": ', "bad.json: invalid JSON"),
     ("missing.toml", None, "cannot read"),
     ("config.yaml", "axes: {n: [1]}\n", "the file must end in .toml or .json"),
 ])
