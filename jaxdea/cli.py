@@ -198,7 +198,10 @@ def _sweep(args):
     if "netcdf" in cfg.formats and not all(importlib.util.find_spec(m) for m in ("xarray", "netCDF4")):
         return _error("sweep", "output format netcdf needs xarray and netCDF4: "
                       "pip install 'jaxdea[xarray]'")
-    out = Path(args.out) if args.out is not None else Path(args.config).parent / (cfg.out_dir or "")
+    if args.out is not None:
+        out = Path(args.out)
+    else:
+        out = Path(args.config).parent / cfg.out_dir if cfg.out_dir else Path()
     problem = _writable_folder(out)
     if problem:
         return _error("sweep", problem)
@@ -334,7 +337,7 @@ def build_parser():
     sweep.add_argument("config", metavar="CONFIG", help="the sweep configuration (.toml or .json)")
     sweep.add_argument("--out", metavar="DIR", default=None,
                        help="output folder (default: output.dir of CONFIG, relative to CONFIG's "
-                       "folder, else CONFIG's folder)")
+                       "folder, else the current folder)")
     sweep.set_defaults(run=_sweep)
 
     figures = sub.add_parser(
@@ -377,7 +380,7 @@ def build_parser():
     fit.add_argument("--config", metavar="CONFIG", required=True,
                      help="free parameters, fixed values, fluid and options (.toml)")
     fit.add_argument("--out", metavar="DIR", default=None,
-                     help="output folder (default: DATA's folder)")
+                     help="output folder (default: the current folder)")
     fit.set_defaults(run=_fit)
     return parser
 

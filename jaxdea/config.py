@@ -65,8 +65,8 @@ FORMAT = f"""\
           s = sqrt(-Ω²) of the unstable modes per point, largest first; 0: none)
 [output]  name = the config file's stem, formats = {json.dumps(list(DEFAULT_FORMATS))} (any of
           {', '.join(FORMATS)}: NAME.csv, NAME.npz, NAME.nc; netcdf needs pip install 'jaxdea[xarray]'),
-          plot = true (NAME.png), dir = the config file's folder (relative to it; --out overrides),
-          title = a plot title
+          plot = true (NAME.png), dir = a folder relative to the config file (default: the
+          current folder; --out overrides), title = a plot title
 [units]   optional SI scales (numbers > 0): shear_modulus μ (Pa), density ρ_s (kg/m³),
           permittivity ε (F/m) or relative_permittivity ε/ε_0, inner_radius R_i (m). With them,
           {', '.join(TUBE_SI_KEYS)} in [tube]/[axes], {', '.join(FLUID_SI_KEYS)} in

@@ -426,8 +426,8 @@ def summary(result: FitResult, data, source="data", caught=()) -> str:
 
 def run_fit(data_path, config_path, out=None):
     """``jaxdea fit``: read the peaks and the configuration, fit, write DATA_fit.json
-    (:func:`write_fit`) and DATA_fit.png (:func:`plot_fit`) into ``out`` (default: the folder of
-    DATA).
+    (:func:`write_fit`) and DATA_fit.png (:func:`plot_fit`) into ``out`` (default: the current
+    folder), both or neither (:func:`jaxdea.files.write_together`).
 
     Returns:
         (result, summary text, written paths).
@@ -438,7 +438,7 @@ def run_fit(data_path, config_path, out=None):
     config = load_fit_config(config_path)
     data = read_peaks(data_path)
     data_path = Path(data_path)
-    folder = Path(out) if out is not None else data_path.parent
+    folder = Path(out) if out is not None else Path()
     paths = [folder / f"{data_path.stem}_fit.json", folder / f"{data_path.stem}_fit.png"]
     try:  # before the fit: a bad folder fails at once
         folder.mkdir(parents=True, exist_ok=True)

@@ -2,6 +2,7 @@
 and the validation of sweep configurations (jaxdea.config)."""
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -65,17 +66,21 @@ def library_result():
 
 @pytest.fixture(scope="module")
 def cli_runs(tmp_path_factory):
-    """The sweep through the CLI from a TOML file (outputs next to it, named by output.name) and
-    from a JSON file (outputs in --out, named after the file)."""
+    """The sweep through the CLI from a TOML file (outputs in the current folder, not the
+    config's, named by output.name) and from a JSON file (outputs in --out, named after the
+    file)."""
     base = tmp_path_factory.mktemp("cli")
     toml_path, json_path = base / "cfg" / "grid_config.toml", base / "cfg" / "case.json"
     toml_path.parent.mkdir()
+    (base / "work").mkdir()
     toml_path.write_text(SWEEP_TOML, encoding="utf-8")
     json_path.write_text(json.dumps(SWEEP_DICT), encoding="utf-8")
     out_json = base / "json_out"
-    codes = (cli.main(["--quiet", "sweep", str(toml_path)]),
-             cli.main(["sweep", str(json_path), "--out", str(out_json), "--quiet"]))
-    return codes, toml_path.parent / "grid", out_json / "case"
+    with contextlib.chdir(base / "work"):
+        codes = (cli.main(["--quiet", "sweep", str(toml_path)]),
+                 cli.main(["sweep", str(json_path), "--out", str(out_json), "--quiet"]))
+    assert not list(toml_path.parent.glob("grid.*"))  # nothing next to the config
+    return codes, base / "work" / "grid", out_json / "case"
 
 
 def test_sweep_from_toml_and_json_matches_the_library(cli_runs, library_result):
@@ -122,7 +127,8 @@ def units_run(tmp_path_factory):
     pytest.importorskip("netCDF4")
     base = tmp_path_factory.mktemp("units")
     (base / "vhb.toml").write_text(UNITS_TOML, encoding="utf-8")
-    return cli.main(["--quiet", "sweep", str(base / "vhb.toml")]), base / "grid"
+    with contextlib.chdir(base):
+        return cli.main(["--quiet", "sweep", "vhb.toml"]), base / "grid"
 
 
 def test_sweep_with_units_gives_hertz_and_volts(units_run, library_result):
@@ -193,7 +199,8 @@ def test_sweep_writes_a_png_plot(cli_runs):
 
 def test_sweep_prints_the_written_paths(tmp_path, capsys, cli_runs):
     _, toml_stem, _ = cli_runs
-    assert cli.main(["sweep", str(toml_stem.parent / "grid_config.toml"), "--out", str(tmp_path)]) == 0
+    config_path = toml_stem.parent.parent / "cfg" / "grid_config.toml"
+    assert cli.main(["sweep", str(config_path), "--out", str(tmp_path)]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[0].startswith("sweep voltage[2] x n[2]: 2 roots per point, 8/8 converged")
     assert lines[1:] == [str(tmp_path / f"grid.{ext}") for ext in ("csv", "npz", "png")]
