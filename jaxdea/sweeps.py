@@ -709,6 +709,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
                      for g in grids)
 
     outputs = None
+    solved = np.zeros(total, dtype=bool)
     bar = _progress_bar(total, progress)
     if client is None:
         base = jax.tree_util.tree_map(as_float, (tube, 1.0, fluid))
@@ -718,21 +719,35 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         base = jax.tree_util.tree_map(np.asarray, (tube, 1.0, fluid))
         static = dict(static, batch_size=None) if auto_batch else static
         results = _on_dask(client, [chunk(start) for start in starts], starts, base, omega_max, static)
-    for start, out in results:
-        stop = min(start + size, total)
-        if outputs is None:
-            outputs = [np.empty((total, *o.shape[1:]), o.dtype) for o in out]
-        for buf, o in zip(outputs, out, strict=True):
-            buf[start:stop] = o[: stop - start]
-        bar.update(stop - start)
-    bar.close()
+    interrupted = False
+    try:
+        for start, out in results:
+            stop = min(start + size, total)
+            if outputs is None:
+                outputs = [np.empty((total, *o.shape[1:]), o.dtype) for o in out]
+            for buf, o in zip(outputs, out, strict=True):
+                buf[start:stop] = o[: stop - start]
+            solved[start:stop] = True
+            bar.update(stop - start)
+    except KeyboardInterrupt:
+        interrupted = True
+        results.close()  # a Dask run cancels its remaining tasks
+    finally:
+        bar.close()
+    if interrupted and outputs is None:
+        raise SweepInterrupted(None, 0, total)
+    if interrupted:  # the points not reached: NaN, status NOT_SOLVED
+        for buf in outputs:
+            buf[~solved] = Status.NOT_SOLVED if np.issubdtype(buf.dtype, np.integer) else np.nan
     omega, status, alpha = outputs[:3]
     k = 4 if n_growth else 3  # the first output after the growth rates
     reshape = lambda a: a.reshape(*shape, *a.shape[1:])  # noqa: E731
     settings = _settings(tube, fluid, n_roots, omega_max, layers, m_axis, m, torsional)
     if n_growth:
         settings["n_growth"] = int(n_growth)
-    return SweepResult(
+    if interrupted:
+        settings["incomplete"] = True
+    result = SweepResult(
         axes=axes, omega=reshape(omega), status=reshape(status).astype(np.int32),
         alpha=reshape(alpha),
         jacobian=None if jac_names is None else (
@@ -742,6 +757,9 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         growth_rate=reshape(outputs[3]) if n_growth else None,
         settings=settings,
     )
+    if interrupted:
+        raise SweepInterrupted(result, int(solved.sum()), total)
+    return result
 
 
 def _orders(m, torsional, fluid):
