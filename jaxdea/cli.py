@@ -3,22 +3,27 @@
 DATA.csv --config fit.toml`` (material and geometry from measured resonances: a summary, JSON and a
 plot; :mod:`jaxdea.fit_io`).
 
-:func:`main` takes the arguments as a list and returns the exit status (0: done, 2: bad usage or a
-bad configuration, reported in one line on stderr without a traceback).
+:func:`main` takes the arguments as a list and returns the exit status (0: done, 2: any error,
+reported in one line on stderr without a traceback; 130: Ctrl-C, 143: SIGTERM, also one line).
+Outputs are written through :mod:`jaxdea.files`: whole or not at all.
 """
 
 import argparse
+import contextlib
 import importlib.util
 import itertools
 import os
+import signal
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
 import jax
 import numpy as np
 
+from .files import save_figure, write_together
 from .plotstyle import LABELS, OMEGA_LABEL, SYMBOLS  # axis labels: the style of every figure
 
 TABLE_HELP = """Lowest three frequencies Ω of the paper's tube (η = 0.85, λ_z = 1.2, G = 97.2) for
@@ -163,7 +168,7 @@ def _draw_sweep(result, x_name, path, title):
     _si_axes(ax, result, x_name)
     ax.set_title(title or _auto_title(result, others), fontsize="medium")
     ax.grid(alpha=0.3)
-    fig.savefig(path, dpi=SAVE_DPI)
+    save_figure(fig, path, dpi=SAVE_DPI)
     return fig
 
 
@@ -199,6 +204,10 @@ def _auto_title(result, others):
     return f"{result.omega.shape[-1]} lowest frequencies, {case}\n{values}"
 
 
+INTERRUPTED = ("every output file is whole: written completely, or left as it was before the "
+               "command")
+
+
 def _error(command, message):
     """Report an error in one line on stderr; the exit status 2."""
     print(f"jaxdea {command}: error: {' '.join(str(message).split())}", file=sys.stderr)
@@ -223,6 +232,7 @@ def _writable_folder(out):
 def _sweep(args):
     from . import Fluid, Status, Tube, sweep
     from .config import SUFFIXES, load_config
+    from .sweeps import SweepInterrupted
 
     try:
         cfg = load_config(args.config)
@@ -231,7 +241,10 @@ def _sweep(args):
     if "netcdf" in cfg.formats and not all(importlib.util.find_spec(m) for m in ("xarray", "netCDF4")):
         return _error("sweep", "output format netcdf needs xarray and netCDF4: "
                       "pip install 'jaxdea[xarray]'")
-    out = Path(args.out) if args.out is not None else Path(args.config).parent / (cfg.out_dir or "")
+    if args.out is not None:
+        out = Path(args.out)
+    else:
+        out = Path(args.config).parent / cfg.out_dir if cfg.out_dir else Path()
     problem = _writable_folder(out)
     if problem:
         return _error("sweep", problem)
@@ -242,20 +255,19 @@ def _sweep(args):
         result = sweep(tube, fluid, progress=False if args.quiet else None, **cfg.sweep_arguments())
     except ValueError as exc:
         return _error("sweep", exc)
-    if cfg.scales is not None:
-        result = result.with_units(cfg.scales)
+    except SweepInterrupted as stop:  # the points solved so far, as NAME.partial.*
+        if stop.result is None:
+            raise _Interrupted(f"0 of {stop.total} points solved; no file was written") from None
+        paths = _write_sweep(stop.result, cfg, out, f"{cfg.name}.partial")
+        for path in paths:
+            print(path)
+        raise _Interrupted(f"{stop.solved} of {stop.total} points solved, written to "
+                           f"{out / cfg.name}.partial.* (the others NaN, status "
+                           f"{Status.NOT_SOLVED.value} not solved)") from None
     seconds = time.perf_counter() - t0
-    writers = {"csv": result.to_csv, "npz": result.to_npz, "netcdf": result.to_netcdf}
-    files = [(out / f"{cfg.name}.{SUFFIXES[f]}", writers[f]) for f in cfg.formats]
-    if cfg.plot:
-        files.append((out / f"{cfg.name}.png",
-                      lambda path: plot_sweep(result, cfg.plot_axis, path, cfg.title)))
-    paths = [path for path, _ in files]
-    try:
-        for path, write in files:
-            write(path)
-    except OSError as exc:
-        return _error("sweep", f"cannot write into {out}: {exc.strerror or exc}")
+    paths = _write_sweep(result, cfg, out, cfg.name)
+    for path in (out / f"{cfg.name}.partial.{suffix}" for suffix in (*SUFFIXES.values(), "png")):
+        path.unlink(missing_ok=True)  # superseded by the complete result
     if not args.quiet:
         converged = int(np.sum(result.status == Status.CONVERGED))
         grid = " x ".join(f"{k}[{len(v)}]" for k, v in result.axes.items())
@@ -266,6 +278,25 @@ def _sweep(args):
     for path in paths:
         print(path)
     return 0
+
+
+def _write_sweep(result, cfg, out, name):
+    """Write the outputs of a sweep (the formats of ``cfg`` and the plot) as NAME.* into ``out``,
+    all of them or none (:func:`jaxdea.files.write_together`); their paths."""
+    from .config import SUFFIXES
+
+    if cfg.scales is not None:
+        result = result.with_units(cfg.scales)
+    writers = {"csv": result.to_csv, "npz": result.to_npz, "netcdf": result.to_netcdf}
+    files = [(out / f"{name}.{SUFFIXES[f]}", writers[f]) for f in cfg.formats]
+    if cfg.plot:
+        files.append((out / f"{name}.png",
+                      lambda path: plot_sweep(result, cfg.plot_axis, path, cfg.title)))
+    try:
+        return write_together(files)
+    except (OSError, RuntimeError) as exc:  # RuntimeError: the netCDF library's "HDF error"
+        raise ValueError(f"cannot write into {out}: {getattr(exc, 'strerror', None) or exc} (the "
+                         "previous files are unchanged)") from None
 
 
 def _fit(args):
@@ -311,10 +342,14 @@ jacobian, dΩ_k/dα̂ and dΩ_k/dθ), NAME.npz (jaxdea.SweepResult.from_npz read
 (netCDF, with output.formats = [..., "netcdf"]) and NAME.png (Ω against the first axis that has more
 than one value). With a [units] table parameters may be given in SI units and the outputs add f in
 Hz, the wavelength in m and the SI value of each axis. An error in CONFIG is reported with the
-offending key and what is allowed there (exit status 2)."""
+offending key and what is allowed there (exit status 2). The files are written together or not at
+all: a failure (a full disk, Ctrl-C) leaves the previous ones as they were. Ctrl-C or SIGTERM during
+the solve writes the points solved so far as NAME.partial.* (the others NaN, status 7 "not solved";
+exit status 130, 143 for SIGTERM); a complete run removes them."""
 FIGURES_HELP = """Regenerate the analogues of the paper's Figs. 2-10 (dispersion against V̂, the axial mode
 number, ĉ_f, ρ̂_f and h/R_i, empty and fluid-filled, consistent acoustic model beside the paper's
-coupling) and the static response, each as a PNG plus the CSV behind it."""
+coupling) and the static response, each as a PNG plus the CSV behind it (written together: a
+failure or Ctrl-C leaves every file whole, new or as it was; exit status 130 for Ctrl-C)."""
 
 
 CACHE_HELP = """Compiled programs are kept under JAXDEA_CACHE_DIR (default ~/.cache/jaxdea, also when
@@ -375,7 +410,7 @@ def build_parser():
     sweep.add_argument("config", metavar="CONFIG", help="the sweep configuration (.toml or .json)")
     sweep.add_argument("--out", metavar="DIR", default=None,
                        help="output folder (default: output.dir of CONFIG, relative to CONFIG's "
-                       "folder, else CONFIG's folder)")
+                       "folder, else the current folder)")
     sweep.set_defaults(run=_sweep)
 
     figures = sub.add_parser(
@@ -410,21 +445,47 @@ def build_parser():
         help="material and geometry parameters from measured resonances (CSV + TOML)",
         description="Fit the free parameters of CONFIG to the peaks of DATA (CSV: voltage_V, "
         "frequency_Hz, optional sigma_Hz and labels m, n, branch), print the estimates with 95 % "
-        "intervals and the mode of every peak, and write DATA_fit.json and DATA_fit.png. An error "
-        "is reported in one line naming the file, column or key (exit status 2).",
+        "intervals and the mode of every peak, and write DATA_fit.json and DATA_fit.png (both or "
+        "neither). An error is reported in one line naming the file, column or key (exit status "
+        "2); Ctrl-C stops without writing (exit status 130).",
         epilog=f"config format (TOML):\n{FIT_FORMAT}\nexample:\n"
         "  jaxdea fit peaks.csv --config fit.toml --out results")
     fit.add_argument("data", metavar="DATA", help="the measured peaks (.csv)")
     fit.add_argument("--config", metavar="CONFIG", required=True,
                      help="free parameters, fixed values, fluid and options (.toml)")
     fit.add_argument("--out", metavar="DIR", default=None,
-                     help="output folder (default: DATA's folder)")
+                     help="output folder (default: the current folder)")
     fit.set_defaults(run=_fit)
     return parser
 
 
+class _Interrupted(KeyboardInterrupt):
+    """An interrupt after which a command saved something: the message says what."""
+
+
+@contextlib.contextmanager
+def _terminate_as_interrupt(received: list):
+    """SIGTERM (a batch system's time limit, ``kill``) raises KeyboardInterrupt, as Ctrl-C does,
+    and is recorded in ``received`` (main thread only; the previous handler is restored)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum, frame):
+        received.append(signum)
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv=None):
-    """Entry point of the ``jaxdea`` command: the exit status (0 done, 2 bad usage or config)."""
+    """Entry point of the ``jaxdea`` command: the exit status (0 done, 2 an error, 130 Ctrl-C,
+    143 SIGTERM). Every error and interrupt is one line on stderr, never a traceback."""
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:  # --help (0) or a usage error (2, message already printed)
@@ -434,13 +495,25 @@ def main(argv=None):
         from . import compiled
 
         compiled.configure()  # the on-disk program cache and XLA's loop threshold
+    received = []
     try:
-        return args.run(args)
+        with _terminate_as_interrupt(received):
+            return args.run(args)
+    except KeyboardInterrupt as exc:
+        number = received[0] if received else signal.SIGINT
+        what = str(exc) if isinstance(exc, _Interrupted) else INTERRUPTED
+        print(f"jaxdea {args.command}: interrupted by {signal.Signals(number).name}: {what}",
+              file=sys.stderr)
+        return 128 + number
     except OSError as exc:  # one line, never a traceback
         where = f"{exc.filename}: " if exc.filename else ""
         return _error(args.command, f"{where}{exc.strerror or exc}")
     except (ValueError, ImportError) as exc:
         return _error(args.command, exc)
+    except Exception as exc:  # anything else (MemoryError, a runtime error): still one line
+        message = " ".join(str(exc).split())
+        return _error(args.command, f"unexpected {type(exc).__name__}: "
+                      f"{message[:300]}{' ...' if len(message) > 300 else ''}")
 
 
 if __name__ == "__main__":

@@ -109,8 +109,8 @@ from .params import (
     detached,
     guard,
     traced,
-    validate_count,
-    validate_range,
+    validate_alpha,
+    validate_roots,
 )
 from .roots import (
     Roots,
@@ -494,15 +494,14 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
         >>> c = dispersion_curve(Tube(), np.linspace(0.05, 5, 100), n_roots=4, n_layers=10)
         >>> c.omega.shape, int(c.scanned.sum())   # (100, 4), 1
     """
-    a = validate_range("alpha", alpha, f">= {ALPHA_MIN!r} and finite (the axial wavenumber α̂ = α R_i)",
-                       lambda v: v >= ALPHA_MIN, scalar=False)
-    if a is not None and (a.ndim != 1 or a.size == 0):
-        raise ValueError(f"alpha must be a non-empty 1-D array of axial wavenumbers, got shape {a.shape}")
     if fluid is not None and fluid.coupling == "paper" and fluid.bessel_order is None:
         raise ValueError("fluid.bessel_order must be set for a dispersion curve with the 'paper' "
                          "coupling (one Bessel order for every α̂ of the curve), got None")
     order, family = _order_inputs(tube, 1.0, fluid, n_layers, scheme, m, torsional)
-    n_roots = validate_count("n_roots", n_roots)
+    a = validate_alpha(alpha, "alpha", tube, scalar=False)
+    if a is not None and (a.ndim != 1 or a.size == 0):
+        raise ValueError(f"alpha must be a non-empty 1-D array of axial wavenumbers, got shape {a.shape}")
+    n_roots = validate_roots(n_roots)
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, n_roots, m)
     values = detached((tube, alpha, fluid))

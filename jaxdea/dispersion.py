@@ -372,7 +372,7 @@ def check_inputs(tube, alpha, fluid, n_layers, scheme="midpoint"):
     validate_fluid(fluid)
     validate_layers(n_layers)
     validate_scheme(scheme)
-    validate_alpha(alpha)
+    validate_alpha(alpha, tube=tube)
     return resolve_order(tube, alpha, fluid)
 
 
@@ -387,7 +387,8 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
     Args:
         tube: the :class:`~jaxdea.Tube`.
         omega: Ω = ω R_i / c_s, a finite real number.
-        alpha: α̂ = α R_i >= ALPHA_MIN = 1e-12 (:data:`jaxdea.params.ALPHA_MIN`).
+        alpha: α̂ = α R_i >= ALPHA_MIN = 1e-12 (:data:`jaxdea.params.ALPHA_MIN`), with α̂ĥ <=
+            ALPHA_THICKNESS_MAX = 150 (ĥ = h/R_i the deformed wall thickness).
         fluid: a :class:`~jaxdea.Fluid`, or None for the empty tube.
         n_layers: number of sublayers N (static), or None: the accurate discretisation
             (:func:`jaxdea.frequencies`).

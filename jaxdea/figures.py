@@ -53,6 +53,7 @@ from . import plotstyle
 from .base_state import _squared_voltage, pull_in
 from .compiled import jit
 from .curves import _solve_critical_path, _solve_path
+from .files import atomic_write, save_figure, write_together
 from .leaves import apply_parameters
 from .modes import mode_shape
 from .params import Fluid, Tube, mode_wavenumber
@@ -120,7 +121,7 @@ class Table:
 
     def write(self, path: Path) -> None:
         names = list(dict.fromkeys(k for row in self.rows for k in row))
-        with open(path, "w", newline="") as fh:
+        with atomic_write(path) as tmp, open(tmp, "w", newline="") as fh:
             writer = csv.DictWriter(fh, fieldnames=names)
             writer.writeheader()
             for row in self.rows:
@@ -422,10 +423,12 @@ class Context:
         png, csv_path = self.out / f"{name}.png", self.out / f"{name}.csv"
         self.captions[name], self.figures[name] = caption, fig
         # constrained layout keeps the legends and titles inside the canvas: no tight-bbox pass
-        fig.savefig(png, dpi=SAVE_DPI, metadata=plotstyle.png_metadata(figures_stamp()))
         for row in table.rows:  # the setting behind every number: the paper's laminate
             row["discretisation"] = f"midpoint, N = {self.n_layers}"
-        table.write(csv_path)
+        metadata = plotstyle.png_metadata(figures_stamp())
+        # the PNG and its CSV together, or neither
+        write_together([(png, lambda tmp: save_figure(fig, tmp, dpi=SAVE_DPI, metadata=metadata)),
+                        (csv_path, table.write)])
         self.written += [png, csv_path]
         now = time.perf_counter()
         self.log(f"  wrote {png} and {csv_path.name} ({now - self.since:.1f} s)")

@@ -69,9 +69,9 @@ from .params import (
     require_x64,
     traced,
     validate_broadcast,
-    validate_count,
     validate_positive,
     validate_range,
+    validate_roots,
 )
 from .scalar import (
     ROOT_RTOL,
@@ -788,7 +788,7 @@ def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3
     """
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     family = _growth_family(family)
-    n_roots = validate_count("n_roots", n_roots)
+    n_roots = validate_roots(n_roots)
     if s_max is not None:
         validate_positive("s_max", s_max)
     tube, alpha, fluid, s_max, m = canonical(tube, alpha, fluid, s_max, m)
@@ -819,7 +819,7 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
         geometry, α̂ or m are traced, N = 16 serves every point).
     """
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
-    n_roots = validate_count("n_roots", n_roots)
+    n_roots = validate_roots(n_roots)
     if omega_max is not None:
         validate_positive("omega_max", omega_max)
     tube, alpha, fluid, omega_max, m = canonical(tube, alpha, fluid, omega_max, m)
@@ -850,7 +850,8 @@ def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
 
     Args:
         tube: the :class:`~jaxdea.Tube`.
-        alpha: α̂ = α R_i > 0 (see :func:`jaxdea.axial_wavenumber`).
+        alpha: α̂ = α R_i >= 1e-12 with α̂ĥ <= 150 (ĥ = h/R_i, :data:`jaxdea.params.ALPHA_THICKNESS_MAX`;
+            see :func:`jaxdea.axial_wavenumber`).
         fluid: a :class:`~jaxdea.Fluid` or None (empty tube).
         n_roots: number of roots (static).
         omega_max: upper end of the search (None: automatic).

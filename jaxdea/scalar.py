@@ -58,6 +58,7 @@ class Status(enum.IntEnum):
     # rule asks more sublayers than it has (traced inputs fix N = 16; transfer.checked_laminate)
     SUSPECT = 6  # a root whose slope sign repeats that of the root below it: a root is missing
     # between them (or one of them is not the root its interval held), so its index is unknown
+    NOT_SOLVED = 7  # not computed: the run was interrupted before this point (jaxdea.sweep)
 
 
 def value_and_slope(fun, x):
