@@ -15,6 +15,9 @@
 # under a radial voltage V̂: its axisymmetric dispersion curve, phase and group velocity, an exact
 # gradient dΩ/dV̂, the critical voltage and a mode shape. Everything is dimensionless
 # (Ω = ωR_i/c_s, α̂ = αR_i, V̂ = V√(ε/μ)/R_i). `JAXDEA_NOTEBOOK_FAST=1` runs it on coarse grids.
+#
+# The first run compiles each solver once (a minute or two on a small machine, cell by cell);
+# later runs load the compiled programs from the cache and take seconds.
 
 # %%
 import os
