@@ -9,11 +9,12 @@ likewise along theirs (:func:`critical_curves`). The figures against n follow α
 fractional n (the infinite tube's curve) and mark the tube's modes, the integers; the paper's
 coupling, whose Bessel order is ν = n, exists at integer n only and is drawn there.
 
-Styles are the same in every figure: one colour per axial mode n (:data:`MODE_COLORS`), per order m
-(:data:`ORDER_COLORS`) or, against n, per V̂ (:data:`VOLTAGE_COLORS`); one line style per coupling and
-λ_i (:func:`_style`: the empty tube and the acoustic coupling solid-based, the paper's dashed-based).
-Legends sit below the axes. A curve breaks only where its root changes branch (:func:`solve_curves`),
-the point after the break circled.
+Styles are the same in every figure (:mod:`jaxdea.plotstyle`: mathtext, 300 dpi, one legend below
+the panels): one colour per axial mode n (:data:`MODE_COLORS`), per order m (:data:`ORDER_COLORS`)
+or, against n, per V̂ (:data:`VOLTAGE_COLORS`); one line style per coupling and λ_i (:func:`_style`:
+the empty tube and the acoustic coupling solid-based, the paper's dashed-based). A curve breaks only
+where its root changes branch (:func:`solve_curves`), the point after the break circled. Each
+figure's caption (``figures/README.md``, :func:`write_index`) explains its marks.
 
 Past the critical voltage V̂_cr(n) the lowest frequency is imaginary (the tube buckles
 axisymmetrically): the curves against V̂ run from V̂ = 0 to V̂_cr(n), where they end at Ω = 0 (the
@@ -23,15 +24,16 @@ points are left blank (NaN, ``status`` = ``"past critical"`` in the CSV). V̂_cr
 
 The tube loses stability earlier in a non-axisymmetric order m (docs/theory/order_m.md): for λ_i = 0.9 the
 ring mode (m, n) = (2, 1) at V̂ ≈ 0.029, a tenth of the axisymmetric V̂_cr. The first instability
-(the smallest V̂_cr over m ≤ 4, n ≤ max_mode, as :func:`jaxdea.first_instability`) is shaded on the
-figures against V̂ (Figs. 2, 5) and stated on those against n (Figs. 3, 4, 6, 7; the curves past it
-faded). Three figures of order m follow: the stability map (V̂_cr of m = 0 … 4 against λ_i and n),
+(the smallest V̂_cr over m ≤ 4, n ≤ max_mode, as :func:`jaxdea.first_instability`) marks the states
+past it by one rule, V̂ ≥ V̂_first (:func:`jaxdea.plotstyle.past_first_instability`): faded in every
+figure, shaded on those against V̂ (Figs. 2, 5), and ``past_first_instability`` in every CSV. Three
+figures of order m follow: the stability map (V̂_cr of m = 0 … 4 against λ_i and n),
 the cross-sections of the lowest m = 1, 2, 3 modes, and the dispersion curves Ω(α̂) of m = 0, 1, 2.
 
 Data layout of every CSV: one row per point and coupling, long format (``figure``, the swept
 parameters, ``coupling``, ``alpha_hat``, ``omega``, ``phase_velocity`` = Ω/α̂, ``v_critical``,
-``status``; Figs. 2–7 add ``v_first``, ``m_first``, ``n_first``, the first instability at the row's
-λ_i).
+``status``; every table with a voltage adds ``v_first``, ``m_first``, ``n_first``, the first
+instability at the row's state, and ``past_first_instability``).
 """
 
 from __future__ import annotations

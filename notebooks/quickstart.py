@@ -15,6 +15,9 @@
 # under a radial voltage V̂: its axisymmetric dispersion curve, phase and group velocity, an exact
 # gradient dΩ/dV̂, the critical voltage and a mode shape. Everything is dimensionless
 # (Ω = ωR_i/c_s, α̂ = αR_i, V̂ = V√(ε/μ)/R_i). `JAXDEA_NOTEBOOK_FAST=1` runs it on coarse grids.
+#
+# The first call of each solver compiles it (a minute or two in all on a small machine, cell by
+# cell); later calls reuse the compiled programs and take milliseconds.
 
 # %%
 import os

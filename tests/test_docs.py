@@ -32,7 +32,7 @@ def built_site(tmp_path, execute=False):
     run = subprocess.run(
         [sys.executable, "-m", "mkdocs", "build", "--strict", "--config-file", str(ROOT / "mkdocs.yml"),
          "--site-dir", str(site)],
-        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=1800 if execute else 300,
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=3600 if execute else 300,
     )
     seconds = time.perf_counter() - start
     assert run.returncode == 0, run.stdout + run.stderr
