@@ -497,7 +497,7 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
     if fluid is not None and fluid.coupling == "paper" and fluid.bessel_order is None:
         raise ValueError("fluid.bessel_order must be set for a dispersion curve with the 'paper' "
                          "coupling (one Bessel order for every α̂ of the curve), got None")
-    order, family = _order_inputs(tube, 1.0, fluid, n_layers, scheme, m, torsional)
+    order, family = _order_inputs(tube, None, fluid, n_layers, scheme, m, torsional)
     a = validate_alpha(alpha, "alpha", tube, scalar=False)
     if a is not None and (a.ndim != 1 or a.size == 0):
         raise ValueError(f"alpha must be a non-empty 1-D array of axial wavenumbers, got shape {a.shape}")

@@ -366,12 +366,15 @@ def resolve_order(tube: Tube, alpha, fluid: Fluid | None) -> int:
 
 
 def check_inputs(tube, alpha, fluid, n_layers, scheme="midpoint"):
-    """Validate the public inputs (concrete values) and return the static Bessel order."""
+    """Validate the public inputs (concrete values) and return the static Bessel order; ``alpha``
+    None where a solver takes no α̂ of its own (the order is then resolved at α̂ = 1)."""
     require_x64()
     validate_tube(tube)
     validate_fluid(fluid)
     validate_layers(n_layers)
     validate_scheme(scheme)
+    if alpha is None:
+        return resolve_order(tube, 1.0, fluid)
     validate_alpha(alpha, tube=tube)
     return resolve_order(tube, alpha, fluid)
 

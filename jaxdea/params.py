@@ -365,7 +365,7 @@ def validate_alpha(alpha, name: str = "alpha", tube: Tube | None = None, scalar:
     value = _check(name, alpha, f">= {ALPHA_MIN!r} and finite (the axial wavenumber α̂ = α R_i)",
                    lambda v: v >= ALPHA_MIN, scalar=scalar)
     leaves = [] if tube is None else [tube.lambda_i, tube.lambda_z, tube.eta]
-    if value is None or any(isinstance(x, jax.core.Tracer) for x in leaves):
+    if value is None or value.size == 0 or any(isinstance(x, jax.core.Tracer) for x in leaves):
         return value
     if tube is not None:
         li, lz, eta = (np.asarray(x, dtype=np.float64) for x in leaves)

@@ -1117,7 +1117,7 @@ def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
     Returns:
         An instance of :class:`Roots` whose ``omega`` field holds V̂_cr, shape (n_max,).
     """
-    check_inputs(tube, 1.0, fluid, n_layers, scheme)
+    check_inputs(tube, None, fluid, n_layers, scheme)
     family = mode_family(m, False, fluid)
     n_max = _validate_max("n_max", n_max, 1)
     layers, short = checked_laminate(n_layers, scheme, canonical(tube),
@@ -1242,7 +1242,7 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
         >>> first = first_instability(Tube(lambda_i=0.9, lambda_z=1.2, eta=0.85), n_max=1)
         >>> float(first.voltage), int(first.m), int(first.n)  # ≈ (0.0293, 2, 1)
     """
-    check_inputs(tube, 1.0, fluid, n_layers, scheme)
+    check_inputs(tube, None, fluid, n_layers, scheme)
     n_max = _validate_max("n_max", n_max, 1)
     m_max = _validate_max("m_max", m_max, 0)
     tube = canonical(tube)

@@ -97,7 +97,7 @@ def stability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = 
         >>> s = stability(Tube(voltage=0.05, lambda_i=0.9, lambda_z=1.2, eta=0.85), n_max=1)
         >>> bool(s.stable), int(s.m), int(s.n)  # (False, 2, 1): ovalisation grows fastest
     """
-    order = check_inputs(tube, 1.0, fluid, n_layers, scheme)
+    order = check_inputs(tube, None, fluid, n_layers, scheme)
     n_max = _validate_max("n_max", n_max, 1)
     m_max = _validate_max("m_max", m_max, 0)
     if fluid is not None and fluid.coupling == "paper" and m_max > 0:

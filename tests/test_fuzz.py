@@ -160,11 +160,12 @@ def gent_excess(lambda_i, lambda_z, eta):
     return float(worst) if worst.ndim == 0 else worst
 
 
-def _problems(values, material="gent", arrays=False):
+def _problems(values, material="gent", arrays=False, thickness=True):
     """(set of invalid parameter names, ambiguous): ``WIDE`` and ``LOCKING`` as in
     :func:`wall_problems`; ambiguous within rounding of either limit (either outcome is fine).
     With ``arrays`` real arrays that broadcast together are valid (elementwise helpers); otherwise
-    only scalars."""
+    only scalars. With ``thickness`` (concrete calls; traced ones do not check it) an α̂ with
+    α̂ĥ > 150 on a valid wall is invalid too (ĥ the deformed thickness)."""
     bad, x = set(), {}
     for name, value in values.items():
         x[name] = _real_array(value) if arrays else _scalar(value)
@@ -181,6 +182,13 @@ def _problems(values, material="gent", arrays=False):
     if all(k in x for k in keys) and not bad & {*keys, "gent"}:
         gent = x.get("gent", jd.Tube().gent)
         wall, ambiguous = wall_problems(*(x[k] for k in keys), gent, material=material)
+        if thickness and "alpha" in x and "alpha" not in bad and not wall:
+            li, lz, eta = (np.asarray(x[k], dtype=np.float64) for k in keys)
+            c = (1.0 / eta**2 - 1.0) / lz
+            product = np.max(np.asarray(x["alpha"]) * c / (np.sqrt(li**2 + c) + li))
+            if product > 150.0:
+                bad.add("alpha")
+            ambiguous |= bool(abs(product - 150.0) <= 1e-9 * 150.0)
         return bad | wall, ambiguous
     return bad, False
 
@@ -910,7 +918,7 @@ def sweep(case):
     for i, a in enumerate(axes["alpha"]):
         for j, v in enumerate(axes["voltage"]):
             point = dict(_fields(values, TUBE_FIELDS), voltage=v)
-            bad, ambiguous = _problems(point | {"alpha": a})
+            bad, ambiguous = _problems(point | {"alpha": a}, thickness=False)
             omega, status = out.omega[i, j], out.status[i, j]
             assert_statuses(omega, status)
             if ambiguous:
@@ -1205,7 +1213,7 @@ def traced(columns):
     _, fields = jax.vmap(lambda t, a: jd.mode_shape(t, a, 1.0, n_points=N_POINTS))(tubes, alpha)
     for i in range(BATCH):
         row = {k: float(columns[k][i]) for k in columns}
-        bad, ambiguous = _problems(row)
+        bad, ambiguous = _problems(row, thickness=False)
         tube_bad, _ = _problems(_fields(row, TUBE_FIELDS))
         if ambiguous:
             continue
@@ -1214,7 +1222,7 @@ def traced(columns):
         placeholder, _ = _problems(_fields(row, TUBE_FIELDS) | dict(lambda_i=1.0))
         if placeholder:  # inner_stretch ignores λ_i
             assert status[i] == jd.Status.INVALID and np.isnan(stretch[i])
-        cv_bad, _ = _problems(row | dict(voltage=0.0))  # the critical voltage ignores V̂
+        cv_bad, _ = _problems(row | dict(voltage=0.0), thickness=False)  # the critical voltage ignores V̂
         if cv_bad:
             assert cv.status[i] == jd.Status.INVALID and np.isnan(cv.omega[i])
         if bad:
