@@ -95,6 +95,7 @@ def _jax():
     jax.config.update("jax_enable_x64", True)
     import jaxdea
 
+    jaxdea.configure()  # the disk cache (JAXDEA_CACHE_DIR; 'off' for none) and XLA's loop threshold
     return jax, jaxdea
 
 

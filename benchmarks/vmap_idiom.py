@@ -35,6 +35,8 @@ from jaxdea import roots  # noqa: E402
 from jaxdea.params import canonical  # noqa: E402
 from jaxdea.transfer import laminate  # noqa: E402
 
+jd.configure()  # the disk cache and XLA's loop threshold, as the CLI runs
+
 TUBE = jd.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, eta=0.85)
 N_ROOTS = 4
 

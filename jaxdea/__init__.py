@@ -1,11 +1,12 @@
 """jaxdea: differentiable dispersion (every circumferential order m) of pre-stretched, voltage-driven soft dielectric
-elastomer tubes, empty or filled with an inviscid compressible fluid (see theory.md).
+elastomer tubes, empty or filled with an inviscid compressible fluid (see docs/theory/axisymmetric.md).
 
 64-bit floats are required: ``jax.config.update("jax_enable_x64", True)`` before use.
+Importing jaxdea changes nothing in the process; :func:`configure` opts in to the on-disk program
+cache and XLA's loop threshold (:mod:`jaxdea.compiled`).
 """
 
-import jax
-import jax.numpy as jnp
+from importlib import metadata as _metadata
 
 from . import compiled, units
 from .accuracy import Estimate, frequencies_with_error
@@ -16,6 +17,7 @@ from .base_state import (
     thickness_ratio,
     with_thickness_ratio,
 )
+from .compiled import Configuration, configure
 from .counting import CountStatus, RootCount, count_roots
 from .curves import Curve, dispersion_curve
 from .design import DesignResult, DesignStatus, design_for_frequency, maximise_tunability, tunability
@@ -49,6 +51,7 @@ from .trace import Branch, BranchEnd, trace_branch
 __all__ = [
     "Branch",
     "BranchEnd",
+    "Configuration",
     "CountStatus",
     "Curve",
     "DesignResult",
@@ -67,6 +70,7 @@ __all__ = [
     "Tube",
     "axial_wavenumber",
     "characteristic",
+    "configure",
     "count_roots",
     "critical_voltage",
     "critical_voltages",
@@ -104,23 +108,8 @@ __all__ = [
     "write_fit",
     "write_peaks",
 ]
-__version__ = "0.1.0"
-del jnp
+try:
+    __version__ = _metadata.version("jaxdea")
+except _metadata.PackageNotFoundError:  # a source tree that is not installed
+    __version__ = "0+unknown"
 
-
-def _enable_compilation_cache():
-    """Keep compiled solvers on disk between processes (compilation dominates a first call): XLA
-    programs in <root>/xla unless the user configured a JAX cache, exported programs in
-    <root>/programs (:mod:`jaxdea.compiled`); root ``JAXDEA_CACHE_DIR``, default ~/.cache/jaxdea,
-    ``off`` for neither. A root or folder that another user owns or may write is not used
-    (:class:`jaxdea.compiled.CacheWarning`)."""
-    if compiled.cache_off() or jax.config.jax_compilation_cache_dir is not None:
-        return
-    folder = compiled.private_folder("xla")
-    if folder is None:
-        return
-    jax.config.update("jax_compilation_cache_dir", str(folder))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
-
-
-_enable_compilation_cache()

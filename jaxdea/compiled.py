@@ -1,52 +1,52 @@
-"""Compiled programs kept on disk between processes and found without tracing (:func:`cached_jit`).
+"""Compiled programs kept on disk between processes and found without tracing (:func:`cached_jit`),
+and :func:`configure`, the one opt-in that switches this cache and XLA's loop threshold on.
 
-JAX's persistent cache (``<root>/xla``, switched on in :mod:`jaxdea`) keeps the XLA compilation, but
-a fresh process must still trace and lower a solver to compute its key before it can load it: with a
-warm JAX cache alone the first ``frequencies`` call takes 3–6 s, almost all of it tracing.
-:func:`cached_jit` keeps each program's lowered form instead, as a serialised ``jax.export``
-artifact (StableHLO in JAX's flatbuffer format), keyed by what determines the program without
-tracing it:
+Importing jaxdea changes nothing in the process: no environment variable, no JAX option, no file.
+After :func:`configure` (the command line, the notebooks and the tests call it), two caches live
+under one root (``JAXDEA_CACHE_DIR``, default ``~/.cache/jaxdea``):
 
-* the function (module and name) and its static arguments;
-* the pytree structure (static fields included) and the type of every other argument (shape,
-  dtype, weak type);
-* the source of every jaxdea module, the versions of jax and jaxlib, the JAX options that change a
-  program (:data:`KEYED_OPTIONS`) and the devices.
+* ``<root>/xla``: JAX's persistent compilation cache. Its entries are XLA:CPU machine code, which
+  JAX loads and runs as it is; JAX writes them in place, and :func:`configure` deletes the ones a
+  full disk or a killed process left damaged (:func:`repair_jax_cache`).
+* ``<root>/programs``: a fresh process must still trace and lower a solver to compute JAX's key,
+  which takes 3–6 s for a first ``frequencies`` call. :func:`cached_jit` keeps each program's
+  lowered form instead, as a serialised ``jax.export`` artifact (StableHLO in JAX's flatbuffer
+  format, no machine code: XLA compiles it on this machine, or JAX's cache supplies the
+  compilation), keyed by what determines the program without tracing it: the function and its
+  static arguments; the pytree structure and the type of every other argument; the source of every
+  jaxdea module (subpackages included), the versions of jax and jaxlib, the JAX options that
+  change a program (:data:`KEYED_OPTIONS`) and the devices. The process that writes an entry runs
+  the same exported program, so every process gets the same bits.
 
-A fresh process deserialises the artifact and runs it through ``jax.jit(exported.call)``, whose
-compilation JAX's persistent cache then serves (≈ 0.6 s for a first ``frequencies`` call). The
-process that writes an entry runs the same exported program, so every process computes with the
-same program and gets the same bits.
+Why StableHLO and not the compiled executable: a deserialised XLA:CPU executable skips lowering,
+and jaxlib fills the function pointers of its LAPACK kernels only while it lowers a linear-algebra
+operation: a second process that loaded such a program called a null pointer and died.
 
-Why StableHLO and not the compiled executable (what this module stored before): a deserialised
-XLA:CPU executable skips lowering, and jaxlib fills the function pointers of its LAPACK kernels
-(``lapack_dgesdd_ffi``, ``lapack_dtrsm_ffi``… of the mode shapes' SVD and solves) only while it
-lowers a linear-algebra operation (``jaxlib.lapack.prepare_lapack_call``): a second process that
-loaded such a program called a null pointer and died with a segmentation fault. Deserialising a
-``jax.export`` artifact initialises those kernels (``jax._src.export._export``), and an artifact
-holds no machine code: XLA compiles it on this machine (or JAX's cache supplies the compilation).
-Nothing is pickled: entries are the artifact's bytes behind a magic line and a SHA-256 checksum.
+What the cache trusts and what it survives:
 
-The cache never runs someone else's program: the root and its folders are created 0700 and entries
-0600; a folder or entry that is not owned by the current user or is writable by group or others is
-refused with a :class:`CacheWarning` (the folder is then not used at all: no entry is read or
-written there), and :mod:`jaxdea` switches JAX's own cache on only under the same conditions. An
-entry that is damaged (checksum), of another format, or fails to deserialise is deleted and the
-program exported anew; an entry that cannot be written is skipped: the cache never changes a
-result. Everything else goes through ``jax.jit`` as usual: calls under a transformation (tracers in
-the arguments), arrays committed to a device where there are several (the blocks of a sharded
-sweep; an exported program runs on the default device), JAX's debugging options
-(:data:`BYPASS_OPTIONS`) switched on, and every call when the cache is off
-(``JAXDEA_CACHE_DIR=off``).
+* The root is used only if it is new, empty or already jaxdea's (it holds :data:`MARKER`), owned by
+  the user and writable by nobody else; folders are created 0700 and entries 0600. A root, folder
+  or entry that fails this is refused with a :class:`CacheWarning` and not used. This keeps the
+  caches same-user only: it does not make JAX's machine code safe against the user's own
+  processes.
+* Every entry is written to a temporary file and renamed, and records its own key and a SHA-256
+  checksum: an entry copied over another one's name, truncated or of another format is deleted and
+  the program exported anew. Reading never raises and never blocks: a read-only cache is only
+  read; a FIFO, a folder or an unreadable file at an entry's path is skipped.
+* The root is held to a size limit (:data:`DEFAULT_CACHE_BYTES`), least recently used entries
+  deleted first (:func:`evict`). ``jaxdea cache clear`` deletes only :data:`SUBFOLDERS` and the
+  marker (:func:`clear_cache`).
 
-The key holds the source of jaxdea, not the values of its module constants at run time: a process
-that changes them (monkeypatching) must run with the cache off. Entries live in
-``<root>/programs`` (root: ``JAXDEA_CACHE_DIR``, by default ``~/.cache/jaxdea``), 0.1–2 MB each;
-``jaxdea cache clear`` empties the root, ``jaxdea cache info`` lists it.
+Everything else goes through ``jax.jit`` as usual: calls under a transformation (tracers in the
+arguments), arrays committed to a device where there are several (an exported program runs on the
+default device), JAX's debugging options (:data:`BYPASS_OPTIONS`) switched on, and every call when
+the cache is off. The key holds the source of jaxdea, not the values of its module constants at
+run time: a process that changes them (monkeypatching) must run with the cache off.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import inspect
@@ -56,8 +56,10 @@ import shutil
 import stat
 import tempfile
 import threading
+import time
 import warnings
 import weakref
+import zlib
 from pathlib import Path
 
 import jax
@@ -88,7 +90,7 @@ def compiler_options() -> dict:
 
 
 SMALL_LOOP_BYTES = 1 << 20
-"""XLA:CPU's small-while-loop threshold that jaxdea sets at import (:func:`configure_xla`): a while
+"""XLA:CPU's small-while-loop threshold that :func:`configure` sets (:func:`configure_xla`): a while
 loop whose iteration accesses fewer bytes (and holds no dot, convolution or custom call) is
 compiled into one kernel instead of running its body thunk by thunk (XLA's default: 1 KiB). The
 continuation's loops (lanes × sublayers × 4×4 matrices, tens of KiB) then stop paying the runtime's
@@ -104,13 +106,13 @@ def configure_xla(environ=os.environ) -> bool:
     """Set :data:`SMALL_LOOP_BYTES` in ``XLA_FLAGS`` (``--xla_backend_extra_options``), where it can
     still act and the user has not chosen otherwise: JAX's backends not yet started (XLA reads its
     flags once, then), no ``xla_backend_extra_options`` in ``XLA_FLAGS`` already, and
-    ``JAXDEA_XLA_FLAGS`` not ``off``. Called when :mod:`jaxdea` is imported, like its JAX
-    compilation cache. Returns whether it set the flag. The flag changes how XLA compiles; results
-    agree to rounding (bit-identical on the solvers and curves measured, a gradient 2 ulp apart)."""
+    ``JAXDEA_XLA_FLAGS`` not ``off``. Called by :func:`configure` only (never at import). Returns
+    whether it set the flag. The flag changes how XLA compiles; results agree to rounding
+    (bit-identical on the solvers and curves measured, a gradient 2 ulp apart)."""
     flags = environ.get("XLA_FLAGS", "")
     if environ.get("JAXDEA_XLA_FLAGS", "").lower() == "off" or "xla_backend_extra_options" in flags:
         return False
-    try:
+    try:  # XLA reads XLA_FLAGS when the first backend starts; no public JAX call says whether it has
         from jax._src import xla_bridge
         started = xla_bridge.backends_are_initialized()
     except (ImportError, AttributeError):  # another JAX: leave XLA's defaults
@@ -120,9 +122,6 @@ def configure_xla(environ=os.environ) -> bool:
     option = f"--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold={SMALL_LOOP_BYTES}"
     environ["XLA_FLAGS"] = f"{flags} {option}".strip()
     return True
-
-
-configure_xla()  # at import, before any jaxdea module can start a backend (this one is imported first)
 
 
 BYPASS_OPTIONS = ("jax_debug_nans", "jax_debug_infs", "jax_disable_jit", "jax_enable_checks",
@@ -135,19 +134,100 @@ PROGRAMS: list[CachedJit] = []
 
 
 class CacheWarning(UserWarning):
-    """A cache folder or entry refused: not the current user's, or writable by group or others."""
+    """A cache folder or entry refused: not the current user's, writable by group or others, or a
+    folder that holds files jaxdea did not write."""
+
+
+DEFAULT_CACHE_BYTES = 1 << 30
+"""Size limit of a cache root (programs and JAX's compilations together) unless :func:`configure`
+says otherwise; the least recently used entries go first."""
+MIN_FREE_BYTES = 64 << 20
+"""JAX's compilation cache is switched on only where its disk has this much free space."""
+MARKER = "CACHEDIR.TAG"
+"""The file that marks a folder as a jaxdea cache root (the Cache Directory Tagging format, which
+backup tools honour). jaxdea stores entries, and ``jaxdea cache clear`` deletes, only under a root
+that holds it."""
+MARKER_TEXT = ("Signature: 8a477f597d28d172789f06886806bc55\n"
+               "# This file is a cache directory tag created by jaxdea (compiled programs).\n")
+SUBFOLDERS = ("programs", "xla")
+"""What jaxdea writes under a root besides :data:`MARKER`: its exported programs and JAX's
+compilation cache."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Configuration:
+    """What :func:`configure` switched on: the cache root (None: no disk cache), whether XLA's
+    small-loop threshold was set, and the cache's size limit in bytes."""
+    cache_root: Path | None
+    xla_flags: bool
+    cache_bytes: int
+
+
+_SETTINGS = {"configured": False, "root": None, "bytes": DEFAULT_CACHE_BYTES, "jax_cache": None}
+"""The process's :func:`configure` choices: whether the disk cache is on, an explicit root (None:
+``JAXDEA_CACHE_DIR`` or the default, read at every call), the size limit, and the folder jaxdea
+gave JAX's compilation cache (so that ``configure(cache=False)`` can take it back)."""
+
+
+def configure(*, cache: bool | str | os.PathLike = True, xla_flags: bool = True,
+              cache_bytes: int = DEFAULT_CACHE_BYTES) -> Configuration:
+    """Opt in to what makes jaxdea's first calls and curves fast; importing jaxdea does none of it.
+
+    * ``cache``: keep compiled programs on disk between processes: jaxdea's exported programs
+      (StableHLO, checked against their key and a checksum) in ``<root>/programs`` and JAX's own
+      compilation cache (XLA machine code, which JAX loads and runs as it is) in ``<root>/xla``,
+      unless the process already set ``jax_compilation_cache_dir`` or the disk has less than
+      :data:`MIN_FREE_BYTES` free. ``True``: the root is
+      ``JAXDEA_CACHE_DIR`` (an empty value means the default), else ``~/.cache/jaxdea``; a path:
+      that root; ``False``: no disk cache. ``JAXDEA_CACHE_DIR=off`` turns the cache off whatever
+      the call says. The root must be new, empty, or already jaxdea's (:data:`MARKER`), owned by
+      the user and writable by nobody else; otherwise it is refused with a :class:`CacheWarning`.
+      Damaged JAX entries are deleted here; beyond ``cache_bytes`` the least recently used entries
+      are.
+    * ``xla_flags``: XLA:CPU's small-while-loop threshold (:data:`SMALL_LOOP_BYTES`) in
+      ``XLA_FLAGS``, which also applies to the rest of the process's programs; effective only
+      before JAX's first computation, and left alone if ``XLA_FLAGS`` already sets backend options
+      or ``JAXDEA_XLA_FLAGS=off``.
+
+    The command line, the notebooks and the tests call it first. Returns a :class:`Configuration`.
+    """
+    if isinstance(cache_bytes, bool) or not isinstance(cache_bytes, int) or cache_bytes < 1 << 20:
+        raise ValueError(f"cache_bytes must be an int >= {1 << 20} (1 MiB), got {cache_bytes!r}")
+    explicit = None if isinstance(cache, bool) else Path(cache).expanduser()
+    _SETTINGS.update(configured=cache is not False, root=explicit, bytes=cache_bytes)
+    flags = configure_xla() if xla_flags else False
+    root = cache_root()
+    jax_cache = private_folder("xla") if root is not None else None
+    if jax_cache is not None:
+        repair_jax_cache(jax_cache)
+        evict(root, cache_bytes)
+        if shutil.disk_usage(jax_cache).free < MIN_FREE_BYTES:
+            jax_cache = None  # JAX writes in place and warns on a failed write: not on a full disk
+    given = _SETTINGS["jax_cache"]
+    if jax.config.jax_compilation_cache_dir in (None, given and str(given)):
+        jax.config.update("jax_compilation_cache_dir", None if jax_cache is None else str(jax_cache))
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+        _SETTINGS["jax_cache"] = jax_cache
+    return Configuration(root if private_folder("programs") is not None else None, flags, cache_bytes)
 
 
 def cache_off() -> bool:
-    """``JAXDEA_CACHE_DIR=off``: no cache on disk (read at every call, cheaply)."""
-    return os.environ.get("JAXDEA_CACHE_DIR", "").lower() == "off"
+    """No disk cache: :func:`configure` not called (or with ``cache=False``), or
+    ``JAXDEA_CACHE_DIR=off`` (read at every call, cheaply)."""
+    return not _SETTINGS["configured"] or os.environ.get("JAXDEA_CACHE_DIR", "").lower() == "off"
+
+
+def configured_root() -> Path:
+    """The root the cache uses when on: :func:`configure`'s path, else ``JAXDEA_CACHE_DIR`` (an empty
+    value means the default), else ``~/.cache/jaxdea``."""
+    if _SETTINGS["root"] is not None:
+        return _SETTINGS["root"]
+    return Path(os.environ.get("JAXDEA_CACHE_DIR") or os.path.join("~", ".cache", "jaxdea")).expanduser()
 
 
 def cache_root() -> Path | None:
-    """The cache root (``JAXDEA_CACHE_DIR``, default ``~/.cache/jaxdea``), or None when it is off."""
-    if cache_off():
-        return None
-    return Path(os.environ.get("JAXDEA_CACHE_DIR", os.path.join("~", ".cache", "jaxdea"))).expanduser()
+    """The cache root in use (:func:`configured_root`), or None when the cache is off."""
+    return None if cache_off() else configured_root()
 
 
 def unsafe_reason(info: os.stat_result) -> str | None:
@@ -164,39 +244,170 @@ def unsafe_reason(info: os.stat_result) -> str | None:
 
 def _refuse(path, reason):
     warnings.warn(f"jaxdea cache: ignoring {path}: {reason}; compiling in this process instead "
-                  "(fix the permissions, run `jaxdea cache clear`, or set JAXDEA_CACHE_DIR=off)",
+                  "(fix the permissions, choose another JAXDEA_CACHE_DIR, or set JAXDEA_CACHE_DIR=off)",
                   CacheWarning, stacklevel=3)
 
 
+def _unlink(path: Path) -> None:
+    """Delete a file jaxdea may repair; a read-only folder keeps it (the cache is then only read)."""
+    try:
+        path.unlink(missing_ok=True)
+    except OSError:
+        pass
+
+
+def claim_root(root: Path) -> str | None:
+    """Make ``root`` a jaxdea cache root (0700, :data:`MARKER` written) if it is new, empty or holds
+    only jaxdea's folders; returns why it cannot be used, or None. Never writes into a folder that
+    holds anything else: an unset-looking ``JAXDEA_CACHE_DIR`` cannot turn the user's own folder
+    into a cache that ``jaxdea cache clear`` would empty."""
+    try:
+        root.mkdir(mode=0o700, parents=True)
+    except FileExistsError:
+        pass
+    info = os.stat(root)  # a link is judged by its target
+    reason = unsafe_reason(info) or (None if stat.S_ISDIR(info.st_mode) else "not a folder")
+    if reason:
+        return reason
+    if (root / MARKER).is_file():
+        return None
+    foreign = sorted(set(os.listdir(root)) - set(SUBFOLDERS))
+    if foreign:
+        return (f"it holds files jaxdea did not write ({', '.join(foreign[:3])}"
+                f"{', ...' if len(foreign) > 3 else ''}) and no {MARKER}; use a new or empty folder")
+    write_atomically(root / MARKER, MARKER_TEXT.encode())
+    return None
+
+
 def private_folder(name: str) -> Path | None:
-    """``<root>/<name>``, created with the root mode 0700 where missing, or None: the cache is off,
-    cannot be made (a read-only home), or the root or the folder is not safe (:func:`unsafe_reason`;
-    refused with a :class:`CacheWarning`)."""
+    """``<root>/<name>``, created with the root (:func:`claim_root`) mode 0700 where missing, or None:
+    the cache is off, cannot be made (a read-only home), or the root or the folder is refused
+    (:func:`unsafe_reason`, :func:`claim_root`: with a :class:`CacheWarning`)."""
     root = cache_root()
     if root is None:
         return None
     try:
-        root.parent.mkdir(parents=True, exist_ok=True)
-        for folder in (root, root / name):
-            try:
-                folder.mkdir(mode=0o700)
-            except FileExistsError:
-                pass
-            info = os.stat(folder)  # a link is judged by its target
-            reason = unsafe_reason(info) or (None if stat.S_ISDIR(info.st_mode) else "not a folder")
-            if reason:
-                _refuse(folder, reason)
-                return None
+        reason = claim_root(root)
+        if reason:
+            _refuse(root, reason)
+            return None
+        folder = root / name
+        try:
+            folder.mkdir(mode=0o700)
+        except FileExistsError:
+            pass
+        info = os.stat(folder)
+        reason = unsafe_reason(info) or (None if stat.S_ISDIR(info.st_mode) else "not a folder")
+        if reason:
+            _refuse(folder, reason)
+            return None
     except OSError:
         return None
-    return root / name
+    return folder
+
+
+def write_atomically(path: Path, data: bytes) -> None:
+    """Write ``data`` to a temporary file beside ``path`` (mode 0600), flush it to disk and rename
+    it over ``path``: readers see the old file or the whole new one. Raises OSError (the temporary
+    file removed)."""
+    handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "wb") as stream:
+            stream.write(data)
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.replace(name, path)
+    except BaseException:
+        _unlink(Path(name))
+        raise
+
+
+def _decompress(data: bytes) -> bytes:
+    """Undo JAX's compression of a compilation-cache entry (zstd where a zstd module is installed,
+    as JAX chooses, else zlib)."""
+    try:
+        import zstandard
+    except ImportError:
+        return zlib.decompress(data)
+    return zstandard.ZstdDecompressor().decompress(data)
+
+
+def repair_jax_cache(folder: Path) -> int:
+    """Delete JAX compilation-cache entries in ``folder`` that are empty or do not decompress (JAX
+    writes them in place, so a full disk or a killed process leaves them truncated, and JAX then
+    warns and recompiles on every later run). Only entries newer than the last check are read.
+    Returns how many were deleted."""
+    stamp = folder / ".jaxdea-checked"
+    try:
+        since = stamp.stat().st_mtime_ns
+    except OSError:
+        since = 0
+    deleted = 0
+    for path in folder.glob("*-cache"):
+        try:
+            info = path.stat()
+            if info.st_mtime_ns < since or not stat.S_ISREG(info.st_mode):
+                continue
+            data = path.read_bytes()
+            if data:
+                _decompress(data)
+                continue
+        except OSError:
+            continue
+        except Exception:  # noqa: BLE001 - zlib.error, zstd.ZstdError: a damaged entry
+            pass
+        _unlink(path)
+        deleted += 1
+    try:
+        stamp.touch()
+    except OSError:
+        pass
+    return deleted
+
+
+def _entries(root: Path):
+    """(recency, size, path) of every entry under a root: programs and JAX's compilations."""
+    out = []
+    for path in [*(root / "programs").glob("*.jaxexport"), *(root / "xla").glob("*-cache")]:
+        try:
+            info = path.stat()
+        except OSError:
+            continue
+        if stat.S_ISREG(info.st_mode):
+            out.append((max(info.st_mtime, info.st_atime), info.st_size, path))
+    return out
+
+
+def evict(root: Path, limit: int) -> int:
+    """Delete the least recently used entries under ``root`` until they take at most ``limit``
+    bytes (a read renews an entry's time), and temporary files that a killed writer left more than
+    an hour ago. Returns how many entries were deleted."""
+    now = time.time()
+    for folder in SUBFOLDERS:
+        for tmp in (root / folder).glob(".*.tmp"):
+            try:
+                if now - tmp.stat().st_mtime > 3600:
+                    _unlink(tmp)
+            except OSError:
+                pass
+    entries = sorted(_entries(root))
+    total = sum(size for _, size, _ in entries)
+    deleted = 0
+    for _, size, path in entries:
+        if total <= limit:
+            break
+        _unlink(path)
+        total -= size
+        deleted += 1
+    return deleted
 
 
 def _environment_digest() -> str:
     """Digest of everything a program depends on besides its function and arguments."""
     digest = hashlib.sha256()
-    for path in sorted(Path(__file__).parent.glob("*.py")):
-        digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    package = Path(__file__).parent
+    for path in sorted(package.rglob("*.py")):  # every module, in subpackages too
+        digest.update(path.relative_to(package).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
     devices = [(d.platform, d.device_kind, d.id) for d in jax.devices()]
     for part in (jax.__version__, jaxlib.__version__, repr(devices)):
         digest.update(part.encode() + b"\0")
@@ -231,47 +442,78 @@ def serializable(cls):
     return cls
 
 
-def read_entry(path: Path) -> bytes | None:
-    """The artifact stored at ``path``, or None: missing; refused (:func:`unsafe_reason`, with a
-    warning); damaged or of another format (deleted)."""
+def read_entry(path: Path, key: str | None = None) -> bytes | None:
+    """The artifact stored at ``path`` for ``key`` (the entry's name), or None. Never raises and
+    never blocks: a missing or unreadable entry, a FIFO or a folder at its path is skipped; one
+    refused (:func:`unsafe_reason`) is skipped with a warning; one damaged, of another format or
+    recorded under another key is deleted where the folder is writable. A read renews the entry's
+    time for :func:`evict`."""
+    key = path.stem if key is None else key
     try:
-        with open(path, "rb") as stream:
+        handle = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except OSError:
+        return None
+    try:
+        with os.fdopen(handle, "rb") as stream:
             info = os.fstat(stream.fileno())
-            reason = unsafe_reason(info) or (None if stat.S_ISREG(info.st_mode) else "not a file")
+            reason = unsafe_reason(info)
             if reason:
                 _refuse(path, reason)
                 return None
+            if not stat.S_ISREG(info.st_mode):
+                return None
             data = stream.read()
-    except FileNotFoundError:
-        return None
     except OSError:
         return None
     head, _, rest = data.partition(b"\n")
+    recorded, _, rest = rest.partition(b"\n")
     checksum, _, payload = rest.partition(b"\n")
-    if head + b"\n" != MAGIC or hashlib.sha256(payload).hexdigest().encode() != checksum:
-        path.unlink(missing_ok=True)
+    if (head + b"\n" != MAGIC or recorded != key.encode()
+            or hashlib.sha256(recorded + b"\n" + payload).hexdigest().encode() != checksum):
+        _unlink(path)
         return None
+    try:
+        os.utime(path)
+    except OSError:
+        pass
     return payload
 
 
-def write_entry(path: Path, payload: bytes) -> None:
-    """Store ``payload`` at ``path`` atomically (readers see the whole entry or none), mode 0600;
-    a read-only or full disk only costs the next process its compilation."""
+def write_entry(path: Path, payload: bytes, key: str | None = None) -> bool:
+    """Store ``payload`` at ``path`` for ``key`` (the entry's name) atomically (readers see the
+    whole entry or none), mode 0600, then :func:`evict` beyond the size limit. Returns whether it
+    was stored: a read-only or full disk only costs the next process its compilation."""
+    key = (path.stem if key is None else key).encode()
     try:
-        handle, name = tempfile.mkstemp(dir=path.parent, suffix=".tmp")  # mode 0600
-        with os.fdopen(handle, "wb") as stream:
-            stream.write(MAGIC + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload)
-        os.replace(name, path)
+        write_atomically(path, MAGIC + key + b"\n" + hashlib.sha256(key + b"\n" + payload).hexdigest()
+                         .encode() + b"\n" + payload)
     except OSError:
-        if "name" in locals():
-            Path(name).unlink(missing_ok=True)
+        return False
+    try:
+        evict(path.parent.parent, _SETTINGS["bytes"])
+    except OSError:
+        pass
+    return True
 
 
-def clear_cache() -> Path | None:
-    """Delete the cache root (``jaxdea cache clear``); returns it, or None when the cache is off."""
-    root = cache_root()
-    if root is not None and root.exists():
-        shutil.rmtree(root)
+def clear_cache(root: Path | None = None) -> Path:
+    """Delete what jaxdea wrote under the cache root (``jaxdea cache clear``): its folders
+    :data:`SUBFOLDERS` and :data:`MARKER`, then the root if nothing else is left. Returns the root.
+    Raises ValueError for a folder that is not a jaxdea cache root (no :data:`MARKER`): nothing is
+    deleted there."""
+    root = configured_root() if root is None else root
+    if not root.exists():
+        return root
+    if not root.is_dir() or not (root / MARKER).is_file():
+        raise ValueError(f"{root} is not a jaxdea cache (no {MARKER}): nothing deleted")
+    for name in SUBFOLDERS:
+        if (root / name).exists():
+            shutil.rmtree(root / name)
+    (root / MARKER).unlink()
+    try:
+        root.rmdir()
+    except OSError:  # the user's own files stay, and so does the root
+        pass
     return root
 
 
@@ -287,19 +529,6 @@ def clear_memory() -> None:
     for program in list(_PROGRAMS):
         program._calls.clear()
     jax.clear_caches()
-
-
-_TRACING = threading.RLock()
-"""Held while a :class:`CachedJit` traces and lowers a program. Tracing is Python and holds the GIL,
-so threads that trace at the same time only interleave: each finished when all of them had, and no
-compilation (which releases the GIL) could start before. One at a time, the first program compiles
-beside the next one's tracing: ``jaxdea figures`` with an empty cache began its first compilation
-at 3.4 s instead of 5.4 s and ran 41.2–42.2 s instead of 43.0–43.6 s in two pairs side by side
-(a third pair was equal: 42.2 against 42.0 s)."""
-TRACING_WAIT = 30.0
-"""Seconds a trace waits for :data:`_TRACING` before it goes on without it: the lock only orders
-work: a program traced inside another one's trace while a thread that waits for the lock holds its
-first call would otherwise wait forever."""
 
 
 class CachedJit:
@@ -364,31 +593,25 @@ class CachedJit:
     def _program(self, key, statics, leaves, tree):
         """The exported program: read from the cache, else traced here and written."""
         folder = private_folder("programs")
-        path = None if folder is None else folder / f"{self._entry(key)}.jaxexport"
-        payload = None if path is None else read_entry(path)
+        name = self._entry(key)
+        path = None if folder is None else folder / f"{name}.jaxexport"
+        payload = None if path is None else read_entry(path, name)
         exported = None
         if payload is not None:
             try:
                 exported = export.deserialize(bytearray(payload))
                 self.counts["loaded"] += 1
             except Exception:  # noqa: BLE001 - another format despite the key: export anew
-                path.unlink(missing_ok=True)
+                _unlink(path)
         if exported is None:
-            # one trace at a time (:data:`_TRACING`); one that waits longer goes on beside the others
-            tracing = _TRACING.acquire(timeout=TRACING_WAIT)
-            try:
-                exported = self._export(statics, leaves, tree)
-            finally:
-                if tracing:
-                    _TRACING.release()
+            exported = self._export(statics, leaves, tree)
             self.counts["exported"] += 1
             if path is not None:
                 try:
                     payload = exported.serialize()
                 except Exception:  # noqa: BLE001 - an output type not registered (serializable)
                     return jax.jit(exported.call, compiler_options=compiler_options())
-                write_entry(path, payload)
-                self.counts["stored"] += 1
+                self.counts["stored"] += write_entry(path, payload, name)
         return jax.jit(exported.call, compiler_options=compiler_options())
 
     def __call__(self, *args, **kwargs):
@@ -400,13 +623,17 @@ class CachedJit:
         if call is None:  # threads asking for the same new program: one loads and compiles it
             with self._lock:
                 key_lock = self._key_locks.setdefault(key, threading.Lock())
-            with key_lock:
-                call = self._calls.get(key)
-                if call is None:
-                    call = self._program(key, statics, leaves, tree)
-                    out = call(*leaves)  # compiled here, under the lock
-                    self._calls[key] = call
-                    return out
+            try:
+                with key_lock:
+                    call = self._calls.get(key)
+                    if call is None:
+                        call = self._program(key, statics, leaves, tree)
+                        out = call(*leaves)  # compiled here, under the lock
+                        self._calls[key] = call
+                        return out
+            finally:
+                with self._lock:
+                    self._key_locks.pop(key, None)
         return call(*leaves)
 
 

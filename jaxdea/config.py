@@ -16,14 +16,14 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import tomllib
 from pathlib import Path
 
 import numpy as np
 
+from .files import load_document
 from .leaves import FLUID_LEAVES, NAMES, TUBE_LEAVES
-from .params import COUPLINGS, MATERIALS
-from .sweeps import SI_QUANTITIES
+from .params import COUPLINGS, MATERIALS, MAX_LAYERS, MAX_ROOTS
+from .sweeps import MAX_POINTS, SENSITIVITY, SI_QUANTITIES, check_size
 from .transfer import SCHEMES
 from .units import VACUUM_PERMITTIVITY, Scales
 
@@ -65,8 +65,8 @@ FORMAT = f"""\
           s = sqrt(-Ω²) of the unstable modes per point, largest first; 0: none)
 [output]  name = the config file's stem, formats = {json.dumps(list(DEFAULT_FORMATS))} (any of
           {', '.join(FORMATS)}: NAME.csv, NAME.npz, NAME.nc; netcdf needs pip install 'jaxdea[xarray]'),
-          plot = true (NAME.png), dir = the config file's folder (relative to it; --out overrides),
-          title = a plot title
+          plot = true (NAME.png), dir = a folder relative to the config file (default: the
+          current folder; --out overrides), title = a plot title
 [units]   optional SI scales (numbers > 0): shear_modulus μ (Pa), density ρ_s (kg/m³),
           permittivity ε (F/m) or relative_permittivity ε/ε_0, inner_radius R_i (m). With them,
           {', '.join(TUBE_SI_KEYS)} in [tube]/[axes], {', '.join(FLUID_SI_KEYS)} in
@@ -186,9 +186,11 @@ def _is_number(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
-def _integer(key: str, x, low: int) -> int:
+def _integer(key: str, x, low: int, high: int | None = None, limit: str = "") -> int:
     if not isinstance(x, int) or isinstance(x, bool) or x < low:
         _fail(f"{key!r} must be an integer >= {low}, got {x!r}")
+    if high is not None and x > high:
+        _fail(f"{key!r} must be <= {limit} = {high:,}, got {x:,}")
     return int(x)
 
 
@@ -222,6 +224,15 @@ def _values(key: str, name: str, spec) -> np.ndarray:
         _fail(f"{key!r} must be a number, a list of numbers or a table {{start, stop, num}}, "
               f"got {spec!r}")
     return _in_range(key, name, values)
+
+
+def _length(spec) -> int:
+    """The number of values an axis spec gives (1 where it is malformed: :func:`_values` says why)."""
+    if isinstance(spec, list):
+        return max(len(spec), 1)
+    if isinstance(spec, dict) and isinstance(spec.get("num"), int) and not isinstance(spec["num"], bool):
+        return max(spec["num"], 1)
+    return 1
 
 
 def _in_range(key: str, name: str, values: np.ndarray, converted: bool = False) -> np.ndarray:
@@ -315,9 +326,13 @@ def _parse_axes(data, tube: dict, fluid: dict | None, units: dict | None = None)
     table = _table(data["axes"], "axes", (*AXIS_NAMES, *SI_NAMES))
     if not table:
         _fail("'axes' is empty: give the wavenumber axis 'alpha' (α̂) or 'n' (axial mode numbers)")
-    axes, seen = {}, {}
+    axes, seen, points = {}, {}, 1
     for key, spec in table.items():
         name = _parameter("axes", key, seen)
+        points *= _length(spec)
+        if points > MAX_POINTS:  # before the axis is built
+            _fail(f"the grid has {points:,} points up to 'axes.{key}'; a sweep takes at most "
+                  f"MAX_POINTS = {MAX_POINTS:,}: split it into several sweeps")
         if name in FLUID_LEAVES and fluid is None:
             _fail(f"'axes.{key}' is a fluid parameter: add a [fluid] table")
         given = f"'tube.{name}'" if name in tube else (f"'fluid.{name}'" if name in (fluid or {}) else "")
@@ -340,15 +355,15 @@ def _parse_axes(data, tube: dict, fluid: dict | None, units: dict | None = None)
 def _parse_solver(data, fluid: dict | None) -> dict:
     table = _table(data.get("solver", {}), "solver", SOLVER_KEYS)
     out = {}
-    for k in ("n_roots", "n_layers"):
+    for k, high in (("n_roots", MAX_ROOTS), ("n_layers", MAX_LAYERS)):
         if k in table:
-            out[k] = _integer(f"solver.{k}", table[k], 1)
+            out[k] = _integer(f"solver.{k}", table[k], 1, high, f"MAX_{k[2:].upper()}")
     if "scheme" in table:
         out["scheme"] = _choice("solver.scheme", table["scheme"], tuple(SCHEMES))
     if "m" in table:
         out["m"] = _integer("solver.m", table["m"], 0)
     if "n_growth" in table:
-        out["n_growth"] = _integer("solver.n_growth", table["n_growth"], 0)
+        out["n_growth"] = _integer("solver.n_growth", table["n_growth"], 0, MAX_ROOTS, "MAX_ROOTS")
     if "torsional" in table:
         if not isinstance(table["torsional"], bool):
             _fail(f"'solver.torsional' must be true or false, got {table['torsional']!r}")
@@ -411,7 +426,7 @@ def parse_config(data, default_name: str = "sweep") -> SweepConfig:
         default_name: file stem of the outputs when ``output.name`` is absent.
 
     Returns:
-        :class:`SweepConfig`.
+        An instance of :class:`SweepConfig`.
 
     Raises:
         ValueError: "sweep config: …" naming the offending key and what is allowed there.
@@ -427,6 +442,14 @@ def parse_config(data, default_name: str = "sweep") -> SweepConfig:
     orders = axes["m"] if "m" in axes else np.asarray([solver.get("m", 0)])
     if solver.get("torsional") and np.any(orders != 0):
         _fail(f"'solver.torsional' = true needs m = 0 (the torsional family), got m = {orders.max():g}")
+    try:  # the grid's memory, before anything is allocated for it
+        jacobian = solver.get("jacobian", False)
+        derivatives = None if not jacobian else len(jacobian) if jacobian is not True else sum(
+            fluid is not None or n not in FLUID_LEAVES for n in SENSITIVITY)
+        check_size([v.size for v in axes.values()], solver.get("n_roots", 3), derivatives,
+                   solver.get("n_growth", 0))
+    except ValueError as exc:
+        _fail(str(exc))
     if fluid is not None and fluid.get("coupling") == "paper" and np.any(orders != 0):
         _fail(f"the paper coupling is axisymmetric: it needs m = 0, got m = {orders.max():g}")
     if (fluid is not None and fluid.get("coupling") == "paper" and fluid.get("bessel_order") is None
@@ -440,18 +463,15 @@ def load_config(path) -> SweepConfig:
     """Read and validate a ``.toml`` or ``.json`` sweep configuration.
 
     Raises:
-        ValueError: an unreadable file, an unknown suffix, a syntax error, or any error of
-            :func:`parse_config`.
+        ValueError: an unreadable file, an unknown suffix, a syntax error, a JSON key given twice,
+            nesting deeper than :data:`jaxdea.files.MAX_NESTING`, or any error of
+            :func:`parse_config`. A UTF-8 byte-order mark is accepted.
     """
     path = Path(path)
     if path.suffix not in (".toml", ".json"):
         _fail(f"{path}: the file must end in .toml or .json")
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        _fail(f"cannot read {path}: {exc.strerror or exc}")
-    try:
-        data = tomllib.loads(text) if path.suffix == ".toml" else json.loads(text)
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
-        _fail(f"{path} is no valid {path.suffix[1:].upper()}: {exc}")
+        data = load_document(path, path.suffix[1:])
+    except ValueError as exc:
+        _fail(str(exc))
     return parse_config(data, default_name=path.stem)

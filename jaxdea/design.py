@@ -145,7 +145,7 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
         n_layers: sublayers N (static), or None: the accurate discretisation (:func:`jaxdea.frequencies`).
         scheme: the propagation scheme (static; :func:`jaxdea.frequencies`), that of the root.
 
-    Example:
+    Examples:
         >>> t = Tube(voltage=0.1, lambda_i=1.1, lambda_z=1.2)
         >>> a = axial_wavenumber(t, 1)
         >>> tunability(t, a, frequencies(t, a)[0])  # ≈ −1.217
@@ -248,7 +248,7 @@ def _solve_candidates(tube, candidates, n_layers, scheme):
 def _bound(tube, v_roots, candidates, n_layers, scheme):
     """V̂_first = min over the candidates of V̂_cr(m, n), each root with implicit derivatives
     (g(V̂) = f(Ω = 0; V̂) of order m at α̂_n; order m as a traced value: one program for every
-    candidate set, the longitudinal zeros at m = 0, theory_m.md §3)."""
+    candidate set, the longitudinal zeros at m = 0, docs/theory/order_m.md §3)."""
     def one(v_root, m, n):
         found = jnp.isfinite(v_root)
         alpha = mode_wavenumber(tube, n)
@@ -534,12 +534,12 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
             paper's laminate (1e-5).
 
     Returns:
-        :class:`DesignResult`.
+        An instance of :class:`DesignResult`.
 
     Raises:
         ValueError: a bad input, naming the parameter and its allowed range.
 
-    Example:
+    Examples:
         >>> res = design_for_frequency(Tube(lambda_i=1.1, lambda_z=1.2), target=0.72)
         >>> res.thickness, res.voltage, res.omega  # Ω = 0.72 at V̂ = 0.4 V̂_first
         >>> res.unstable_mode  # (2, 1): ring buckling bounds the voltage
@@ -617,8 +617,8 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
     towards it: on the tubes we measured |T| increases monotonically with s (and with λ_i), and the
     optimum lies on the constraint V̂ = m V̂_first (and on a λ_i bound). Where another (m, n)
     buckles first (ring buckling on the paper's tube), V̂_first is far below the mode's own V̂_cr
-    and the attainable |T| is much smaller than the axisymmetric analysis promises. The cosine maps reach a bound at
-    the finite x = π with zero slope, so the active constraint is met to rounding (an x error δ
+    and the attainable |T| is much smaller than the axisymmetric analysis promises. The cosine maps reach a
+    bound at the finite x = π with zero slope, so the active constraint is met to rounding (an x error δ
     moves s by δ²/4), which neither a sigmoid (x → ∞) nor a penalty (a violation ∝ 1/weight) does.
 
     Convergence: the loss changed by at most rtol · |T| over the last ``PLATEAU`` steps (adam's
@@ -638,12 +638,13 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
             :func:`design_for_frequency`.
 
     Returns:
-        :class:`DesignResult` (``tunability`` is T at the optimum, negative where Ω falls with V̂).
+        An instance of :class:`DesignResult` (``tunability`` is T at the optimum, negative where Ω falls
+        with V̂).
 
     Raises:
         ValueError: a bad input, naming the parameter and its allowed range.
 
-    Example:
+    Examples:
         >>> res = maximise_tunability(Tube(lambda_i=1.1, lambda_z=1.2))
         >>> res.voltage_fraction, res.unstable_mode  # 1.0 (V̂ = 0.8 V̂_first), (2, 1)
     """

@@ -30,6 +30,7 @@ import dataclasses
 import importlib.util
 import json
 import math
+import os
 
 import jax
 import jax.numpy as jnp
@@ -39,8 +40,10 @@ from jax.sharding import PartitionSpec as P
 
 from .compiled import cached_jit
 from .dispersion import characteristic_on_wall, mode_family
+from .files import atomic_write
 from .leaves import FLUID_LEAVES, TUBE_LEAVES, apply_parameters, check_names, get_parameter
 from .params import (
+    MAX_ROOTS,
     Fluid,
     Tube,
     as_float,
@@ -49,6 +52,7 @@ from .params import (
     validate_fluid,
     validate_layers,
     validate_positive,
+    validate_roots,
 )
 from .roots import _growth_family, frequencies_unchecked, growth_rates_unchecked, guard
 from .scalar import Status
@@ -75,6 +79,10 @@ SI_QUANTITIES = {
 """The parameters with an SI counterpart: ``{name: (SI name, unit, to_si(scales, x), from_si(scales, x))}``
 (α̂ ↔ the axial wavelength 2π R_i/α̂). The SI name is the config key and the output column."""
 SCALE_FIELDS = ("shear_modulus", "density", "permittivity", "inner_radius")
+MAX_POINTS = 10**8
+"""Most grid points of one sweep (at a few ms a point on a CPU, days of computing)."""
+MEMORY_SHARE = 0.5
+"""The share of the machine's physical memory a sweep's arrays may take (:func:`check_size`)."""
 XARRAY_EXTRA = "pip install 'jaxdea[xarray]'"
 
 
@@ -225,14 +233,16 @@ class SweepResult:
 
     def to_csv(self, path) -> None:
         """Write one row per grid point (axes, α̂, Ω_k, status_k, derivatives, growth rates); header
-        line first."""
+        line first. The file is replaced whole or not at all (:mod:`jaxdea.files`)."""
         cols = self.columns()
         table = np.column_stack(list(cols.values()))
         fmt = ["%d" if name.startswith("status") else "%.17g" for name in cols]
-        np.savetxt(path, table, delimiter=",", header=",".join(cols), comments="", fmt=fmt)
+        with atomic_write(path) as tmp:
+            np.savetxt(tmp, table, delimiter=",", header=",".join(cols), comments="", fmt=fmt)
 
     def to_npz(self, path) -> None:
-        """Save everything (read back with :meth:`from_npz`)."""
+        """Save everything (read back with :meth:`from_npz`); ``.npz`` is appended to a path
+        without it, as :func:`numpy.savez` does. Replaced whole or not at all."""
         arrays = {f"axis:{name}": np.asarray(v) for name, v in self.axes.items()}
         arrays.update(omega=self.omega, status=self.status, alpha=self.alpha,
                       settings=np.array(json.dumps(self.settings)),
@@ -247,7 +257,10 @@ class SweepResult:
             arrays.update({si_name: values for si_name, values, _ in self._si_axes().values()})
             if self.growth_rate is not None:
                 arrays.update(growth_rate_per_s=self.growth_rate_per_s)
-        np.savez(path, **arrays)
+        if not hasattr(path, "write") and not str(path).endswith(".npz"):
+            path = f"{path}.npz"
+        with atomic_write(path) as tmp:
+            np.savez(tmp, **arrays)
 
     def to_xarray(self):
         """The result as an :class:`xarray.Dataset` (extra ``jaxdea[xarray]``).
@@ -308,14 +321,16 @@ class SweepResult:
 
     def to_netcdf(self, path) -> None:
         """Write :meth:`to_xarray` as a netCDF-4 file (extra ``jaxdea[xarray]``; read it back with
-        ``xarray.open_dataset``).
+        ``xarray.open_dataset``), whole or not at all.
 
         Raises:
             ImportError: xarray or netCDF4 is not installed (naming the extra).
         """
         if importlib.util.find_spec("netCDF4") is None:
             raise ImportError(f"SweepResult.to_netcdf needs netCDF4: {XARRAY_EXTRA}")
-        self.to_xarray().to_netcdf(path, engine="netcdf4")
+        dataset = self.to_xarray()
+        with atomic_write(path) as tmp:
+            dataset.to_netcdf(tmp, engine="netcdf4")
 
     def _attributes(self) -> dict:
         """The settings as netCDF attributes (numbers and strings; None left out, booleans as
@@ -368,7 +383,7 @@ def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_
         roots = frequencies_unchecked(*point, omega_max, n_roots, n_layers, nu, m, family)
     alpha_point = as_float(point[1])
     growth = ()
-    if n_growth:  # the scan in Ω² = −s² (the 8×8 path at m = 0: theory_m.md §6)
+    if n_growth:  # the scan in Ω² = −s² (the 8×8 path at m = 0: docs/theory/order_m.md §6)
         growth = (growth_rates_unchecked(*point, None, n_growth, n_layers, nu, as_float(m),
                                          _growth_family(family)).omega,)
     if jac_names is None:
@@ -490,6 +505,61 @@ def _axis(name, values):
     return np.atleast_1d(arr)
 
 
+def sweep_bytes(shape, n_roots: int, n_jacobian: int | None = None, n_growth: int = 0) -> int:
+    """Estimated peak memory in bytes of a sweep over a grid of ``shape`` and of writing it: the
+    grid's columns, the result arrays (Ω, status, α̂, growth rates, dΩ/dα̂ and ``n_jacobian``
+    derivatives per root), and the CSV table of :meth:`SweepResult.to_csv` (its columns and the
+    stacked table, float64)."""
+    points, axes, k = math.prod(shape), len(shape), int(n_roots)
+    derivatives = 0 if n_jacobian is None else k * (1 + n_jacobian)
+    result = 8 + 12 * k + 8 * n_growth + 8 * derivatives  # the status once more as int32
+    columns = axes + 1 + 2 * k + n_growth + derivatives
+    return points * (8 * axes + result + 16 * columns)
+
+
+def physical_memory() -> int | None:
+    """The machine's physical memory in bytes, or None where the OS does not say."""
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def check_size(shape, n_roots: int, n_jacobian: int | None = None, n_growth: int = 0) -> None:
+    """Refuse a grid of more than :data:`MAX_POINTS` points, or one whose arrays
+    (:func:`sweep_bytes`) would take more than :data:`MEMORY_SHARE` of the physical memory, before
+    anything is allocated.
+
+    Raises:
+        ValueError: naming the grid size or the memory and the limit.
+    """
+    points = math.prod(int(n) for n in shape)
+    grid = " x ".join(str(int(n)) for n in shape)
+    if points > MAX_POINTS:
+        raise ValueError(f"the grid has {points:,} points ({grid}); a sweep takes at most "
+                         f"MAX_POINTS = {MAX_POINTS:,}: split it into several sweeps")
+    need, memory = sweep_bytes(shape, n_roots, n_jacobian, n_growth), physical_memory()
+    if memory is not None and need > MEMORY_SHARE * memory:
+        raise ValueError(f"the grid of {points:,} points ({grid}) needs about {need / 2**30:.1f} GiB, "
+                         f"more than MEMORY_SHARE = {MEMORY_SHARE:g} of this machine's "
+                         f"{memory / 2**30:.1f} GiB of memory: split it into several sweeps")
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C (KeyboardInterrupt) stopped :func:`sweep`.
+
+    Attributes:
+        result: the :class:`SweepResult` of the points solved before it (the others NaN with status
+            NOT_SOLVED, ``settings["incomplete"]`` True), or None if none was.
+        solved: how many grid points were solved.
+        total: the grid points.
+    """
+
+    def __init__(self, result, solved: int, total: int):
+        super().__init__(f"sweep interrupted after {solved} of {total} points")
+        self.result, self.solved, self.total = result, solved, total
+
+
 def _grid_layers(n_layers, scheme, tube, fluid, grids, n_roots, m):
     """The static discretisation of a sweep: with ``n_layers=None`` the accurate discretisation's N
     (:func:`jaxdea.transfer.laminate`) for the worst point of the grid (largest α̂ĥ, ĥ/r̂_i, m and
@@ -534,7 +604,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         client: a Dask ``distributed.Client`` (extra ``jaxdea[dask]``): the chunks are sent as
             tasks to its workers, each solving on all its own devices (``devices`` must then be
             None), and gathered in grid order. None: solve in this process.
-        m: the circumferential order (theory_m.md): an integer >= 0 (a fixed order, not an axis;
+        m: the circumferential order (docs/theory/order_m.md): an integer >= 0 (a fixed order, not an axis;
             0 the axisymmetric longitudinal family, as :func:`jaxdea.frequencies`), or a 1-D array
             of integers >= 0: a grid axis ``m`` (one compiled program for every order; at m = 0 the
             longitudinal family's roots through the order-m system).
@@ -548,15 +618,19 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
             of :mod:`jaxdea.leaves`; exactly one of ``alpha`` / ``n`` is required.
 
     Returns:
-        :class:`SweepResult` with Ω of shape (*grid_shape, n_roots) in the order of ``axes``.
+        An instance of :class:`SweepResult` with Ω of shape (*grid_shape, n_roots) in the order of ``axes``.
 
     Raises:
         ValueError: an unknown or repeated axis, a missing ``alpha``/``n``, bad settings, an
             order m that is not an integer >= 0 (or with ``torsional=True`` or the paper coupling
-            not 0), naming m. Values of the other axes are not validated point by point: an invalid
-            point gives NaN, status INVALID.
+            not 0), naming m; a grid past :data:`MAX_POINTS` or the memory limit of
+            :func:`check_size` (before anything is allocated). Values of the other axes are not
+            validated point by point: an invalid point gives NaN, status INVALID.
+        SweepInterrupted: Ctrl-C (a KeyboardInterrupt) during the solve; its ``result`` holds
+            the points solved before it, the others NaN with status NOT_SOLVED and
+            ``settings["incomplete"]`` True.
 
-    Example:
+    Examples:
         >>> res = sweep(Tube(lambda_z=1.2), voltage=np.linspace(0, 0.2, 5), n=np.arange(1, 11))
         >>> res.omega.shape  # (5, 10, 3)
         >>> sweep(Tube(lambda_z=1.2), m=np.arange(4), alpha=0.445).omega.shape  # (4, 1, 3)
@@ -591,6 +665,9 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
                              ("batch_size", batch_size, 1), ("n_growth", n_growth, 0)):
         if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < low:
             raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    validate_roots(n_roots)
+    if n_growth > MAX_ROOTS:
+        raise ValueError(f"n_growth must be <= MAX_ROOTS = {MAX_ROOTS}, got {n_growth!r}")
     m_axis, family = _orders(m, torsional, fluid)
     check_names(list(axes), fluid)
     if m_axis is not None:
@@ -614,6 +691,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
 
     shape = tuple(len(v) for v in axes.values())
     total = math.prod(shape)
+    check_size(shape, n_roots, len(jac_names) if jac_names is not None else None, n_growth)
     per_device = -(-total // max(len(devices), 1))
     size = min(int(chunk_size), 1 << (per_device - 1).bit_length())  # power of two ≤ chunk_size
     size *= max(len(devices), 1)  # points per chunk, a multiple of the device count
@@ -631,6 +709,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
                      for g in grids)
 
     outputs = None
+    solved = np.zeros(total, dtype=bool)
     bar = _progress_bar(total, progress)
     if client is None:
         base = jax.tree_util.tree_map(as_float, (tube, 1.0, fluid))
@@ -640,21 +719,35 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         base = jax.tree_util.tree_map(np.asarray, (tube, 1.0, fluid))
         static = dict(static, batch_size=None) if auto_batch else static
         results = _on_dask(client, [chunk(start) for start in starts], starts, base, omega_max, static)
-    for start, out in results:
-        stop = min(start + size, total)
-        if outputs is None:
-            outputs = [np.empty((total, *o.shape[1:]), o.dtype) for o in out]
-        for buf, o in zip(outputs, out, strict=True):
-            buf[start:stop] = o[: stop - start]
-        bar.update(stop - start)
-    bar.close()
+    interrupted = False
+    try:
+        for start, out in results:
+            stop = min(start + size, total)
+            if outputs is None:
+                outputs = [np.empty((total, *o.shape[1:]), o.dtype) for o in out]
+            for buf, o in zip(outputs, out, strict=True):
+                buf[start:stop] = o[: stop - start]
+            solved[start:stop] = True
+            bar.update(stop - start)
+    except KeyboardInterrupt:
+        interrupted = True
+        results.close()  # a Dask run cancels its remaining tasks
+    finally:
+        bar.close()
+    if interrupted and outputs is None:
+        raise SweepInterrupted(None, 0, total)
+    if interrupted:  # the points not reached: NaN, status NOT_SOLVED
+        for buf in outputs:
+            buf[~solved] = Status.NOT_SOLVED if np.issubdtype(buf.dtype, np.integer) else np.nan
     omega, status, alpha = outputs[:3]
     k = 4 if n_growth else 3  # the first output after the growth rates
     reshape = lambda a: a.reshape(*shape, *a.shape[1:])  # noqa: E731
     settings = _settings(tube, fluid, n_roots, omega_max, layers, m_axis, m, torsional)
     if n_growth:
         settings["n_growth"] = int(n_growth)
-    return SweepResult(
+    if interrupted:
+        settings["incomplete"] = True
+    result = SweepResult(
         axes=axes, omega=reshape(omega), status=reshape(status).astype(np.int32),
         alpha=reshape(alpha),
         jacobian=None if jac_names is None else (
@@ -664,6 +757,9 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         growth_rate=reshape(outputs[3]) if n_growth else None,
         settings=settings,
     )
+    if interrupted:
+        raise SweepInterrupted(result, int(solved.sum()), total)
+    return result
 
 
 def _orders(m, torsional, fluid):

@@ -1,4 +1,4 @@
-"""SI units ↔ the dimensionless variables of jaxdea (theory.md §0).
+"""SI units ↔ the dimensionless variables of jaxdea (docs/theory/axisymmetric.md §0).
 
 jaxdea computes with lengths / R_i (undeformed inner radius), stresses and pressures / μ (shear
 modulus), time / (R_i/c_s) with the shear-wave speed c_s = sqrt(μ/ρ_s), potentials / (R_i sqrt(μ/ε)):
@@ -137,7 +137,7 @@ _FIELDS = ("shear_modulus", "density", "permittivity", "inner_radius")
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class Scales:
-    """The material and size scales that make jaxdea's variables dimensionless (theory.md §0).
+    """The material and size scales that make jaxdea's variables dimensionless (docs/theory/axisymmetric.md §0).
 
     A pytree (every field a differentiable, vmappable leaf). Fields are kept as given (so a
     ``Scales`` can serve as a ``jax.vmap`` ``in_axes`` spec); they are validated (positive, finite)
@@ -149,7 +149,7 @@ class Scales:
         permittivity: ε in F/m (absolute; e.g. ``4.7 * VACUUM_PERMITTIVITY``).
         inner_radius: R_i in m (undeformed inner radius, the length scale).
 
-    Example:
+    Examples:
         >>> vhb = Scales(20e3, 960.0, 4.7 * VACUUM_PERMITTIVITY, 5e-3)
         >>> vhb.omega_to_hz(1.0)    # c_s/(2π R_i) = 145.3 Hz
     """
@@ -301,7 +301,9 @@ class TubeSI(NamedTuple):
         outer_radius: R_o in m (undeformed).
         length: L in m (undeformed).
         voltage: V in V.
-        lambda_i, lambda_z, gent: the (dimensionless) stretches and Gent constant.
+        lambda_i: the inner stretch λ_i (dimensionless).
+        lambda_z: the axial stretch λ_z (dimensionless).
+        gent: the Gent constant G (dimensionless).
     """
 
     outer_radius: jax.Array
@@ -321,7 +323,7 @@ class FluidSI(NamedTuple):
 
 def tube_from_si(scales: Scales, outer_radius, length, voltage=0.0, lambda_i=1.0, lambda_z=1.0,
                  gent=97.2, material: str = "gent") -> Tube:
-    """The dimensionless :class:`~jaxdea.Tube` of a tube given in SI units (theory.md §0).
+    """The dimensionless :class:`~jaxdea.Tube` of a tube given in SI units (docs/theory/axisymmetric.md §0).
 
     η = R_i/R_o, length_ratio = L/R_o, V̂ = sqrt(ε/μ) V/R_i; the stretches and G are dimensionless
     already and are passed through. Concrete inputs are validated as the solvers validate a Tube:
@@ -339,13 +341,13 @@ def tube_from_si(scales: Scales, outer_radius, length, voltage=0.0, lambda_i=1.0
         material: static energy name, as in :class:`~jaxdea.Tube`.
 
     Returns:
-        The :class:`~jaxdea.Tube`.
+        An instance of :class:`~jaxdea.Tube`.
 
     Raises:
         ValueError: naming the parameter, for concrete values out of range (e.g. R_o ≤ R_i, a
             wall past Gent locking).
 
-    Example:
+    Examples:
         >>> tube = tube_from_si(vhb, outer_radius=5e-3 / 0.85, length=0.0588, voltage=5e3)
     """
     _check_scales(scales)
@@ -401,19 +403,19 @@ def tube_to_si(scales: Scales, tube: Tube) -> TubeSI:
 
 def fluid_from_si(scales: Scales, fluid_density, sound_speed, coupling: str = "acoustic",
                   bessel_order: int | None = None) -> Fluid:
-    """The dimensionless :class:`~jaxdea.Fluid`: ρ̂_f = ρ_f/ρ_s, ĉ_f = c_f/c_s (theory.md §0).
+    """The dimensionless :class:`~jaxdea.Fluid`: ρ̂_f = ρ_f/ρ_s, ĉ_f = c_f/c_s (docs/theory/axisymmetric.md §0).
 
     Args:
         scales: the :class:`Scales` (ρ_s and c_s = sqrt(μ/ρ_s) come from it).
         fluid_density: ρ_f > 0 in kg/m³ (water ≈ 1000, air ≈ 1.2).
         sound_speed: c_f > 0 in m/s (water ≈ 1480, air ≈ 343).
-        coupling: ``"acoustic"`` (consistent, default) or ``"paper"`` (theory.md §4).
+        coupling: ``"acoustic"`` (consistent, default) or ``"paper"`` (docs/theory/axisymmetric.md §4).
         bessel_order: the ``"paper"`` coupling's Bessel order, as in :class:`~jaxdea.Fluid`.
 
     Raises:
         ValueError: naming the parameter, for concrete values that are not positive and finite.
 
-    Example:
+    Examples:
         >>> water = fluid_from_si(vhb, fluid_density=1000.0, sound_speed=1480.0)
     """
     _check_scales(scales)

@@ -26,9 +26,6 @@
 import os
 
 import jax
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
@@ -36,6 +33,8 @@ jax.config.update("jax_enable_x64", True)  # jaxdea refuses to compute in float3
 import jax.numpy as jnp  # noqa: E402
 
 import jaxdea as jd  # noqa: E402
+
+jd.configure()  # opt in: compiled programs cached on disk, XLA's loop threshold
 from jaxdea.fit import NAMES, dimensionless, fit, mode_roots  # noqa: E402
 from jaxdea.units import VACUUM_PERMITTIVITY, Scales, tube_from_si  # noqa: E402
 
@@ -127,3 +126,4 @@ ax.set_xlabel("voltage (kV)")
 ax.set_ylabel("frequency (Hz)")
 ax.legend(fontsize=8)
 fig.tight_layout()
+plt.show()

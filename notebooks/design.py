@@ -31,14 +31,13 @@
 import os
 
 import jax
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
 jax.config.update("jax_enable_x64", True)  # jaxdea refuses to compute in float32
 import jaxdea as jd  # noqa: E402
+
+jd.configure()  # opt in: compiled programs cached on disk, XLA's loop threshold
 from jaxdea import design  # noqa: E402
 
 FAST = os.environ.get("JAXDEA_NOTEBOOK_FAST") == "1"
@@ -98,6 +97,8 @@ ax2.set_xlabel("V̂")
 ax2.set_ylabel("lowest Ω, n = 1")
 ax2.legend()
 fig.tight_layout()
+plt.show()
+
 
 # %% [markdown]
 # ## 2. Maximal tunability at fixed thickness
@@ -162,6 +163,8 @@ ax.set_xlabel("V̂")
 ax.set_ylabel("|dΩ/dV̂|")
 ax.legend(fontsize=8)
 fig.tight_layout()
+plt.show()
+
 
 # %% [markdown]
 # ## 3. The difference the first instability makes

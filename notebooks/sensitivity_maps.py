@@ -22,14 +22,13 @@
 import os
 
 import jax
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
 jax.config.update("jax_enable_x64", True)
 import jaxdea as jd  # noqa: E402
+
+jd.configure()  # opt in: compiled programs cached on disk, XLA's loop threshold
 
 FAST = os.environ.get("JAXDEA_NOTEBOOK_FAST") == "1"
 k = 4 if FAST else 16
@@ -56,6 +55,8 @@ for ax, (title, values) in zip(axes.flat, maps, strict=True):
     ax.set(title=title, xlabel="λ_i", ylabel="V̂")
     fig.colorbar(im, ax=ax)
 fig.tight_layout()
+plt.show()
+
 
 # %% [markdown]
 # ## Check one entry against a central difference

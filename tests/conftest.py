@@ -6,18 +6,18 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 # compiled programs are reused across test processes and runs (compilation dominates test time):
-# XLA's in .jax_cache/xla, jaxdea's executables (jaxdea.compiled) in .jax_cache/executables unless
-# JAXDEA_CACHE_DIR names another root
+# jaxdea.configure's disk cache under .jax_cache (XLA's in xla/, jaxdea's exported programs in
+# programs/) unless JAXDEA_CACHE_DIR names another root, and XLA's loop threshold, as users get them
 CACHE_ROOT = os.path.join(os.path.dirname(os.path.dirname(__file__)), ".jax_cache")
 os.environ.setdefault("JAXDEA_CACHE_DIR", CACHE_ROOT)
-jax.config.update("jax_compilation_cache_dir", os.path.join(CACHE_ROOT, "xla"))
-jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 import jaxdea.compiled  # noqa: E402
+
+jaxdea.compiled.configure()
 
 
 def fd_derivative(fun, x, h=None):
@@ -44,3 +44,39 @@ def _free_compiled_programs():
     yield
     jaxdea.compiled.clear_memory()
 
+
+
+DURATIONS = os.path.join(os.path.dirname(__file__), "durations")
+"""Folder of the seconds of every test of the latest run of each tier (``default.json``: the
+default tier, ``slow.json``: ``-m slow``, ``all.json``: ``-m ""``), setup, call and teardown
+together, slowest first: the next slow test is found by looking there (``tests/README.md``)."""
+TIERS = {"not slow": "default", "slow": "slow", "": "all"}
+_durations: dict = {}
+
+
+def pytest_runtest_logreport(report):
+    """Collects each phase's duration (on the controller process too under pytest-xdist)."""
+    entry = _durations.setdefault(report.nodeid, {"seconds": 0.0, "slow": "slow" in report.keywords})
+    entry["seconds"] += report.duration
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """Writes the tier's file in :data:`DURATIONS` (atomically) after a run of a whole tier; runs of
+    a few files or tests, or with ``-k``, leave it alone."""
+    config = session.config
+    tier = TIERS.get(config.getoption("markexpr", ""))
+    if (not _durations or tier is None or getattr(config, "workerinput", None) is not None
+            or config.getoption("keyword", "") or config.args not in ([], ["tests"])):
+        return
+    import json
+
+    rows = sorted(({"test": k, **v, "seconds": round(v["seconds"], 2)} for k, v in _durations.items()),
+                  key=lambda row: -row["seconds"])
+    payload = {"tier": tier, "exit_status": int(exitstatus),
+               "total_seconds": round(sum(r["seconds"] for r in rows), 1), "tests": rows}
+    os.makedirs(DURATIONS, exist_ok=True)
+    path = os.path.join(DURATIONS, f"{tier}.json")
+    with open(path + ".tmp", "w", encoding="utf-8") as stream:
+        json.dump(payload, stream, indent=0, ensure_ascii=False)
+        stream.write("\n")
+    os.replace(path + ".tmp", path)

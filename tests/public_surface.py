@@ -17,6 +17,8 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxdea as jd  # noqa: E402
+
+jd.configure()  # the disk cache under test (JAXDEA_CACHE_DIR) and XLA's loop threshold
 from jaxdea import compiled  # noqa: E402
 
 TUBE = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2, eta=0.85)

@@ -1,6 +1,7 @@
 """The on-disk cache of exported programs (jaxdea.compiled): a fresh process loads them without
 tracing and gets the same bits; what it cannot key (tracers, debugging) goes through jax.jit; a
-damaged, foreign or unsafe entry is never run; every public entry point survives three processes
+damaged, foreign, misplaced or unsafe entry is never run and never raises; clear removes only what
+jaxdea wrote; importing jaxdea changes nothing; every public entry point survives three processes
 sharing one cache."""
 
 import ast
@@ -71,55 +72,46 @@ def test_threads_asking_for_a_new_program_export_it_once(cache):
     assert fun.counts == {"loaded": 0, "exported": 1, "stored": 1} and len(_entries(cache)) == 1
 
 
-def test_traces_take_turns_and_never_wait_on_a_held_turn_for_long(cache, monkeypatch):
-    """Programs traced in several threads take turns (:data:`jaxdea.compiled._TRACING`): after
-    them the turn is free. A trace whose turn another thread holds goes on after
-    ``TRACING_WAIT`` instead of waiting for it (the lock only orders work)."""
-    import concurrent.futures
+def test_threads_trace_side_by_side(cache):
+    """The library does not serialise its users' threads: while one thread is inside the trace of
+    a program (held there), another thread traces, compiles and runs a different one."""
     import threading
-    import time
 
-    fun = cached_jit(_scaled, static_argnames="n")
-    x = jnp.arange(4.0)
-    with concurrent.futures.ThreadPoolExecutor(4) as pool:
-        results = list(pool.map(lambda n: np.asarray(fun(x, n)), range(2, 6)))
-    for n, got in zip(range(2, 6), results, strict=True):
-        np.testing.assert_array_equal(got, n * np.arange(4.0))
-    assert fun.counts["exported"] == 4
-    assert compiled._TRACING.acquire(blocking=False)  # released by every trace
-    compiled._TRACING.release()
+    inside, release = threading.Event(), threading.Event()
 
-    monkeypatch.setattr(compiled, "TRACING_WAIT", 0.5)
-    held, done = threading.Event(), threading.Event()
+    def blocking(x, n):
+        inside.set()
+        release.wait(60)
+        return x * n
 
-    def hold():
-        with compiled._TRACING:
-            held.set()
-            done.wait(60)
-
-    holder = threading.Thread(target=hold)
+    slow, fast = cached_jit(blocking, static_argnames="n"), cached_jit(_scaled, static_argnames="n")
+    holder = threading.Thread(target=lambda: slow(jnp.arange(2.0), 2))
     holder.start()
-    held.wait(60)
     try:
-        start = time.perf_counter()
-        np.testing.assert_array_equal(fun(x, 9), 9 * np.arange(4.0))
-        assert 0.5 <= time.perf_counter() - start < 30  # waited its turn's limit, then traced
+        assert inside.wait(60)
+        done = []
+        other = threading.Thread(target=lambda: done.append(np.asarray(fast(jnp.arange(3.0), 5))))
+        other.start()
+        other.join(20)
+        assert done and np.array_equal(done[0], 5 * np.arange(3.0))  # did not wait for the first
     finally:
-        done.set()
+        release.set()
         holder.join()
-    assert fun.counts["exported"] == 5
 
 
 def test_private_modes_and_no_pickle(cache):
-    """The root and its folder 0700, entries 0600; an entry is the magic line, the SHA-256 of the
-    artifact and the artifact (a jax.export flatbuffer, not a pickle)."""
+    """The root and its folder 0700, entries 0600; the root holds the marker; an entry is the magic
+    line, its own key, the SHA-256 of key and artifact, and the artifact (a jax.export flatbuffer,
+    not a pickle)."""
     cached_jit(_scaled, static_argnames="n")(jnp.arange(3.0), 2)
     (entry,) = _entries(cache)
     assert stat.S_IMODE(cache.stat().st_mode) == 0o700
     assert stat.S_IMODE((cache / "programs").stat().st_mode) == 0o700
     assert stat.S_IMODE(entry.stat().st_mode) == 0o600
+    assert (cache / compiled.MARKER).read_text().startswith("Signature: 8a477f597d28d172789f06886806bc55")
     data = entry.read_bytes()
-    assert data.startswith(MAGIC) and not data[len(MAGIC):].startswith(b"\x80")  # pickle protocol
+    assert data.startswith(MAGIC + entry.stem.encode() + b"\n")
+    assert not data[len(MAGIC):].startswith(b"\x80")  # pickle protocol
     with pytest.raises(pickle.UnpicklingError):
         pickle.loads(data)
 
@@ -129,7 +121,7 @@ def test_damaged_entry_is_exported_anew(cache):
     cached_jit(_scaled, static_argnames="n")(x, 2)
     (entry,) = _entries(cache)
     good = entry.read_bytes()
-    for damaged in (b"not a program", good[:-10], good.replace(MAGIC, b"jaxdea-exported-0\n")):
+    for damaged in (b"", b"not a program", good[:-10], good.replace(MAGIC, b"jaxdea-exported-0\n")):
         entry.write_bytes(damaged)
         fresh = cached_jit(_scaled, static_argnames="n")  # a new process holds nothing in memory
         np.testing.assert_array_equal(fresh(x, 2), 2 * x)
@@ -141,10 +133,66 @@ def test_damaged_entry_is_exported_anew(cache):
 
 
 def _plant(entry, payload):
-    """Write ``payload`` at ``entry`` as a well-formed entry (magic line, valid checksum)."""
+    """Write ``payload`` at ``entry`` as a well-formed entry (magic line, its key, valid checksum)."""
     import hashlib
 
-    entry.write_bytes(MAGIC + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload)
+    key = entry.stem.encode()
+    entry.write_bytes(MAGIC + key + b"\n" + hashlib.sha256(key + b"\n" + payload).hexdigest().encode()
+                      + b"\n" + payload)
+
+
+def test_an_entry_copied_over_another_key_is_not_run(cache):
+    """Another program's whole, valid entry copied to this program's name (the midpoint scheme's
+    over the default one, say) records another key: deleted, this program exported anew."""
+    x = jnp.arange(3.0)
+    cached_jit(_scaled, static_argnames="n")(x, 2)
+    (two,) = _entries(cache)
+    cached_jit(_scaled, static_argnames="n")(x, 3)
+    (three,) = [e for e in _entries(cache) if e != two]
+    two.write_bytes(three.read_bytes())
+    fresh = cached_jit(_scaled, static_argnames="n")
+    np.testing.assert_array_equal(fresh(x, 2), 2 * x)  # not 3 x
+    assert fresh.counts == {"loaded": 0, "exported": 1, "stored": 1}
+
+
+def test_a_fifo_or_a_folder_at_an_entry_path_is_skipped(cache):
+    """A FIFO at an entry's path used to hang the process forever (open blocks for a writer), and
+    a folder there raised: both are skipped, the program compiled in the process."""
+    x = jnp.arange(3.0)
+    cached_jit(_scaled, static_argnames="n")(x, 2)
+    (entry,) = _entries(cache)
+    entry.unlink()
+    os.mkfifo(entry, 0o600)
+    assert compiled.read_entry(entry) is None  # returns at once: no writer needed
+    fresh = cached_jit(_scaled, static_argnames="n")
+    np.testing.assert_array_equal(fresh(x, 2), 2 * x)
+    entry.unlink()
+    entry.mkdir(mode=0o700)
+    again = cached_jit(_scaled, static_argnames="n")
+    np.testing.assert_array_equal(again(x, 2), 2 * x)
+    assert again.counts["loaded"] == 0 and entry.is_dir()
+
+
+def test_a_cache_that_cannot_be_written_never_raises(cache, monkeypatch):
+    """A read-only cache (a read-only mount, a folder the user cannot write): a damaged entry that
+    cannot be deleted, and entries that cannot be written, only cost compilations."""
+    x = jnp.arange(3.0)
+    cached_jit(_scaled, static_argnames="n")(x, 2)
+    (entry,) = _entries(cache)
+    entry.write_bytes(b"damaged")
+
+    def refuse(*args, **kwargs):
+        raise PermissionError(30, "Read-only file system")
+
+    monkeypatch.setattr(Path, "unlink", refuse)
+    monkeypatch.setattr(compiled.tempfile, "mkstemp", refuse)
+    monkeypatch.setattr(compiled.os, "utime", refuse)
+    for _ in range(2):
+        fresh = cached_jit(_scaled, static_argnames="n")
+        np.testing.assert_array_equal(fresh(x, 2), 2 * x)
+        assert fresh.counts == {"loaded": 0, "exported": 1, "stored": 0}
+    monkeypatch.undo()
+    assert entry.read_bytes() == b"damaged"
 
 
 class _Exploit:
@@ -226,6 +274,70 @@ def test_another_environment_does_not_load(cache, monkeypatch):
 def test_clear_cache(cache):
     cached_jit(_scaled, static_argnames="n")(jnp.arange(3.0), 2)
     assert compiled.clear_cache() == cache and not cache.exists()
+
+
+def test_clear_removes_only_what_jaxdea_wrote(cache):
+    """A user's file in the cache root survives ``clear`` (and keeps the root); a folder without
+    jaxdea's marker is not a cache: nothing in it is deleted."""
+    cached_jit(_scaled, static_argnames="n")(jnp.arange(3.0), 2)
+    (cache / "notes.txt").write_text("mine")
+    assert compiled.clear_cache() == cache
+    assert sorted(p.name for p in cache.iterdir()) == ["notes.txt"]
+    with pytest.raises(ValueError, match="not a jaxdea cache"):
+        compiled.clear_cache(cache)
+    assert (cache / "notes.txt").read_text() == "mine"
+
+
+def test_a_folder_holding_other_files_is_never_a_cache_root(tmp_path, monkeypatch):
+    """JAXDEA_CACHE_DIR naming a folder of the user's (here: one with a file in it) is refused with
+    a warning: nothing is written there. Set but empty, it means the default root, never the
+    current folder."""
+    own = tmp_path / "work"
+    own.mkdir()
+    (own / "data.csv").write_text("1,2\n")
+    monkeypatch.setenv("JAXDEA_CACHE_DIR", str(own))
+    fun = cached_jit(_scaled, static_argnames="n")
+    with pytest.warns(CacheWarning, match="files jaxdea did not write"):
+        np.testing.assert_array_equal(fun(jnp.arange(3.0), 2), [0.0, 2.0, 4.0])
+    assert sorted(p.name for p in own.iterdir()) == ["data.csv"]
+    monkeypatch.setenv("JAXDEA_CACHE_DIR", "")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.chdir(own)
+    assert compiled.cache_root() == tmp_path / "home" / ".cache" / "jaxdea"
+    cached_jit(_scaled, static_argnames="n")(jnp.arange(3.0), 2)
+    assert sorted(p.name for p in own.iterdir()) == ["data.csv"]
+    assert _entries(tmp_path / "home" / ".cache" / "jaxdea")
+
+
+def test_least_recently_used_entries_go_beyond_the_limit(cache):
+    """evict keeps the most recently read or written entries within the limit."""
+    fun = cached_jit(_scaled, static_argnames="n")
+    x = jnp.arange(3.0)
+    entries = []
+    for n in (2, 3, 4):
+        fun(x, n)
+        entries.append(next(e for e in _entries(cache) if e not in entries))
+    for age, entry in zip((300, 200, 100), entries, strict=True):  # 2 oldest, 4 newest
+        os.utime(entry, (entry.stat().st_atime - age, entry.stat().st_mtime - age))
+    assert compiled.read_entry(entries[0]) is not None  # reading renews the oldest
+    size = entries[0].stat().st_size
+    assert compiled.evict(cache, 2 * size + 10) == 1
+    assert _entries(cache) == sorted([entries[0], entries[2]])
+
+
+def test_configure_repairs_damaged_jax_entries(cache):
+    """JAX writes its compilation cache in place: an empty or truncated entry (a full disk) made
+    every later run warn and recompile. configure deletes them and keeps the whole ones."""
+    import zlib
+
+    folder = cache / "xla"
+    compiled.private_folder("xla")
+    whole = zlib.compress(b"an executable" * 100)
+    (folder / "a-cache").write_bytes(whole)
+    (folder / "b-cache").write_bytes(b"")
+    (folder / "c-cache").write_bytes(whole[:-20])
+    assert compiled.repair_jax_cache(folder) == 2
+    assert sorted(p.name for p in folder.glob("*-cache")) == ["a-cache"]
 
 
 def test_transformations_and_debugging_go_through_jit(cache):
@@ -342,6 +454,8 @@ import jax
 jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp
 import jaxdea
+if sys.argv[1] == "configure":
+    jaxdea.configure(cache=False)
 loop = jax.jit(lambda x: jax.lax.fori_loop(0, 5, lambda i, y: jnp.sin(y) + y, x))
 hlo = loop.lower(jnp.ones(10_000)).compile().as_text()  # 80 kB a step: above XLA's 1 KiB default
 print(repr(os.environ.get("XLA_FLAGS", "")))
@@ -349,25 +463,43 @@ print("xla_cpu_small_call" in hlo)
 """
 
 
-def _probe(env_extra):
+def _probe(env_extra, configure=True):
     env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "JAXDEA_XLA_FLAGS")}
     env.update(env_extra, JAXDEA_CACHE_DIR="off")
-    out = subprocess.run([sys.executable, "-c", _LOOP_PROBE], env=env, capture_output=True, text=True,
-                         timeout=300, check=True)
+    out = subprocess.run([sys.executable, "-c", _LOOP_PROBE, "configure" if configure else "import"],
+                         env=env, capture_output=True, text=True, timeout=300, check=True)
     flags, hoisted = out.stdout.strip().splitlines()[-2:]
     return ast.literal_eval(flags), hoisted == "True"
 
 
-def test_import_sets_the_small_loop_threshold_where_it_still_acts():
-    """A fresh process importing jaxdea gets SMALL_LOOP_BYTES in XLA_FLAGS, and XLA compiles a loop
-    of 80 kB a step into one kernel (a small call), which XLA's default leaves to the thunk runtime;
-    a user's own backend options and JAXDEA_XLA_FLAGS=off leave XLA_FLAGS as they are."""
+def test_configure_sets_the_small_loop_threshold_where_it_still_acts():
+    """jaxdea.configure() gets SMALL_LOOP_BYTES into XLA_FLAGS, and XLA compiles a loop of 80 kB a
+    step into one kernel (a small call), which XLA's default leaves to the thunk runtime; importing
+    alone changes nothing; a user's own backend options and JAXDEA_XLA_FLAGS=off leave XLA_FLAGS as
+    they are."""
     flags, hoisted = _probe({})
     assert f"xla_cpu_small_while_loop_byte_threshold={compiled.SMALL_LOOP_BYTES}" in flags
     assert hoisted
+    assert _probe({}, configure=False) == ("", False)
     assert _probe({"JAXDEA_XLA_FLAGS": "off"}) == ("", False)
     own = "--xla_backend_extra_options=xla_cpu_small_while_loop_byte_threshold=0"
     assert _probe({"XLA_FLAGS": own}) == (own, False)
+
+
+def test_import_changes_nothing_in_the_process(tmp_path):
+    """A fresh process importing jaxdea with a fresh HOME (and JAXDEA_CACHE_DIR unset) finds
+    XLA_FLAGS, JAX's compilation-cache setting and HOME as they were, and JAX unstarted."""
+    script = ("import os, jax\nimport jaxdea\nfrom jax._src import xla_bridge\n"
+              "print(repr(os.environ.get('XLA_FLAGS')), jax.config.jax_compilation_cache_dir,"
+              " xla_bridge.backends_are_initialized())")
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("XLA_FLAGS", "JAXDEA_CACHE_DIR", "JAXDEA_XLA_FLAGS", "XDG_CACHE_HOME")}
+    home = tmp_path / "home"
+    home.mkdir()
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300,
+                         check=True, env={**env, "HOME": str(home)}, cwd=tmp_path)
+    assert out.stdout.strip().splitlines()[-1] == "None None False"
+    assert list(home.iterdir()) == [] and sorted(p.name for p in tmp_path.iterdir()) == ["home"]
 
 
 def test_configure_xla_leaves_a_started_backend_and_the_users_flags_alone():
@@ -375,13 +507,3 @@ def test_configure_xla_leaves_a_started_backend_and_the_users_flags_alone():
     environ = {"XLA_FLAGS": "--xla_dump_to=/tmp/x"}
     assert not compiled.configure_xla(environ)
     assert environ == {"XLA_FLAGS": "--xla_dump_to=/tmp/x"}
-
-
-def test_import_starts_no_backend():
-    """Importing jaxdea leaves JAX unstarted (no module-level JAX arrays): the user may still
-    configure JAX afterwards, and the small-loop flag can still act."""
-    script = ("import jax\nimport jaxdea\nfrom jax._src import xla_bridge\n"
-              "print(xla_bridge.backends_are_initialized())")
-    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300,
-                         check=True, env={**os.environ, "JAXDEA_CACHE_DIR": "off"})
-    assert out.stdout.strip().splitlines()[-1] == "False"

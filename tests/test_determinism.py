@@ -79,6 +79,8 @@ def _in_fresh_process(with_fluid=False, cache=False):
         "import jax",
         "jax.config.update('jax_enable_x64', True)",
         f"jax.config.update('jax_compilation_cache_dir', {cache_dir!r})" if cache_dir else "",
+        "import jaxdea",
+        "jaxdea.configure(cache=False)  # XLA's loop threshold, as the test process has it",
         CASE,
         "import json",
         f"print(json.dumps(compute({with_fluid!r})))",

@@ -176,3 +176,44 @@ def test_critical_slope_is_forward_mode(m, family):
     (f, df), (f_ref, df_ref) = jax.jit(jax.vmap(both))(v)
     np.testing.assert_allclose(f, f_ref, rtol=0, atol=1e-13 * float(jnp.max(jnp.abs(f_ref))))
     np.testing.assert_allclose(df, df_ref, rtol=1e-11, atol=1e-12 * float(jnp.max(jnp.abs(df_ref))))
+
+
+def _equations(jaxpr) -> int:
+    """Equations of a jaxpr, those of every nested jaxpr (scan and loop bodies, branches, inner
+    jits) included: the size of what JAX traces and XLA compiles."""
+    from jax.extend.core import jaxprs_in_params
+
+    return sum(1 + sum(_equations(sub) for sub in jaxprs_in_params(eq.params)) for eq in jaxpr.eqns)
+
+
+FLUID = jd.Fluid()
+ALPHA = 0.445
+CURVE = jnp.linspace(0.2, 1.2, 200)
+BUDGETS = {  # public program: (call of one traced leaf x, x, equations allowed = 1.1 × today's)
+    "characteristic": (lambda v: jd.characteristic(TUBE.replace(voltage=v), 1.3, ALPHA), 0.1, 1992),
+    "frequencies": (lambda v: jd.frequencies(TUBE.replace(voltage=v), ALPHA), 0.1, 5850),
+    "frequencies_acoustic": (lambda v: jd.frequencies(TUBE.replace(voltage=v), ALPHA, FLUID), 0.1, 7667),
+    "frequencies_m2": (lambda v: jd.frequencies(TUBE.replace(voltage=v), ALPHA, m=2), 0.1, 6307),
+    "frequency": (lambda v: jd.frequency(TUBE.replace(voltage=v), ALPHA, 0.77), 0.1, 4063),
+    "group_velocity": (lambda v: jd.group_velocity(TUBE.replace(voltage=v), ALPHA, 0.77), 0.1, 3012),
+    "critical_voltage": (lambda e: jd.critical_voltage(TUBE.replace(eta=e), ALPHA), 0.85, 4673),
+    "growth_rates_m2": (lambda v: jd.growth_rates(TUBE.replace(voltage=v), ALPHA, m=2), 0.1, 6265),
+    "dispersion_curve": (lambda v: jd.dispersion_curve(TUBE.replace(voltage=v), CURVE, n_roots=4), 0.1,
+                         12168),
+    "mode_shape": (lambda v: jd.mode_shape(TUBE.replace(voltage=v), ALPHA, 0.77), 0.1, 5048),
+    "first_instability": (lambda e: jd.first_instability(TUBE.replace(eta=e), n_max=3, m_max=8).voltage,
+                          0.85, 11469),
+}
+SLOW = {"frequencies_acoustic", "dispersion_curve", "first_instability"}  # 9-15 s to trace each
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW else n
+                                  for n in BUDGETS])
+def test_public_program_within_its_size_budget(name):
+    """Each public program traced (not compiled) stays within 1.1× its size when the budget was set:
+    a change that makes a first call slower by growing the program fails here, and one that shrinks
+    it lowers the budget in the same commit."""
+    call, x, budget = BUDGETS[name]
+    size = _equations(jax.make_jaxpr(call)(x).jaxpr)
+    assert size <= budget, f"{name}: {size} equations, budget {budget}"
+    assert size > budget / 1.1 * 0.5, f"{name}: {size} equations: lower the budget ({budget})"
