@@ -17,6 +17,15 @@ estimate. The laminate error is a systematic error of the model, and a weakly de
 parameter absorbs it: the paper's midpoint laminate (N = 30, errors ~1e-6 relative) moved the
 Gent constant of a silicone tube by 0.2–0.4 % on exact data, where its own sensitivity is ~1e-3.
 
+Loading. The tube is held by its inner stretch λ_i or by its pressure difference ΔP = P_i − P_o
+(``pressure``, Pa): then λ_i is the inner stretch that ΔP̂ = ΔP/μ holds at each V̂ and λ_z
+(:func:`jaxdea.inner_stretch`, docs/theory/axisymmetric.md Eq. 1.1, implicit derivatives), so the
+inflation grows with the voltage as in a lab. Optional data columns ``pressure_Pa``, ``lambda_i``,
+``lambda_z`` give each peak its own loading (joint fits over several pressures or pre-stretches);
+the peaks of one voltage and loading share the model's modes. Torsional modes (m = 0, the
+torsional family) are candidates with ``torsional=True`` and labels with a 0/1 column
+``torsional``.
+
 Solver. A small Levenberg–Marquardt loop in NumPy (Marquardt's diagonal scaling; the damping is
 divided by 3 after an accepted step and multiplied by 4 after a rejected one) on the unconstrained u,
 with the exact Jacobian ∂r/∂θ from ``jax.jacfwd`` through the implicit root derivatives (never
@@ -73,17 +82,25 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .base_state import inner_stretch
 from .params import Fluid, Tube, require_x64
 from .roots import frequencies, frequency
 from .transfer import Layers, laminate, validate_scheme
 
 NAMES = ("shear_modulus", "density", "permittivity", "inner_radius", "length", "eta", "lambda_i",
-         "lambda_z", "gent", "fluid_density", "fluid_speed")
-"""Every parameter :func:`fit` knows, in the order of its internal vector (SI units)."""
+         "lambda_z", "gent", "pressure", "fluid_density", "fluid_speed")
+"""Every parameter :func:`fit` knows, in the order of its internal vector (SI units). A tube is
+held either by its inner stretch ``lambda_i`` or by its pressure difference ``pressure`` = P_i − P_o
+(Pa), from which λ_i follows at every voltage (:func:`jaxdea.inner_stretch`)."""
 FLUID_NAMES = ("fluid_density", "fluid_speed")
+LOADING_NAMES = ("lambda_i", "pressure")
+"""The two ways a tube's inflation is held: one of them is free or fixed (or a data column)."""
+LOAD_COLUMNS = ("lambda_i", "lambda_z", "pressure_Pa")
+"""Optional per-peak data columns (joint fits over several loadings): each replaces the parameter
+``lambda_i``, ``lambda_z``, ``pressure`` at its peaks."""
 UNITS = dict(shear_modulus="Pa", density="kg/m^3", permittivity="F/m", inner_radius="m",
-             length="m", eta="", lambda_i="", lambda_z="", gent="", fluid_density="kg/m^3",
-             fluid_speed="m/s")
+             length="m", eta="", lambda_i="", lambda_z="", gent="", pressure="Pa",
+             fluid_density="kg/m^3", fluid_speed="m/s")
 RANK_TOLERANCE = 1e-8
 """Relative singular value of the log-scaled Jacobian below which it counts as rank-deficient."""
 CORRELATION_LIMIT = 0.99
@@ -111,6 +128,8 @@ HELP = dict(
     lambda_z="several axial modes n and voltages, or a measured axial stretch",
     gent="larger stretches or voltages nearer the first instability (the Gent stiffening grows "
          "with I_1 − 3)",
+    pressure="ring modes (m ≥ 1) and peaks at several voltages (the inflation the pressure holds "
+             "grows with V), or a measured pressure",
     fluid_density="modes of several n (the fluid's added mass depends on α̂)",
     fluid_speed="modes of higher frequency (compressibility shows as Ω/α̂ nears ĉ_f)",
 )
@@ -154,15 +173,20 @@ class FitResult(NamedTuple):
         iterations: Levenberg–Marquardt iterations of the chosen start (all its rounds of
             branch re-checks and re-assignments).
         names: the free parameter names, in the order of ``covariance``.
-        parameters: {name: value} of every parameter of the model, free (the estimates) and fixed.
-        settings: the model's discretisation and fluid: {"n_layers", "scheme", "graded",
-            "coupling" (None: empty tube), "bessel_order"} (:func:`fitted_frequencies` evaluates
-            the fitted model with it).
+        parameters: {name: value} of every parameter of the model, free (the estimates) and fixed
+            (``pressure`` in Pa where the tube is held by pressure, ``lambda_i`` where it is held
+            by stretch; none of those given as data columns).
+        settings: the model's discretisation, fluid and loading: {"n_layers", "scheme", "graded",
+            "coupling" (None: empty tube), "bessel_order", "loading" ("stretch": λ_i held;
+            "pressure": λ_i follows from ΔP at every voltage)} (:func:`fitted_frequencies`
+            evaluates the fitted model with it).
         chi2: Σ r² over the matched peaks.
         dof: matched peaks minus free parameters.
         chi2_per_dof: chi2/dof (Hz² without σ: the residual variance s²).
         unmatched_fraction: the share of peaks assigned to no mode.
         at_bound: {name: "lower" or "upper"} of the parameters stopped on a bound.
+        torsional: (N,) bool, True where the peak is assigned to a torsional mode (m = 0 of the
+            torsional family; its ``assignment`` row is (0, n, branch)).
     """
 
     estimate: dict
@@ -176,57 +200,91 @@ class FitResult(NamedTuple):
     names: tuple
     parameters: dict
     settings: dict
-    chi2: float
-    dof: int
-    chi2_per_dof: float
-    unmatched_fraction: float
-    at_bound: dict
+    chi2: float = math.nan
+    dof: int = 0
+    chi2_per_dof: float = math.nan
+    unmatched_fraction: float = math.nan
+    at_bound: dict | None = None
+    torsional: np.ndarray | None = None
 
 
 # ---------------------------------------------------------------------------------------------
 # model
 
 
-def dimensionless(values, voltage_V, n, coupling=None, bessel_order=None):
+def dimensionless(values, voltage_V, n, coupling=None, bessel_order=None, load=None,
+                  by_pressure=False):
     """(Tube, α̂_n, Fluid or None, Hz per unit Ω) of a parameter vector in ``NAMES`` order.
 
     V̂ = V sqrt(ε/μ)/R_i, length_ratio = L/R_o = Lη/R_i, α̂_n = 2nπ R_i/(λ_z L),
     ρ̂_f = ρ_f/ρ_s, ĉ_f = c_f/c_s, f = Ω c_s/(2π R_i) (docs/theory/axisymmetric.md §0).
+    ``load``: optional (λ_i, λ_z, ΔP in Pa) of this point, NaN entries taken from ``values``.
+    ``by_pressure``: λ_i is the inner stretch that ΔP̂ = ΔP/μ holds at V̂, λ_z
+    (:func:`jaxdea.inner_stretch`, docs/theory/axisymmetric.md Eq. 1.1; implicit derivatives).
     """
-    mu, rho, eps, ri, length, eta, li, lz, gent, rho_f, c_f = (values[i] for i in range(11))
+    mu, rho, eps, ri, length, eta, li, lz, gent, dp, rho_f, c_f = (values[i] for i in range(12))
+    if load is not None:
+        li, lz, dp = (jnp.where(jnp.isnan(load[i]), x, load[i]) for i, x in enumerate((li, lz, dp)))
     tube = Tube(voltage=voltage_V * jnp.sqrt(eps / mu) / ri, lambda_i=li, lambda_z=lz, eta=eta,
                 gent=gent, length_ratio=length * eta / ri)
+    if by_pressure:
+        tube = tube.replace(lambda_i=inner_stretch(tube, dp / mu)[0])
     alpha = 2.0 * math.pi * n * ri / (lz * length)
-    speed = jnp.sqrt(mu / rho)
-    fluid = None if coupling is None else Fluid(density_ratio=rho_f / rho, speed_ratio=c_f / speed,
+    fluid = None if coupling is None else Fluid(density_ratio=rho_f / rho,
+                                                speed_ratio=c_f / jnp.sqrt(mu / rho),
                                                 coupling=coupling, bessel_order=bessel_order)
-    return tube, alpha, fluid, speed / (2.0 * math.pi * ri)
+    return tube, alpha, fluid, hz_per_omega(values)
 
 
-@partial(jax.jit, static_argnames=("n_roots", "n_layers", "coupling", "bessel_order", "axisymmetric"))
-def mode_roots(values, voltage_V, n, m, n_roots, n_layers, coupling, bessel_order, axisymmetric):
+def hz_per_omega(values):
+    """c_s/(2π R_i) of a parameter vector: f in Hz = Ω times this."""
+    return jnp.sqrt(values[0] / values[1]) / (2.0 * math.pi * values[3])
+
+
+FAMILIES = ("axisymmetric", "order_m", "torsional")
+"""The static mode families of the model: m = 0 longitudinal, m ≥ 1 (traced m), m = 0 torsional."""
+
+
+def _solver_family(family, order):
+    """(m, torsional) arguments of the solvers for a family."""
+    return (0 if family != "order_m" else order), family == "torsional"
+
+
+@partial(jax.jit, static_argnames=("n_roots", "n_layers", "coupling", "bessel_order", "family",
+                                   "by_pressure"))
+def mode_roots(values, voltage_V, n, m, n_roots, n_layers, coupling, bessel_order, family,
+               by_pressure=False, load=None):
     """Ω of the ``n_roots`` lowest positive roots of order m at α̂_n, per point: (points, n_roots).
 
-    ``axisymmetric``: every m is 0 (the longitudinal family); otherwise m ≥ 1, traced."""
-    def one(v, k, order):
-        tube, alpha, fluid, _ = dimensionless(values, v, k, coupling, bessel_order)
-        return frequencies(tube, alpha, fluid, n_roots, n_layers=n_layers,
-                           m=0 if axisymmetric else order)
-    return jax.vmap(one)(voltage_V, n, m)
+    ``family``: one of :data:`FAMILIES` (every m is 0 but for ``"order_m"``, m ≥ 1, traced);
+    ``load``: (points, 3) of (λ_i, λ_z, ΔP) per point, NaN where ``values`` holds it (None: all).
+    """
+    load = jnp.full((voltage_V.shape[0], 3), jnp.nan) if load is None else load
+    def one(v, k, order, point):
+        tube, alpha, fluid, _ = dimensionless(values, v, k, coupling, bessel_order, point,
+                                              by_pressure)
+        m, torsional = _solver_family(family, order)
+        return frequencies(tube, alpha, fluid, n_roots, n_layers=n_layers, m=m,
+                           torsional=torsional)
+    return jax.vmap(one)(voltage_V, n, m, load)
 
 
-@partial(jax.jit, static_argnames=("n_layers", "coupling", "bessel_order", "axisymmetric"))
+@partial(jax.jit, static_argnames=("n_layers", "coupling", "bessel_order", "family", "by_pressure"))
 def model_and_jacobian(values, voltage_V, n, m, guess, n_layers, coupling, bessel_order,
-                       axisymmetric):
-    """(Ω, f in Hz, ∂f/∂values) per point, Ω by Newton from ``guess`` (implicit derivatives).
+                       family, by_pressure=False, load=None):
+    """(Ω, f in Hz, ∂f/∂values) per point, Ω by Newton from ``guess`` (implicit derivatives);
+    ``family``, ``by_pressure``, ``load`` as in :func:`mode_roots`.
 
-    The Jacobian is ``jax.jacfwd`` with respect to all 11 values (one program whatever is free)."""
+    The Jacobian is ``jax.jacfwd`` with respect to all 12 values (one program whatever is free)."""
+    load = jnp.full((voltage_V.shape[0], 3), jnp.nan) if load is None else load
     def hz(vals):
-        def one(v, k, order, g):
-            tube, alpha, fluid, scale = dimensionless(vals, v, k, coupling, bessel_order)
-            omega = frequency(tube, alpha, g, fluid, n_layers, m=0 if axisymmetric else order)
+        def one(v, k, order, point, g):
+            tube, alpha, fluid, scale = dimensionless(vals, v, k, coupling, bessel_order, point,
+                                                      by_pressure)
+            m, torsional = _solver_family(family, order)
+            omega = frequency(tube, alpha, g, fluid, n_layers, m=m, torsional=torsional)
             return jnp.stack([omega * scale, omega])
-        out = jax.vmap(one)(voltage_V, n, m, guess)
+        out = jax.vmap(one)(voltage_V, n, m, load, guess)
         return out[:, 0], (out[:, 0], out[:, 1])
 
     jac, (f, omega) = jax.jacfwd(hz, has_aux=True)(values)
@@ -238,19 +296,21 @@ def _padded(size: int) -> int:
     return max(8, 1 << (size - 1).bit_length())
 
 
-def _by_family(m, fun):
-    """Apply ``fun(index, axisymmetric)`` to the points with m = 0 and m ≥ 1 (padded batches)."""
+def _by_family(m, torsional, fun):
+    """Apply ``fun(index, family)`` to the points of each family of :data:`FAMILIES` (padded
+    batches): m = 0 longitudinal, m ≥ 1, and the torsional points (m = 0, ``torsional``)."""
     out = []
-    for axisymmetric in (True, False):
-        index = np.flatnonzero((m == 0) if axisymmetric else (m > 0))
+    for family, chosen in zip(FAMILIES, ((m == 0) & ~torsional, m > 0, (m == 0) & torsional),
+                              strict=True):
+        index = np.flatnonzero(chosen)
         if index.size:
             padded = np.concatenate([index, np.full(_padded(index.size) - index.size, index[0])])
-            out.append((index, fun(padded, axisymmetric)))
+            out.append((index, fun(padded, family)))
     return out
 
 
 class _Problem(NamedTuple):
-    """The fixed part of a fit: data, names, bounds, discretisation, outlier thresholds."""
+    """The fixed part of a fit: data, names, bounds, discretisation, outlier thresholds, loading."""
 
     voltage: np.ndarray
     frequency: np.ndarray
@@ -266,6 +326,17 @@ class _Problem(NamedTuple):
     bessel_order: int | None
     threshold: float = 0.1  # relative tolerance of a match (|log f_model/f_data|)
     outlier: float = 5.0  # τ, the residual in σ beyond which a peak is an outlier (σ given)
+    load: np.ndarray | None = None  # (N, 3) per-peak (λ_i, λ_z, ΔP), NaN: the parameter's value
+    by_pressure: bool = False  # λ_i follows from ΔP at every voltage
+    condition: np.ndarray | None = None  # (N,) index of each peak's (V, load): peaks measured together
+
+
+def _load(problem: _Problem, index=None):
+    """(points, 3) per-point (λ_i, λ_z, ΔP) of the peaks ``index`` (all NaN without columns)."""
+    size = problem.voltage.size if index is None else np.size(index)
+    if problem.load is None:
+        return np.full((size, 3), np.nan)
+    return problem.load if index is None else problem.load[index]
 
 
 def _values(problem: _Problem, theta):
@@ -274,19 +345,23 @@ def _values(problem: _Problem, theta):
     return values
 
 
-def _roots(problem: _Problem, theta, voltage, n, m, n_roots):
-    """Ω (points, n_roots) of order m at α̂_n and voltage, NaN-padded."""
+def _roots(problem: _Problem, theta, voltage, n, m, n_roots, load, torsional=None):
+    """Ω (points, n_roots) of order m at α̂_n, voltage and per-point load, NaN-padded."""
     out = np.full((voltage.size, n_roots), np.nan)
+    torsional = np.zeros(voltage.size, bool) if torsional is None else torsional
     values = jnp.asarray(_values(problem, theta))
-    for index, found in _by_family(m, lambda p, axi: mode_roots(
+    for index, found in _by_family(m, torsional, lambda p, family: mode_roots(
             values, jnp.asarray(voltage[p]), jnp.asarray(n[p], float), jnp.asarray(m[p], float),
-            n_roots, problem.n_layers, problem.coupling, problem.bessel_order, axi)):
+            n_roots, problem.n_layers, problem.coupling, problem.bessel_order, family,
+            problem.by_pressure, jnp.asarray(load[p]))):
         out[index] = np.asarray(found)[:index.size]
     return out
 
 
 def _evaluate(problem: _Problem, theta, labels, guess):
-    """(Ω, f_model in Hz, ∂f/∂θ free columns) at the labelled points (rows with m < 0 are NaN)."""
+    """(Ω, f_model in Hz, ∂f/∂θ free columns) at the labelled points (rows with m < 0 are NaN).
+
+    ``labels``: (N, 4) rows (m, n, branch, torsional)."""
     omega = np.full(labels.shape[0], np.nan)
     f = np.full(labels.shape[0], np.nan)
     jac = np.full((labels.shape[0], len(problem.free)), np.nan)
@@ -294,10 +369,13 @@ def _evaluate(problem: _Problem, theta, labels, guess):
     values = jnp.asarray(_values(problem, theta))
     where = np.flatnonzero(active)
     m = labels[where, 0]
-    for index, (w, hz, j) in _by_family(m, lambda p, axi: model_and_jacobian(
+    load = _load(problem)
+    for index, (w, hz, j) in _by_family(m, labels[where, 3] > 0, lambda p, family:
+                                        model_and_jacobian(
             values, jnp.asarray(problem.voltage[where[p]]), jnp.asarray(labels[where[p], 1], float),
             jnp.asarray(m[p], float), jnp.asarray(guess[where[p]]), problem.n_layers,
-            problem.coupling, problem.bessel_order, axi)):
+            problem.coupling, problem.bessel_order, family, problem.by_pressure,
+            jnp.asarray(load[where[p]]))):
         rows = where[index]
         omega[rows] = np.asarray(w)[:index.size]
         f[rows] = np.asarray(hz)[:index.size]
@@ -311,7 +389,8 @@ def _seed(problem: _Problem, theta, labels):
     active = np.flatnonzero(labels[:, 0] >= 0)
     if active.size:
         roots = _roots(problem, theta, problem.voltage[active], labels[active, 1],
-                       labels[active, 0], int(labels[active, 2].max()) + 1)
+                       labels[active, 0], int(labels[active, 2].max()) + 1, _load(problem, active),
+                       labels[active, 3] > 0)
         seed[active] = roots[np.arange(active.size), labels[active, 2]]
     return seed
 
@@ -320,44 +399,63 @@ def _seed(problem: _Problem, theta, labels):
 # mode identification
 
 
-def _mode_table(problem: _Problem, theta, m_max, n_max, n_branches):
-    """(grid (v, n, m) rows, roots (rows, n_branches), Hz per unit Ω) of every candidate mode at
-    every distinct voltage of the data."""
-    voltages = np.unique(problem.voltage)
-    grid = np.array([(v, n, m) for v in voltages for m in range(m_max + 1)
+def _conditions(problem: _Problem):
+    """(per-peak condition index, one peak of each condition): the peaks measured at one voltage
+    and one loading (the same per-peak λ_i, λ_z, ΔP), which share the model's modes."""
+    if problem.condition is not None:
+        ids = problem.condition
+    else:
+        _, ids = np.unique(problem.voltage, return_inverse=True)
+    _, first = np.unique(ids, return_index=True)
+    return ids, first
+
+
+def _mode_table(problem: _Problem, theta, modes):
+    """(grid rows (condition, n, m, torsional), roots (rows, n_branches), Hz per unit Ω) of every
+    candidate mode of ``modes`` = (m_max, n_max, n_branches, torsional) at every condition of the
+    data (:func:`_conditions`); torsional candidates are m = 0."""
+    m_max, n_max, n_branches, torsional = modes
+    _, first = _conditions(problem)
+    families = [(m, 0) for m in range(m_max + 1)] + ([(0, 1)] if torsional else [])
+    grid = np.array([(c, n, m, tors) for c in range(first.size) for m, tors in families
                      for n in range(1, n_max + 1)])
-    roots = _roots(problem, theta, grid[:, 0], grid[:, 1], grid[:, 2].astype(int), n_branches)
-    scale = float(np.asarray(dimensionless(_values(problem, theta), 0.0, 1.0)[3]))
-    return grid, roots, scale
+    peak = first[grid[:, 0]]
+    roots = _roots(problem, theta, problem.voltage[peak], grid[:, 1], grid[:, 2], n_branches,
+                   _load(problem, peak), grid[:, 3] > 0)
+    return grid, roots, float(hz_per_omega(_values(problem, theta)))
 
 
-def assign_modes(problem: _Problem, theta, m_max: int, n_max: int, n_branches: int,
-                 wide: bool = False):
-    """Labels (m, n, branch) of the peaks that minimise Σ min(c, τ²) at θ (module docstring).
+def assign_modes(problem: _Problem, theta, modes, wide: bool = False):
+    """Labels (m, n, branch, torsional) of the peaks that minimise Σ min(c, τ²) at θ (module
+    docstring), among ``modes`` = (m_max, n_max, n_branches, torsional).
 
-    At each voltage, the peaks are matched one-to-one to the model modes (m ≤ m_max,
-    1 ≤ n ≤ n_max, branch < n_branches) or to an outlier slot of their own
+    At each voltage and loading, the peaks are matched one-to-one to the model modes (m ≤ m_max,
+    1 ≤ n ≤ n_max, branch < n_branches, and with ``torsional`` the torsional modes) or to an
+    outlier slot of their own
     (:func:`scipy.optimize.linear_sum_assignment` on the table [c | diag τ²]). The cost of a
     match is c = ((f_model − f_data)/σ)² with τ = ``problem.outlier`` when σ is given and not
     ``wide``; otherwise c = (log(f_model/f_data)/threshold)² with τ = 1 (a peak further than
     ``threshold`` in |log f| is an outlier).
 
     Returns:
-        (labels (N, 3) int, (−1, −1, −1) for an outlier; the robust cost Σ min(c, τ²)).
+        (labels (N, 4) int, (−1, −1, −1, 0) for an outlier; the robust cost Σ min(c, τ²)).
     """
     from scipy.optimize import linear_sum_assignment  # scipy: imported where it is used
 
-    grid, roots, scale = _mode_table(problem, theta, m_max, n_max, n_branches)
+    n_branches = modes[2]
+    grid, roots, scale = _mode_table(problem, theta, modes)
     relative = wide or not problem.has_sigma
     tau2 = 1.0 if relative else problem.outlier**2
-    labels = np.full((problem.voltage.size, 3), -1, dtype=int)
+    labels = np.full((problem.voltage.size, 4), -1, dtype=int)
+    labels[:, 3] = 0
     total = 0.0
-    for v in np.unique(problem.voltage):
-        peaks = np.flatnonzero(problem.voltage == v)
-        rows = np.flatnonzero(grid[:, 0] == v)
-        modes = [(int(grid[r, 2]), int(grid[r, 1]), k, roots[r, k] * scale)
+    ids, first = _conditions(problem)
+    for condition in range(first.size):
+        peaks = np.flatnonzero(ids == condition)
+        rows = np.flatnonzero(grid[:, 0] == condition)
+        found = [(int(grid[r, 2]), int(grid[r, 1]), k, int(grid[r, 3]), roots[r, k] * scale)
                  for r in rows for k in range(n_branches) if np.isfinite(roots[r, k])]
-        model = np.array([mode[3] for mode in modes])
+        model = np.array([mode[4] for mode in found])
         data = problem.frequency[peaks]
         if relative:
             table = (np.log(model)[None, :] - np.log(data)[:, None]) ** 2 / problem.threshold**2
@@ -367,8 +465,8 @@ def assign_modes(problem: _Problem, theta, m_max: int, n_max: int, n_branches: i
         np.fill_diagonal(slots, tau2)
         pick, chosen = linear_sum_assignment(np.hstack([table.reshape(peaks.size, -1), slots]))
         for p, c in zip(pick, chosen, strict=True):
-            if c < len(modes):
-                labels[peaks[p]] = modes[c][:3]
+            if c < len(found):
+                labels[peaks[p]] = found[c][:4]
                 total += table[p, c]
             else:
                 total += tau2
@@ -494,14 +592,16 @@ def uncertainty(problem: _Problem, theta, r, jac):
     dof = max(r.size - p, 1)
     variance = 1.0 if problem.has_sigma else float(r @ r) / dof
     quantile = norm.ppf(0.975) if problem.has_sigma else t.ppf(0.975, dof)
-    scaled = jac * np.abs(theta)[None, :]  # ∂r/∂log θ
+    # ∂r/∂log θ; a parameter that may be 0 (the pressure difference) on the scale of its bounds
+    scale = np.maximum(np.abs(theta), 1e-6 * (problem.upper - problem.lower))
+    scaled = jac * scale[None, :]
     _, singular, vt = np.linalg.svd(scaled, full_matrices=False)
     deficient = singular.size < p or singular[-1] <= RANK_TOLERANCE * singular[0]
     with np.errstate(all="ignore"):
         if deficient:
             keep = singular > RANK_TOLERANCE * singular[0]
             inv = (vt[keep].T / singular[keep] ** 2) @ vt[keep]
-            covariance = variance * inv * np.outer(np.abs(theta), np.abs(theta))
+            covariance = variance * inv * np.outer(scale, scale)
             null = vt[-1]
             involved = np.abs(null) > 0.1 if singular.size == p else np.ones(p, bool)
             covariance[involved, :] = np.nan
@@ -645,11 +745,17 @@ def identifiability_messages(problem: _Problem, null, intervals, correlation):
 # validation
 
 
-_RANGE = ("(0, inf)", "the open interval (0, 1)")
+def _allowed(name):
+    """The allowed range of a parameter, in words (:func:`_admissible`)."""
+    return dict(eta="the open interval (0, 1)", pressure="(-inf, inf) (a finite pressure "
+                "difference P_i - P_o in Pa)").get(name, "(0, inf)")
 
 
 def _admissible(name, value):
-    """Every parameter is > 0; η = R_i/R_o is < 1 as well."""
+    """Every parameter is > 0 but the pressure difference (any finite value); η = R_i/R_o is < 1
+    as well."""
+    if name == "pressure":
+        return bool(np.isfinite(value))
     return value > 0 and (name != "eta" or value < 1)
 
 
@@ -661,7 +767,8 @@ def _column(data, name, required=True):
     if not present:
         if required:
             raise ValueError(f"data is missing the column {name!r} (needs voltage_V, "
-                             f"frequency_Hz; optional sigma_Hz, m, n, branch)")
+                             f"frequency_Hz; optional sigma_Hz, m, n, branch, torsional, "
+                             f"lambda_i, lambda_z, pressure_Pa)")
         return None
     try:
         values = np.asarray(data[name], dtype=np.float64).ravel()
@@ -704,8 +811,31 @@ def _validate(data, free, fixed, fluid):
             raise ValueError(f"unknown parameter {name!r}{extra}; known: {', '.join(known)}")
         if name in free and name in fixed:
             raise ValueError(f"parameter {name!r} is both free and fixed")
-    missing = [name for name in known if name not in free and name not in fixed]
+    columns = {name: _column(data, name, required=False) for name in LOAD_COLUMNS}
+    given = {name for name in LOADING_NAMES if name in free or name in fixed}
+    if len(given) == 2:
+        raise ValueError("lambda_i and pressure both given: a tube is held either by its inner "
+                         "stretch lambda_i or by its pressure difference pressure (Pa), not both")
+    for column, name in (("lambda_i", "lambda_i"), ("lambda_z", "lambda_z"),
+                         ("pressure_Pa", "pressure")):
+        if columns[column] is not None and (name in free or name in fixed):
+            raise ValueError(f"parameter {name!r} is given both in free/fixed and as the data "
+                             f"column {column!r}: give it one way")
+    if columns["lambda_i"] is not None and columns["pressure_Pa"] is not None:
+        raise ValueError("data columns 'lambda_i' and 'pressure_Pa' both given: a tube is held "
+                         "either by its inner stretch or by its pressure difference")
+    if columns["lambda_i"] is not None and "pressure" in given:
+        raise ValueError("data column 'lambda_i' with the parameter 'pressure': a tube is held "
+                         "either by its inner stretch or by its pressure difference")
+    by_pressure = "pressure" in given or columns["pressure_Pa"] is not None
+    held = {"lambda_z": columns["lambda_z"] is not None,
+            "lambda_i": by_pressure or columns["lambda_i"] is not None,
+            "pressure": not by_pressure or columns["pressure_Pa"] is not None}
+    missing = [name for name in known
+               if name not in free and name not in fixed and not held.get(name, False)]
     if missing:
+        if "lambda_i" in missing:
+            missing[missing.index("lambda_i")] = "lambda_i (or pressure, in Pa)"
         raise ValueError(f"parameters {', '.join(missing)} are neither free nor fixed")
     if not free:
         raise ValueError("free must name at least one parameter")
@@ -719,7 +849,7 @@ def _validate(data, free, fixed, fluid):
             raise ValueError(f"free[{name!r}] bounds must be finite with lower < upper, "
                              f"got {bounds!r}")
         if not (_admissible(name, low) and _admissible(name, high)):
-            raise ValueError(f"free[{name!r}] bounds must lie in {_RANGE[name == 'eta']}, "
+            raise ValueError(f"free[{name!r}] bounds must lie in {_allowed(name)}, "
                              f"got {bounds!r}")
         lower.append(low)
         upper.append(high)
@@ -732,7 +862,7 @@ def _validate(data, free, fixed, fluid):
         if not (np.isfinite(value) or (name == "gent" and value == np.inf)):
             raise ValueError(f"fixed[{name!r}] must be finite, got {value!r}")
         if not _admissible(name, value):
-            raise ValueError(f"fixed[{name!r}] must be in {_RANGE[name == 'eta']}, got {value!r}")
+            raise ValueError(f"fixed[{name!r}] must be in {_allowed(name)}, got {value!r}")
         base[NAMES.index(name)] = value
     voltage = _column(data, "voltage_V")
     frequency_hz = _column(data, "frequency_Hz")
@@ -743,26 +873,41 @@ def _validate(data, free, fixed, fluid):
         raise ValueError("data column 'sigma_Hz' must be > 0")
     m, n, branch = (_integer_column(data, "m", 0), _integer_column(data, "n", 1),
                     _integer_column(data, "branch", 0))
+    torsional = _integer_column(data, "torsional", 0)
+    if torsional is not None and np.any(torsional > 1):
+        raise ValueError("data column 'torsional' must hold 0 or 1 (1: a torsional mode, m = 0)")
+    for name in ("lambda_i", "lambda_z"):
+        if columns[name] is not None and np.any(columns[name] <= 0):
+            raise ValueError(f"data column {name!r} must be > 0")
     columns = dict(voltage_V=voltage, frequency_Hz=frequency_hz, sigma_Hz=sigma, m=m, n=n,
-                   branch=branch)
+                   branch=branch, torsional=torsional, **columns)
     for name, column in columns.items():
         if column is not None and column.size != voltage.size:
             raise ValueError(f"data column {name!r} has {column.size} rows, voltage_V "
                              f"{voltage.size}")
     if (m is None) != (n is None):
         raise ValueError("data columns 'm' and 'n' must be given together (or neither)")
-    if branch is not None and m is None:
-        raise ValueError("data column 'branch' needs the labels 'm' and 'n'")
+    for name in ("branch", "torsional"):
+        if columns[name] is not None and m is None:
+            raise ValueError(f"data column {name!r} needs the labels 'm' and 'n'")
+    if torsional is not None and np.any((torsional == 1) & (m != 0)):
+        raise ValueError("data column 'torsional' is 1 where m != 0: torsional modes are m = 0")
     if voltage.size <= len(free):
         raise ValueError(f"data has {voltage.size} rows: more than {len(free)} (the number of "
                          f"free parameters) are needed")
     labels = None
     if m is not None:
-        labels = np.stack([m, n, np.zeros_like(m) if branch is None else branch], axis=1)
+        labels = np.stack([m, n, np.zeros_like(m) if branch is None else branch,
+                           np.zeros_like(m) if torsional is None else torsional], axis=1)
+    load = np.stack([np.full(voltage.size, np.nan) if columns[k] is None else columns[k]
+                     for k in LOAD_COLUMNS], axis=1)
+    _, condition = np.unique(np.column_stack([voltage, np.nan_to_num(load, nan=np.inf)]), axis=0,
+                             return_inverse=True)
     names = tuple(free)
     problem = _Problem(voltage, frequency_hz, np.ones_like(voltage) if sigma is None else sigma,
                        sigma is not None, names, np.array(lower), np.array(upper), base,
-                       np.array([NAMES.index(k) for k in names]), 0, coupling, bessel_order)
+                       np.array([NAMES.index(k) for k in names]), 0, coupling, bessel_order,
+                       load=load, by_pressure=by_pressure, condition=condition.ravel())
     return problem, labels
 
 
@@ -784,7 +929,7 @@ class _Outcome(NamedTuple):
 
 def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | None = None,
         n_layers: int | None = None, scheme: str | None = None, m_max: int = 2, n_max: int = 3,
-        n_branches: int = 2, threshold: float = 0.1, outlier_sigma: float = 5.0,
+        n_branches: int = 2, torsional: bool = False, threshold: float = 0.1, outlier_sigma: float = 5.0,
         max_unmatched: float = 0.25, n_starts: int = 3, grid_points: int = 3,
         max_iterations: int = 100, max_reassignments: int = 10) -> FitResult:
     """Material and geometry parameters from measured resonance frequencies (SI units).
@@ -799,7 +944,11 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
             ``branch`` (≥ 0, default 0: the lowest root of that (m, n)). Without labels each peak is
             assigned to a mode (m ≤ m_max, n ≤ n_max, branch < n_branches) or left unmatched as an
             outlier, and the assignment is redone as the parameters move until it settles.
-        free: {name: (lower, upper)} of the parameters to estimate (names in ``NAMES``).
+            Optional ``torsional`` (0/1, with the labels: a torsional mode, m = 0) and the
+            loading of each peak, ``pressure_Pa`` (Pa), ``lambda_i`` or ``lambda_z`` (each
+            replaces the parameter of that name: joint fits over several loadings).
+        free: {name: (lower, upper)} of the parameters to estimate (names in ``NAMES``; the
+            tube is held by ``lambda_i`` or by ``pressure`` = P_i − P_o in Pa, one of the two).
         fixed: {name: value} of the others; every name must be free or fixed (the fluid names
             only with a fluid; ``gent`` may be ``inf``).
         fluid: None (empty tube), ``"acoustic"``, or a :class:`~jaxdea.Fluid` whose coupling and
@@ -809,7 +958,8 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
             (default): graded sixth-order Magnus with N for roots to ≤ 1e-8 at the data's largest
             α̂, m and branch (checked again at the estimate); an integer N alone: N equal midpoint
             sublayers (the paper's laminate at N = 30).
-        m_max, n_max, n_branches: the modes unlabelled peaks may be assigned to.
+        m_max, n_max, n_branches, torsional: the modes unlabelled peaks may be assigned to
+            (with ``torsional``, also the torsional modes n ≤ n_max, branch < n_branches).
         threshold: the relative tolerance |log f_model − log f_data| of a match: of the first
             assignment of each start, and of every assignment without σ (beyond it a peak is an
             outlier: assignment (−1, −1, −1), left out of the fit).
@@ -873,6 +1023,9 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
         raise ValueError(f"max_unmatched must be a number in [0, 1], got {max_unmatched!r}")
     problem = problem._replace(threshold=float(threshold), outlier=float(outlier_sigma))
     initial_starts, candidates = _starts(problem, initial, grid_points)
+    if not isinstance(torsional, (bool, np.bool_)):
+        raise ValueError(f"torsional must be True or False, got {torsional!r}")
+    modes = (m_max, n_max, n_branches, bool(torsional))
     if labels is None:
         reach = (n_max, m_max, n_branches)
     else:
@@ -885,12 +1038,11 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
             theta, r, jac, its, status = _fit_labelled(problem, theta0, labels, max_iterations)
             cost = 0.5 * float(r @ r) if np.all(np.isfinite(r)) else np.inf
             return _Outcome(theta, r, jac, its, status, labels, cost)
-        return _fit_unlabelled(problem, theta0, (m_max, n_max, n_branches), max_iterations,
+        return _fit_unlabelled(problem, theta0, modes, max_iterations,
                                max_reassignments)
 
     best = None
-    for theta0 in _best_starts(problem, (initial_starts, candidates), labels, n_starts, m_max,
-                               n_max, n_branches):
+    for theta0 in _best_starts(problem, (initial_starts, candidates), labels, n_starts, modes):
         best = _better(best, run(problem, theta0))
     best = _from_inside(problem, best, run)
     final = _discretisation(problem, [best.theta], reach, n_layers, scheme)
@@ -945,7 +1097,7 @@ def _from_inside(problem, best, run, fractions=(0.25, 0.5, 0.75), passes=2):
 def _fit_unlabelled(problem, theta0, modes, max_iterations, max_reassignments):
     """Alternate assignment (:func:`assign_modes`; the first wide, then with τ) and fit until the
     labels settle: the robust cost decreases at every step."""
-    current, _ = assign_modes(problem, theta0, *modes, wide=True)
+    current, _ = assign_modes(problem, theta0, modes, wide=True)
     iterations, outcome = 0, None
     for _ in range(max_reassignments):
         if not np.any(current[:, 0] >= 0):
@@ -956,7 +1108,7 @@ def _fit_unlabelled(problem, theta0, modes, max_iterations, max_reassignments):
         if status == FitStatus.NOT_FINITE:
             break
         theta0 = theta
-        new, _ = assign_modes(problem, theta0, *modes)
+        new, _ = assign_modes(problem, theta0, modes)
         if np.array_equal(new, current):
             return _Outcome(theta, r, jac, iterations, status, current,
                             _robust_cost(problem, r, current))
@@ -973,16 +1125,29 @@ def _fit_unlabelled(problem, theta0, modes, max_iterations, max_reassignments):
 def _discretisation(problem, thetas, reach, n_layers, scheme):
     """The static discretisation of the model: :func:`jaxdea.transfer.laminate` of ``n_layers``,
     ``scheme``; for the accurate default the largest N over ``thetas`` at the largest n, m and
-    branch count of ``reach`` = (n, m, roots)."""
+    branch count of ``reach`` = (n, m, roots), over the data's loadings (at V = 0 and, held by
+    pressure, at the largest voltage too: λ_i grows with V)."""
     n_top, m_top, n_roots = reach
+    loads = np.unique(np.nan_to_num(_load(problem), nan=np.inf), axis=0)
+    loads[np.isinf(loads)] = np.nan
+    voltages = (0.0, float(np.max(np.abs(problem.voltage)))) if problem.by_pressure else (0.0,)
     chosen = None
     for theta in thetas:
-        tube, alpha, _, _ = dimensionless(_values(problem, theta), 0.0, float(n_top))
-        layers = laminate(n_layers, scheme, tube, float(alpha), n_roots, m_top)
-        if not isinstance(layers, Layers):
-            return layers  # an explicit midpoint N
-        if chosen is None or layers.count > chosen.count:
-            chosen = layers
+        for load in loads:
+            for voltage in voltages:
+                tube, alpha, _, _ = dimensionless(_values(problem, theta), voltage, float(n_top),
+                                                  load=load, by_pressure=problem.by_pressure)
+                if not np.isfinite(float(tube.lambda_i)):
+                    continue  # no static state there (beyond pull-in): the fit reports it
+                layers = laminate(n_layers, scheme, tube, float(alpha), n_roots, m_top)
+                if not isinstance(layers, Layers):
+                    return layers  # an explicit midpoint N
+                if chosen is None or layers.count > chosen.count:
+                    chosen = layers
+    if chosen is None:  # no start had a static state: the accurate default at the first one
+        tube, alpha, _, _ = dimensionless(_values(problem, thetas[0]), 0.0, float(n_top))
+        chosen = laminate(n_layers, scheme, tube.replace(lambda_i=1.0), float(alpha), n_roots,
+                          m_top)
     return chosen
 
 
@@ -994,14 +1159,21 @@ def _result(problem, best, max_unmatched, max_iterations):
     residuals = np.full(problem.voltage.size, np.nan)
     residuals[active] = r if r.size == active.sum() else np.nan
     p = theta.size
-    known = NAMES if problem.coupling is not None else NAMES[:-2]
+    known = set(NAMES if problem.coupling is not None else NAMES[:-2])
+    load = _load(problem)
+    known -= {name for name, given in zip(("lambda_i", "lambda_z", "pressure"),
+                                          np.all(np.isfinite(load), axis=0), strict=True) if given}
+    known -= {"lambda_i"} if problem.by_pressure else {"pressure"}
     parameters = {k: float(v) for k, v in zip(NAMES, _values(problem, theta), strict=True)
                   if k in known}
     layers = problem.n_layers
     settings = dict(n_layers=int(getattr(layers, "count", layers)),
                     scheme=getattr(layers, "scheme", "midpoint"),
                     graded=bool(getattr(layers, "graded", False)), coupling=problem.coupling,
-                    bessel_order=problem.bessel_order)
+                    bessel_order=problem.bessel_order,
+                    loading="pressure" if problem.by_pressure else "stretch")
+    torsional = final_labels[:, 3] > 0
+    final_labels = final_labels[:, :3]
     estimate = dict(zip(problem.free, theta.tolist(), strict=True))
     unmatched = float(np.mean(~active))
     dof = int(active.sum()) - p
@@ -1012,10 +1184,11 @@ def _result(problem, best, max_unmatched, max_iterations):
         nan = np.full((p, p), np.nan)
         return FitResult(estimate, {k: (np.nan, np.nan) for k in problem.free}, nan, nan,
                          residuals, final_labels, FitStatus.NOT_FINITE, iterations, problem.free,
-                         parameters, settings, chi2, dof, chi2_per_dof, unmatched, at_bound)
+                         parameters, settings, chi2, dof, chi2_per_dof, unmatched, at_bound,
+                         torsional)
     covariance, correlation, intervals, null, quantile, variance = uncertainty(problem, theta, r,
                                                                                 jac)
-    intervals = readable_intervals(problem, theta, final_labels, intervals, quantile, variance,
+    intervals = readable_intervals(problem, theta, best.labels, intervals, quantile, variance,
                                    max_iterations)
     messages = identifiability_messages(problem, null, intervals, correlation)
     if messages:
@@ -1047,7 +1220,7 @@ def _result(problem, best, max_unmatched, max_iterations):
         warnings.warn("; ".join(quality), FitQualityWarning, stacklevel=3)
     return FitResult(estimate, intervals, covariance, correlation, residuals, final_labels,
                      status, iterations, problem.free, parameters, settings, chi2, dof,
-                     chi2_per_dof, unmatched, at_bound)
+                     chi2_per_dof, unmatched, at_bound, torsional)
 
 
 def _starts(problem: _Problem, initial, grid_points):
@@ -1086,7 +1259,7 @@ def _starts(problem: _Problem, initial, grid_points):
     return starts, list(problem.lower + (problem.upper - problem.lower) * grid)
 
 
-def _best_starts(problem, starts, labels, n_starts, m_max, n_max, n_branches):
+def _best_starts(problem, starts, labels, n_starts, modes):
     """``initial`` (first, if given) and the ``n_starts`` candidates of lowest initial cost (the
     wide robust cost of :func:`assign_modes` for unlabelled peaks, Σ r² of the seeded branches
     otherwise)."""
@@ -1096,10 +1269,10 @@ def _best_starts(problem, starts, labels, n_starts, m_max, n_max, n_branches):
     costs = []
     for theta in starts:
         if labels is None:
-            costs.append(assign_modes(problem, theta, m_max, n_max, n_branches, wide=True)[1])
+            costs.append(assign_modes(problem, theta, modes, wide=True)[1])
         else:
             seed = _seed(problem, theta, labels)
-            scale = float(np.asarray(dimensionless(_values(problem, theta), 0.0, 1.0)[3]))
+            scale = float(hz_per_omega(_values(problem, theta)))
             r = (seed * scale - problem.frequency) / problem.sigma
             costs.append(float(r @ r) if np.all(np.isfinite(r)) else np.inf)
     costs = np.array(costs)
@@ -1108,12 +1281,17 @@ def _best_starts(problem, starts, labels, n_starts, m_max, n_max, n_branches):
     return initial + (chosen if chosen or initial else [starts[order[0]]])
 
 
-def fitted_frequencies(result: FitResult, voltage_V, m, n, branch=0) -> np.ndarray:
+def fitted_frequencies(result: FitResult, voltage_V, m, n, branch=0, *, torsional=False,
+                       lambda_i=None, lambda_z=None, pressure_Pa=None) -> np.ndarray:
     """Frequencies in Hz of the fitted model: f = Ω_k(m; V̂, α̂_n) c_s/(2π R_i) at the parameters
     of ``result`` (``result.parameters``, ``result.settings``), per point.
 
     Ω_k is the k-th lowest positive root (k = ``branch``) of the global root scan (the definition
     of a branch in :func:`fit`); NaN where that root does not exist. The arguments broadcast.
+    ``torsional``: the torsional family (m = 0). ``lambda_i``, ``lambda_z``, ``pressure_Pa``: the
+    loading of each point where the fit had them as data columns (or to evaluate the fitted tube
+    at another loading); ``pressure_Pa`` only for a tube held by pressure, ``lambda_i`` only for
+    one held by stretch (``result.settings["loading"]``).
 
     Examples:
         >>> voltage = np.linspace(0.0, 5e3, 21)
@@ -1121,30 +1299,55 @@ def fitted_frequencies(result: FitResult, voltage_V, m, n, branch=0) -> np.ndarr
         >>> f_11 = fitted_frequencies(result, voltage, m=1, n=1, branch=1)
     """
     require_x64()
-    voltage, m, n, branch = np.broadcast_arrays(np.asarray(voltage_V, dtype=np.float64),
-                                                np.asarray(m), np.asarray(n), np.asarray(branch))
+    settings = result.settings
+    by_pressure = settings.get("loading", "stretch") == "pressure"
+    loads = []
+    for name, values, needed in (("lambda_i", lambda_i, "lambda_i"),
+                                 ("lambda_z", lambda_z, "lambda_z"),
+                                 ("pressure_Pa", pressure_Pa, "pressure")):
+        if values is None:
+            if needed not in result.parameters and not (
+                    (name == "lambda_i" and by_pressure) or (name == "pressure_Pa"
+                                                             and not by_pressure)):
+                raise ValueError(f"{name} is needed: the fit had it as a data column")
+            values = np.nan
+        else:
+            if (name == "lambda_i" and by_pressure) or (name == "pressure_Pa" and not by_pressure):
+                raise ValueError(f"{name} does not apply to a tube held by "
+                                 f"{settings.get('loading', 'stretch')}")
+            values = np.asarray(values, dtype=np.float64)
+            if not np.all(np.isfinite(values)) or (name != "pressure_Pa" and np.any(values <= 0)):
+                raise ValueError(f"{name} must be finite" + (" and > 0" if name != "pressure_Pa"
+                                                             else ""))
+        loads.append(values)
+    voltage, m, n, branch, torsional, *loads = np.broadcast_arrays(
+        np.asarray(voltage_V, dtype=np.float64), np.asarray(m), np.asarray(n), np.asarray(branch),
+        np.asarray(torsional), *loads)
     shape = voltage.shape
-    voltage, m, n, branch = (x.ravel() for x in (voltage, m, n, branch))
+    voltage, m, n, branch, torsional = (x.ravel() for x in (voltage, m, n, branch, torsional))
+    load = np.stack([np.ravel(x) for x in loads], axis=1).astype(np.float64)
     if not np.all(np.isfinite(voltage)):
         raise ValueError("voltage_V must be finite")
     for name, values, low in (("m", m, 0), ("n", n, 1), ("branch", branch, 0)):
         if np.any(values != np.round(values)) or np.any(values < low):
             raise ValueError(f"{name} must hold integers >= {low}")
-    m, n, branch = m.astype(int), n.astype(int), branch.astype(int)
-    settings = result.settings
+    m, n, branch, torsional = m.astype(int), n.astype(int), branch.astype(int), torsional.astype(bool)
+    if np.any(torsional & (m != 0)):
+        raise ValueError("torsional modes are m = 0")
     layers = settings["n_layers"]
     if settings.get("scheme", "midpoint") != "midpoint" or settings.get("graded", False):
         layers = Layers(int(layers), settings["scheme"], bool(settings.get("graded", False)))
     base = np.array([result.parameters.get(k, 1.0) for k in NAMES], dtype=np.float64)
     problem = _Problem(voltage, np.ones_like(voltage), np.ones_like(voltage), False, (),
                        np.zeros(0), np.zeros(0), base, np.zeros(0, int), layers,
-                       settings["coupling"], settings["bessel_order"])
+                       settings["coupling"], settings["bessel_order"], by_pressure=by_pressure)
     out = np.full(voltage.size, np.nan)
     if voltage.size:
         n_roots = int(branch.max()) + 1
-        scale = float(np.asarray(dimensionless(base, 0.0, 1.0)[3]))
+        scale = float(hz_per_omega(base))
         for start in range(0, voltage.size, CURVE_CHUNK):  # one compiled batch size
             part = slice(start, start + CURVE_CHUNK)
-            roots = _roots(problem, np.zeros(0), voltage[part], n[part], m[part], n_roots)
+            roots = _roots(problem, np.zeros(0), voltage[part], n[part], m[part], n_roots,
+                           load[part], torsional[part])
             out[part] = roots[np.arange(roots.shape[0]), branch[part]] * scale
     return out.reshape(shape)

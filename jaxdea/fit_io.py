@@ -27,6 +27,7 @@ import numpy as np
 
 from .files import atomic_write, load_document, read_text, save_figure, write_text, write_together
 from .fit import (
+    LOAD_COLUMNS,
     NAMES,
     UNITS,
     FitQualityWarning,
@@ -36,10 +37,12 @@ from .fit import (
     fitted_frequencies,
 )
 
-COLUMNS = ("voltage_V", "frequency_Hz", "sigma_Hz", "m", "n", "branch")
-"""The columns of a peak table, in the order :func:`write_peaks` writes them."""
-LABELS = ("m", "n", "branch")
-LABEL_LOW = dict(m=0, n=1, branch=0)
+COLUMNS = ("voltage_V", "frequency_Hz", "sigma_Hz", "m", "n", "branch", "torsional",
+           "pressure_Pa", "lambda_i", "lambda_z")
+"""The columns of a peak table, in the order :func:`write_peaks` writes them: the labels, then the
+loading of each peak (:data:`jaxdea.fit.LOAD_COLUMNS`; joint fits over several loadings)."""
+LABELS = ("m", "n", "branch", "torsional")
+LABEL_LOW = dict(m=0, n=1, branch=0, torsional=0)
 LABEL_MAX = 2**31 - 1
 """Largest label (m, n or branch) accepted: the range of a 32-bit integer."""
 NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|[+-]?(?:nan|inf|infinity)",
@@ -49,8 +52,9 @@ refused as not finite)."""
 TOP_KEYS = ("free", "fixed", "fluid", "options")
 FREE_KEYS = ("lower", "upper", "initial")
 FLUID_KEYS = ("coupling", "bessel_order")
-OPTION_KEYS = ("n_layers", "scheme", "m_max", "n_max", "n_branches", "threshold", "outlier_sigma",
-               "max_unmatched", "n_starts", "grid_points", "max_iterations", "max_reassignments")
+OPTION_KEYS = ("n_layers", "scheme", "m_max", "n_max", "n_branches", "torsional", "threshold",
+               "outlier_sigma", "max_unmatched", "n_starts", "grid_points", "max_iterations",
+               "max_reassignments")
 
 FORMAT = f"""\
 fluid = "acoustic"   optional, before the tables (leave it out for an empty tube); or a table
@@ -60,10 +64,13 @@ fluid = "acoustic"   optional, before the tables (leave it out for an empty tube
           free parameter or for none)
 [fixed]   every other parameter: NAME = value (gent = inf: neo-Hookean)
           NAME one of {', '.join(NAMES[:5])} (Pa, kg/m^3, F/m, m, m),
-          {', '.join(NAMES[5:9])} (and fluid_density, fluid_speed with a fluid)
+          {', '.join(NAMES[5:9])} (and fluid_density, fluid_speed with a fluid);
+          pressure (Pa, P_i - P_o, any finite value) instead of lambda_i for a tube held by its
+          pressure (lambda_i follows from it at every voltage); a peak column pressure_Pa,
+          lambda_i or lambda_z replaces the parameter of that name (several loadings)
 [options] of jaxdea.fit: n_layers, scheme (default: the accurate graded magnus6 laminate; n_layers
-          alone: equal midpoint sublayers), m_max = 2, n_max = 3, n_branches = 2 (the modes
-          unlabelled peaks may be assigned to), threshold = 0.1 (|log f_model - log f_data| beyond
+          alone: equal midpoint sublayers), m_max = 2, n_max = 3, n_branches = 2, torsional = false
+          (the modes unlabelled peaks may be assigned to), threshold = 0.1 (|log f_model - log f_data| beyond
           which a peak is an outlier without sigma_Hz), outlier_sigma = 5 (with sigma_Hz),
           max_unmatched = 0.25, n_starts = 3 (0 with initial values: those alone),
           grid_points = 3, max_iterations = 100, max_reassignments = 10
@@ -77,8 +84,9 @@ def read_peaks(path) -> dict:
     """Measured peaks from a CSV file: {column: array} for :func:`jaxdea.fit`.
 
     Columns (header row, any order): ``voltage_V``, ``frequency_Hz`` (> 0), optional ``sigma_Hz``
-    (> 0) and the optional labels ``m`` (≥ 0), ``n`` (≥ 1), ``branch`` (≥ 0); lines starting with
-    ``#`` and blank lines are skipped; a UTF-8 byte-order mark (Excel's "CSV UTF-8") is accepted.
+    (> 0), the optional labels ``m`` (≥ 0), ``n`` (≥ 1), ``branch`` (≥ 0), ``torsional`` (0 or 1)
+    and the optional loading of each peak ``pressure_Pa``, ``lambda_i``, ``lambda_z``; lines
+    starting with ``#`` and blank lines are skipped; a UTF-8 byte-order mark (Excel's "CSV UTF-8") is accepted.
     Labels are integer arrays, the rest float64.
 
     Raises:
@@ -116,7 +124,7 @@ def read_peaks(path) -> dict:
     for name in COLUMNS[:2]:
         if name not in header:
             raise ValueError(f"{path}: missing the column {name!r} (needs voltage_V, frequency_Hz; "
-                             f"optional sigma_Hz, m, n, branch)")
+                             f"optional {', '.join(COLUMNS[2:])})")
     if len(rows) < 2:
         raise ValueError(f"{path}: no data rows below the header")
     columns = {name: [] for name in header}
@@ -141,6 +149,8 @@ def _cell(path, number, name, cell):
         raise ValueError(f"{where}: {cell!r} is not a finite number")
     if name in ("frequency_Hz", "sigma_Hz") and value <= 0:
         raise ValueError(f"{where}: {cell} Hz, must be > 0")
+    if name in ("lambda_i", "lambda_z") and value <= 0:
+        raise ValueError(f"{where}: {cell}, must be > 0")
     if name in LABELS:
         if value != round(value) or not LABEL_LOW[name] <= value <= LABEL_MAX:
             raise ValueError(f"{where}: {cell}, must be an integer >= {LABEL_LOW[name]} and "
@@ -201,7 +211,8 @@ def write_fit(result: FitResult, data, path, warnings_=()) -> Path:
     """Save a fit as JSON: status, iterations, the estimates, 95 % intervals, units, covariance and
     correlation (in ``names`` order), every parameter value, the model settings, χ², dof, χ²/dof,
     the unmatched fraction, the parameters stopped on a bound and one record per
-    peak (voltage_V, frequency_Hz, sigma_Hz, model_Hz, residual, m, n, branch; m = n = branch = −1
+    peak (voltage_V, frequency_Hz, sigma_Hz, model_Hz, residual, m, n, branch, torsional, and the
+    peak's pressure_Pa, lambda_i, lambda_z where the data has them; m = n = branch = −1
     for an unmatched peak, whose model_Hz and residual are null). NaN and ±inf are written as null.
 
     Examples:
@@ -214,11 +225,14 @@ def write_fit(result: FitResult, data, path, warnings_=()) -> Path:
     model = model_frequency(result, data)
     sigma = np.asarray(data["sigma_Hz"], dtype=np.float64) if "sigma_Hz" in data else None
     points = []
+    torsional = _torsional(result)
+    loads = {k: np.asarray(data[k], dtype=np.float64) for k in LOAD_COLUMNS if k in data}
     for i in range(voltage.size):
         m, n, branch = (int(x) for x in result.assignment[i])
         points.append(dict(voltage_V=voltage[i], frequency_Hz=float(data["frequency_Hz"][i]),
                            sigma_Hz=None if sigma is None else sigma[i], model_Hz=model[i],
-                           residual=result.residuals[i], m=m, n=n, branch=branch))
+                           residual=result.residuals[i], m=m, n=n, branch=branch,
+                           torsional=bool(torsional[i]), **{k: v[i] for k, v in loads.items()}))
     document = dict(
         status=result.status.name, iterations=int(result.iterations), names=list(result.names),
         estimate=result.estimate, interval=result.interval,
@@ -233,10 +247,19 @@ def write_fit(result: FitResult, data, path, warnings_=()) -> Path:
     return path
 
 
+def _torsional(result: FitResult) -> np.ndarray:
+    """The torsional flag of every peak (all False for a result without one)."""
+    rows = result.assignment.shape[0]
+    return np.zeros(rows, bool) if result.torsional is None else np.asarray(result.torsional, bool)
+
+
 def identified_modes(result: FitResult) -> list:
-    """The distinct (m, n, branch) of the matched peaks, sorted."""
-    matched = result.assignment[result.assignment[:, 0] >= 0]
-    return sorted({tuple(int(x) for x in row) for row in matched})
+    """The distinct (m, n, branch) of the matched peaks, sorted; a torsional mode as
+    (0, n, branch, "torsional")."""
+    matched = result.assignment[:, 0] >= 0
+    torsional = _torsional(result)
+    return sorted({tuple(int(x) for x in row) + (("torsional",) if t else ())
+                   for row, t in zip(result.assignment[matched], torsional[matched], strict=True)})
 
 
 def plot_fit(result: FitResult, data, path=None, points: int = 41):
@@ -264,19 +287,27 @@ def plot_fit(result: FitResult, data, path=None, points: int = 41):
     if low == high:
         low, high = min(0.0, low), (high if high > 0 else 1.0)
     grid = np.linspace(low, high, points)
-    modes = identified_modes(result)
-    if modes:
-        table = np.array(modes)
-        curves = fitted_frequencies(result, grid[None, :], table[:, :1], table[:, 1:2],
-                                    table[:, 2:3])
+    torsional = _torsional(result)
+    names = [k for k in LOAD_COLUMNS if k in data]
+    loads = np.stack([np.asarray(data[k], dtype=np.float64) for k in names], axis=1) \
+        if names else np.zeros((voltage.size, 0))
+    groups = []  # (mode, loading) of the matched peaks: one curve each
+    for mode in identified_modes(result):
+        own = np.all(result.assignment == np.array(mode[:3]), axis=1) & (
+            torsional == (len(mode) == 4))
+        for load in np.unique(loads[own], axis=0):
+            groups.append((mode, load, own & np.all(loads == load, axis=1)))
     cmap = colormaps["tab10"]
     fig = Figure(figsize=(7, 6.5), layout="constrained")
     FigureCanvasAgg(fig)
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(3, 1.3))
-    for k, mode in enumerate(modes):
+    for k, (mode, load, own) in enumerate(groups):
         color = cmap(k % 10)
-        top.plot(grid, curves[k], color=color, label=f"(m, n, branch) = {mode}")
-        own = np.all(result.assignment == np.array(mode), axis=1)
+        curve = fitted_frequencies(result, grid, mode[0], mode[1], mode[2],
+                                   torsional=len(mode) == 4,
+                                   **{name: value for name, value in zip(names, load, strict=True)})
+        where = "".join(f", {name} = {value:.6g}" for name, value in zip(names, load, strict=True))
+        top.plot(grid, curve, color=color, label=f"(m, n, branch) = {mode}{where}")
         top.plot(voltage[own], frequency[own], "o", color=color, markersize=4,
                  label="_nolegend_")
         bottom.plot(voltage[own], result.residuals[own], "o", color=color, markersize=4)
@@ -289,7 +320,7 @@ def plot_fit(result: FitResult, data, path=None, points: int = 41):
     bottom.set_ylabel(r"$(f_{model} - f)/\sigma$" if "sigma_Hz" in data
                       else r"$f_{model} - f$ (Hz)")
     bottom.set_xlabel("voltage V (V)")
-    if modes or np.any(unmatched):
+    if groups or np.any(unmatched):
         top.legend(fontsize="small", frameon=False)
     estimates = ", ".join(f"{k} = {v:.4g}" for k, v in result.estimate.items())
     top.set_title(f"fit: {result.status.name.lower()}, {result.iterations} iterations\n"
@@ -391,6 +422,9 @@ def parse_fit_config(data) -> FitConfig:
         elif name == "scheme":
             if not isinstance(value, str):
                 raise ValueError(f"options.scheme: expected a string, got {value!r}")
+        elif name == "torsional":
+            if not isinstance(value, bool):
+                raise ValueError(f"options.torsional: expected true or false, got {value!r}")
         elif isinstance(value, bool) or not isinstance(value, int):
             raise ValueError(f"options.{name}: expected an integer, got {value!r}")
     if initial and len(initial) != len(free):

@@ -110,14 +110,15 @@ print(f"χ² = {chi2:.2f} for {len(rows) - len(free)} degrees of freedom")
 # ## Data against the fitted Hz(V)
 
 # %%
-values = jnp.array([result.estimate.get(k, truth.get(k, 1.0)) for k in NAMES[:9]] + [1.0, 1.0])
+values = jnp.array([result.estimate.get(k, truth.get(k, 1.0)) for k in NAMES[:9]] + [0.0, 1.0, 1.0])
 grid = np.linspace(0.0, max(voltages) * 1.1, 8 if FAST else 32)  # batch sizes the fit compiled
 hz = float(dimensionless(values, 0.0, 1.0)[3])
 fig, ax = plt.subplots(figsize=(7, 4.5))
 for (m, n), colour in zip(modes, ("C0", "C1", "C2", "C3"), strict=True):
     count = grid.size
     curve = mode_roots(values, jnp.asarray(grid), jnp.full(count, float(n)),
-                               jnp.full(count, float(m)), 1, N_LAYERS, None, None, m == 0)[:, 0]
+                               jnp.full(count, float(m)), 1, N_LAYERS, None, None,
+                       "axisymmetric" if m == 0 else "order_m")[:, 0]
     ax.plot(grid / 1e3, np.asarray(curve) * hz, color=colour, label=f"fit m={m}, n={n}")
     pick = (result.assignment[:, 0] == m) & (result.assignment[:, 1] == n)
     ax.errorbar(data["voltage_V"][pick] / 1e3, data["frequency_Hz"][pick],

@@ -115,22 +115,22 @@ def test_recovers_three_parameters_from_a_start_twenty_percent_off():
 def test_jacobian_matches_central_differences():
     """∂f/∂θ by jacfwd through the implicit derivatives against central differences of the
     global root scan (relative step 1e-5: truncation ~1e-10, rounding ~1e-13/1e-5 = 1e-8)."""
-    values = jnp.array([TRUTH[k] for k in NAMES[:9]] + [1.0, 1.0])
+    values = jnp.array([TRUTH[k] for k in NAMES[:9]] + [0.0, 1.0, 1.0])
     voltage = jnp.array([2e3, 5e3, 2e3, 5e3, 2e3, 5e3, 2e3, 5e3])
     n = jnp.array([1.0, 1.0, 2.0, 2.0, 1.0, 1.0, 2.0, 2.0])
-    for axisymmetric, m in ((True, jnp.zeros(8)), (False, jnp.array([1.0, 1, 1, 1, 2, 2, 2, 2]))):
-        roots = mode_roots(values, voltage, n, m, 1, N_LAYERS, None, None, axisymmetric)
+    for family, m in (("axisymmetric", jnp.zeros(8)),
+                      ("order_m", jnp.array([1.0, 1, 1, 1, 2, 2, 2, 2]))):
+        roots = mode_roots(values, voltage, n, m, 1, N_LAYERS, None, None, family)
         _, f, jac = model_and_jacobian(values, voltage, n, m, roots[:, 0], N_LAYERS, None,
-                                               None, axisymmetric)
+                                               None, family)
         hz = dimensionless(values, 0.0, 1.0)[3]
         np.testing.assert_allclose(f, roots[:, 0] * hz, rtol=1e-12)
         for i in range(9):
             h = 1e-5 * values[i]
 
-            def f_at(x, i=i):
+            def f_at(x, i=i, m=m, family=family):
                 shifted = values.at[i].set(x)
-                scan = mode_roots(shifted, voltage, n, m, 1, N_LAYERS, None, None,
-                                          axisymmetric)
+                scan = mode_roots(shifted, voltage, n, m, 1, N_LAYERS, None, None, family)
                 return scan[:, 0] * dimensionless(shifted, 0.0, 1.0)[3]
 
             central = (f_at(values[i] + h) - f_at(values[i] - h)) / (2 * h)
@@ -181,13 +181,13 @@ def test_batched_jacobian_at_zero_voltage_equals_the_point_alone():
     branch) that gave a NaN row for (m, n) = (2, 3) while the point alone was finite; the
     cofactor derivative of :func:`jaxdea.dispersion.determinant` gives the same row both ways."""
     values = jnp.array([TRUTH[k] for k in NAMES[:5]] + [0.8793051947943465, 1.0386270426677653,
-                                                        1.1771011315898126, TRUTH["gent"], 1.0,
-                                                        1.0])
+                                                        1.1771011315898126, TRUTH["gent"], 0.0,
+                                                        1.0, 1.0])
     n = jnp.array([1.0, 2, 3, 1, 2, 3, 1, 2])
     m = jnp.array([2.0, 2, 2, 1, 1, 1, 3, 3])
-    roots = mode_roots(values, jnp.zeros(8), n, m, 2, N_LAYERS, None, None, False)
+    roots = mode_roots(values, jnp.zeros(8), n, m, 2, N_LAYERS, None, None, "order_m")
     _, _, jac = model_and_jacobian(values, jnp.zeros(8), n, m, roots[:, 1], N_LAYERS, None, None,
-                                   False)
+                                   "order_m")
     assert np.all(np.isfinite(jac))
 
     def alone(vals):
@@ -248,7 +248,7 @@ def test_covariance_is_the_inverse_normal_matrix_of_central_differences():
                          n_layers=N_LAYERS, n_starts=1, grid_points=1)
     assert result.status == FitStatus.CONVERGED
     values = jnp.array([result.estimate.get(k, TRUTH.get(k, 1.0)) for k in NAMES[:9]]
-                       + [1.0, 1.0])
+                       + [0.0, 1.0, 1.0])
     m = data["m"]
     columns = []
     for name in result.names:
@@ -258,12 +258,12 @@ def test_covariance_is_the_inverse_normal_matrix_of_central_differences():
         for x in (values[i] + h, values[i] - h):
             shifted = values.at[i].set(x)
             f = np.empty(m.size)
-            for axisymmetric in (True, False):
-                rows = np.resize(np.flatnonzero((m == 0) == axisymmetric), 8)  # compiled size
+            for family in ("axisymmetric", "order_m"):
+                rows = np.resize(np.flatnonzero((m == 0) == (family == "axisymmetric")), 8)
                 scan = mode_roots(shifted, jnp.asarray(data["voltage_V"][rows]),
                                           jnp.asarray(data["n"][rows], float),
                                           jnp.asarray(m[rows], float), 1, N_LAYERS, None, None,
-                                          axisymmetric)
+                                          family)
                 f[rows] = np.asarray(scan[:, 0]) * float(dimensionless(shifted, 0.0,
                                                                                1.0)[3])
             sides.append(f)
@@ -517,7 +517,8 @@ def test_plot_shows_the_fitted_curves_and_the_residuals(cli_run, tmp_path):
         padded = np.resize(np.arange(5), 8)
         _, f, _ = model_and_jacobian(values, jnp.asarray(voltage[padded]),
                                      jnp.asarray(np.full(8, float(n))), jnp.asarray(np.zeros(8)),
-                                     jnp.asarray(hz[padded] / scale), N_LAYERS, None, None, True)
+                                     jnp.asarray(hz[padded] / scale), N_LAYERS, None, None,
+                                     "axisymmetric")
         np.testing.assert_allclose(np.asarray(f)[:5], hz, rtol=1e-12)
         assert np.all(np.diff(hz) < 0)  # the voltage softens the tube
     np.testing.assert_allclose(fig.axes[1].lines[0].get_ydata(), result.residuals[data["n"] == 1])
@@ -636,8 +637,8 @@ def test_fit_help_documents_every_config_key(capsys):
 @pytest.mark.slow
 def test_intervals_cover_the_truth_in_most_noisy_replicates():
     """40 replicates of six m = 0 peaks with 0.5 % Gaussian noise (σ given, fixed seeds): each
-    parameter's 95 % interval holds the truth in 85–100 % of them (34–40; a binomial(40, 0.95)
-    count is below 34 with probability 0.005)."""
+    parameter's 95 % interval holds the truth in at least 90 % of them (36–40, issue 43; a
+    binomial(40, 0.95) count is below 36 with probability 0.14, so the seeds are fixed)."""
     points = [(v, 0, n) for v in (1e3, 3e3, 5e3) for n in (1, 2)]
     clean = synthetic(points)
     sigma = 0.005 * clean["frequency_Hz"]
@@ -653,7 +654,7 @@ def test_intervals_cover_the_truth_in_most_noisy_replicates():
             low, high = result.interval[name]
             covered[name] += int(low <= TRUTH[name] <= high)
     for name, count in covered.items():
-        assert 34 <= count <= 40, (name, count)
+        assert 36 <= count <= 40, (name, count)
 
 
 # ---------------------------------------------------------------------------------------------
