@@ -109,9 +109,8 @@ def determinant(a):
     order-m outer-row matrix Out·Q has the row Φ = (0, 0, 0, x): partial pivoting puts that row
     last, so at a root the near-zero pivot comes before it, and the solve divides by it. Batched
     (8 points at V = 0, m = 1–3) that gave ±inf and NaN derivatives where the point alone was
-    finite. The cofactor sum replaces the LU derivative only where that is not finite, so that
-    every finite derivative (and every root whose Newton slope it is) keeps its bits. Up to 3×3
-    ``jnp.linalg.det`` is a closed form, already division-free; derivatives of any order."""
+    finite. Up to 3×3 ``jnp.linalg.det`` is a closed form, already division-free; derivatives of
+    any order."""
     return jnp.linalg.det(a)
 
 
@@ -121,16 +120,13 @@ def _determinant_jvp(primals, tangents):
     n = a.shape[-1]
     if n <= 3:
         return jax.jvp(jnp.linalg.det, (a,), (a_dot,))
-    value, lu_slope = jax.jvp(jnp.linalg.det, (a,), (a_dot,))
     rows = np.arange(n)
     total = 0.0
     for i in range(n):
         for j in range(n):
             minor = a[..., rows != i, :][..., :, rows != j]
             total = total + (-1.0) ** (i + j) * determinant(minor) * a_dot[..., i, j]
-    # where the LU derivative is finite it is kept, bit for bit (the roots and derivatives of
-    # order m stay those of tests/golden/public_calls.json); the cofactor sum where it is not
-    return value, jnp.where(jnp.isfinite(lu_slope), lu_slope, total)
+    return determinant(a), total
 
 
 def characteristic_and_scale(wall: Wall, omega, alpha, fluid=None, order=0, method="taylor"):
