@@ -36,6 +36,15 @@ def _listed(nodeid: str, entries: frozenset) -> bool:
     return nodeid in entries or base in entries or nodeid.split("::", 1)[0] in entries
 
 
+def pytest_ignore_collect(collection_path, config):
+    """The default tier (``-m 'not slow'``) does not import the files listed whole in
+    :data:`SLOW_LIST`: they may need the ``all`` extra, which the default tier does without."""
+    if config.getoption("markexpr", "") != "not slow" or collection_path.suffix != ".py":
+        return None
+    relative = os.path.relpath(collection_path, os.path.dirname(os.path.dirname(__file__)))
+    return True if relative.replace(os.sep, "/") in slow_entries() else None
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """Marks the tests of :data:`SLOW_LIST` slow, before ``-m`` selects a tier."""
