@@ -1,5 +1,7 @@
-"""Shared test set-up: 64-bit floats and finite-difference helpers."""
+"""Shared test set-up: 64-bit floats, the disk cache, the tiers (tests/slow.txt) and finite-difference
+helpers."""
 
+import functools
 import os
 
 import jax
@@ -24,10 +26,11 @@ SLOW_LIST = os.path.join(os.path.dirname(__file__), "slow.txt")
 """Tests moved to the slow tier by measured duration (one file, function or case a line)."""
 
 
-def slow_entries(path=SLOW_LIST) -> list[str]:
-    """The entries of :data:`SLOW_LIST`, comments and blank lines skipped."""
+@functools.cache
+def slow_entries(path=SLOW_LIST) -> tuple[str, ...]:
+    """The entries of :data:`SLOW_LIST`, comments and blank lines skipped (read once)."""
     with open(path, encoding="utf-8") as stream:
-        return [line.strip() for line in stream if line.strip() and not line.startswith("#")]
+        return tuple(line.strip() for line in stream if line.strip() and not line.startswith("#"))
 
 
 def _listed(nodeid: str, entries: frozenset) -> bool:
