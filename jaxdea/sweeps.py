@@ -38,7 +38,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
-from .base_state import _inner_stretch
+from .base_state import inner_stretch_traced
 from .compiled import cached_jit
 from .dispersion import characteristic_on_wall, mode_family
 from .files import atomic_write
@@ -723,7 +723,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
     names = tuple(axes)
     held = None
     if delta_p is not None:  # a column λ_i(point) beside the axes, solved from ΔP̂
-        held = _held_stretch(tube, fluid, names, grids, delta_p)
+        held = _held_stretch(tube, names, grids, delta_p)
         names, grids = (*names, "lambda_i"), [*grids, held]
         tube = tube.replace(lambda_i=1.0)  # replaced at every point
     layers = _grid_layers(n_layers, scheme, tube, fluid, dict(zip(names, grids, strict=True)),
@@ -820,12 +820,12 @@ def _held_stretch_points(tube, names, columns, delta_p):
     """λ_i of every point (vmapped :func:`jaxdea.base_state.inner_stretch`; NaN past pull-in)."""
     def one(vals):
         point = apply_parameters(tube, 1.0, None, dict(zip(names, vals, strict=True)))[0]
-        return _inner_stretch(point.replace(lambda_i=1.0), delta_p)[0]
+        return inner_stretch_traced(point.replace(lambda_i=1.0), delta_p)[0]
 
     return jax.vmap(one)(columns)
 
 
-def _held_stretch(tube, fluid, names, grids, delta_p):
+def _held_stretch(tube, names, grids, delta_p):
     """The column λ_i (NumPy, one per point) of a pressure-held sweep."""
     columns = tuple(np.asarray(g, np.float64) for g in grids)
     keep = tuple(k for k in names if k not in ("alpha", "n", "m") and k not in FLUID_LEAVES)

@@ -49,7 +49,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base_state import _inner_stretch
+from .base_state import inner_stretch_traced
 from .params import (
     TINY,
     Fluid,
@@ -412,7 +412,7 @@ def _held_stretch(tube: Tube, delta_p):
     def one(voltage, lambda_z, eta, gent, length_ratio, dp):
         t = Tube(voltage=voltage, lambda_i=1.0, lambda_z=lambda_z, eta=eta, gent=gent,
                  length_ratio=length_ratio, material=tube.material)
-        return _inner_stretch(t, dp)[0]
+        return inner_stretch_traced(t, dp)[0]
 
     leaves = [jnp.asarray(getattr(tube, k), jnp.float64)
               for k in ("voltage", "lambda_z", "eta", "gent", "length_ratio")]
