@@ -25,7 +25,7 @@ from .dispersion import characteristic
 from .explore import explore  # ipywidgets is imported on the first call only
 from .fit import FitResult, FitStatus, IdentifiabilityWarning, fit, fitted_frequencies
 from .fit_io import plot_fit, read_peaks, write_fit, write_peaks
-from .modes import fluid_pressure, mode_shape
+from .modes import ModeShape, fluid_pressure, mode_shape
 from .params import Fluid, Tube, axial_wavenumber
 from .roots import (
     Instability,
@@ -89,6 +89,7 @@ __all__ = [
     "inner_stretch",
     "maximise_tunability",
     "mode_shape",
+    "ModeShape",
     "phase_velocity",
     "plot_fit",
     "pressure_difference",

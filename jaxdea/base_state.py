@@ -327,12 +327,13 @@ def inner_stretch(tube: Tube, delta_p=0.0):
     tube = tube.replace(lambda_i=1.0)  # ignored (the unknown); a placeholder for the validation
     validate_tube(tube)
     validate_real("delta_p", delta_p, "a finite real number (the pressure difference)")
-    return _inner_stretch(*canonical(tube, delta_p))
+    return inner_stretch_traced(*canonical(tube, delta_p))
 
 
 @jit
-def _inner_stretch(tube: Tube, delta_p):
-    """(λ_i, status); NaN and INVALID where the traced inputs are not admissible."""
+def inner_stretch_traced(tube: Tube, delta_p):
+    """:func:`inner_stretch` without the concrete validation, for callers that trace (sweeps,
+    units): (λ_i, status), NaN and INVALID where the traced inputs are not admissible."""
     ok = admissible(tube) & jnp.isfinite(as_float(delta_p))
     li, status = _inner_stretch_unchecked(tube, delta_p)
     return jnp.where(ok, li, jnp.nan), jnp.where(ok, status, Status.INVALID).astype(jnp.int32)

@@ -28,7 +28,8 @@ from .transfer import SCHEMES
 from .units import VACUUM_PERMITTIVITY, Scales
 
 TOP_KEYS = ("tube", "fluid", "axes", "solver", "output", "units")
-TUBE_KEYS = (*TUBE_LEAVES, "thickness_ratio", "material")
+TUBE_KEYS = (*TUBE_LEAVES, "thickness_ratio", "material", "delta_p")
+PRESSURE_SI_KEY = "pressure_Pa"  # [tube] ΔP in Pa (with [units]): delta_p = ΔP/μ
 FLUID_KEYS = (*FLUID_LEAVES, "coupling", "bessel_order")
 SI_NAMES = {si_name: name for name, (si_name, *_) in SI_QUANTITIES.items()}  # SI key -> parameter
 TUBE_SI_KEYS = tuple(k for k, name in SI_NAMES.items() if name in TUBE_KEYS)
@@ -47,7 +48,9 @@ SUFFIXES = {"csv": "csv", "npz": "npz", "netcdf": "nc"}  # output format -> file
 FORMAT = f"""\
 [tube]    fixed parameters (numbers; defaults: those of jaxdea.Tube): voltage V̂, lambda_i λ_i,
           lambda_z λ_z, eta η = R_i/R_o or thickness_ratio h/R_i, gent G (inf: neo-Hookean),
-          length_ratio L/R_o; material = {' | '.join(f'"{m}"' for m in MATERIALS)}
+          length_ratio L/R_o; material = {' | '.join(f'"{m}"' for m in MATERIALS)};
+          delta_p ΔP̂ = ΔP/μ (or {PRESSURE_SI_KEY} in Pa with [units]): the tube held by this pressure
+          difference, λ_i solved at every point (jaxdea.inner_stretch), instead of lambda_i
 [fluid]   optional (leave it out for an empty tube): density_ratio ρ̂_f, speed_ratio ĉ_f (numbers),
           coupling = {' | '.join(f'"{c}"' for c in COUPLINGS)}, bessel_order = ν (integer >= 0; paper only,
           default ν = n)
@@ -83,6 +86,7 @@ RANGES = {
     "gent": ("> 0 (inf for neo-Hookean)", lambda v: v > 0),
     "length_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
     "thickness_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
+    "delta_p": ("a finite number (ΔP̂ = ΔP/μ)", lambda v: np.isfinite(v)),
     "density_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
     "speed_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
     "alpha": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
@@ -115,6 +119,8 @@ class SweepConfig:
             ``axes``).
         torsional: the torsional family (m = 0 only).
         n_growth: growth rates per point (``jaxdea.sweep``'s ``n_growth``; 0: none).
+        delta_p: ΔP̂ = ΔP/μ of a pressure-held tube (``jaxdea.sweep``'s ``delta_p``: λ_i solved at
+            every point), or None (held by its stretch λ_i).
         units: the SI scales ``{shear_modulus, density, permittivity, inner_radius}`` of the
             ``[units]`` table, or None.
         out_dir: output folder as written in the config (relative to the config file), or None.
@@ -135,6 +141,7 @@ class SweepConfig:
     m: int = 0
     torsional: bool = False
     n_growth: int = 0
+    delta_p: float | None = None
     units: dict | None = None
     out_dir: str | None = None
     name: str = "sweep"
@@ -161,6 +168,8 @@ class SweepConfig:
             orders["torsional"] = True
         if self.n_growth:
             orders["n_growth"] = self.n_growth
+        if self.delta_p is not None:  # None passes nothing: sweep's default, as before
+            orders["delta_p"] = self.delta_p
         axes = {k: v for k, v in self.axes.items() if k != "m"}
         return dict(n_roots=self.n_roots, n_layers=self.n_layers, scheme=self.scheme,
                     jacobian=self.jacobian if self.jacobian else None, omega_max=self.omega_max,
@@ -298,7 +307,18 @@ def _parse_units(data) -> dict | None:
 
 def _parse_tube(data, units: dict | None = None) -> dict:
     tube, seen = {}, {}
-    for k, v in _table(data, "tube", (*TUBE_KEYS, *TUBE_SI_KEYS)).items():
+    for k, v in _table(data, "tube", (*TUBE_KEYS, *TUBE_SI_KEYS, PRESSURE_SI_KEY)).items():
+        if k == PRESSURE_SI_KEY:  # ΔP in Pa -> ΔP̂ = ΔP/μ
+            if "delta_p" in seen:
+                _fail(f"'tube.delta_p' and 'tube.{k}' set the same parameter (delta_p); give one")
+            if units is None:
+                _fail(f"'tube.{k}' is in SI units (Pa): add a [units] table (shear_modulus, "
+                      "density, permittivity, inner_radius) or give 'tube.delta_p' (ΔP/μ)")
+            if not _is_number(v) or not math.isfinite(v):
+                _fail(f"'tube.{k}' must be a finite number (Pa), got {v!r}")
+            seen["delta_p"] = k
+            tube["delta_p"] = float(v) / units["shear_modulus"]
+            continue
         name = _parameter("tube", k, seen)
         tube[name] = (_choice("tube.material", v, MATERIALS) if k == "material"
                       else _fixed(f"tube.{k}", k, v, units))
@@ -434,9 +454,21 @@ def parse_config(data, default_name: str = "sweep") -> SweepConfig:
     _table(data, "", TOP_KEYS)
     units = _parse_units(data)
     tube = _parse_tube(data.get("tube", {}), units)
+    delta_p = tube.pop("delta_p", None)
+    fixed = set(tube)  # before a fixed thickness_ratio moves to the axes
     fluid = _parse_fluid(data["fluid"], units) if "fluid" in data else None
     axes = _parse_axes(data, tube, fluid, units)
     solver = _parse_solver(data, fluid)
+    if delta_p is not None:
+        held = "'tube.delta_p'" if "delta_p" in data.get("tube", {}) else f"'tube.{PRESSURE_SI_KEY}'"
+        for where, keys in (("tube", fixed), ("axes", set(axes) - fixed)):
+            for k in ("lambda_i", "thickness_ratio"):
+                if k in keys:
+                    _fail(f"{held} holds the tube by pressure, so λ_i follows from it at every "
+                          f"point: remove '{where}.{k}' (give the wall as eta, R_i/R_o undeformed)")
+        if solver.get("jacobian"):
+            _fail(f"'solver.jacobian' with {held} is not supported (derivatives at fixed λ_i, not "
+                  "at fixed pressure): remove one of them")
     if "m" in axes and "m" in solver:
         _fail("'solver.m' is also a sweep axis ('axes.m'); give it in one place")
     orders = axes["m"] if "m" in axes else np.asarray([solver.get("m", 0)])
@@ -455,7 +487,7 @@ def parse_config(data, default_name: str = "sweep") -> SweepConfig:
     if (fluid is not None and fluid.get("coupling") == "paper" and fluid.get("bessel_order") is None
             and "n" not in axes):
         _fail("the paper coupling needs 'fluid.bessel_order' (ν), or a sweep over 'axes.n' (ν = n)")
-    return SweepConfig(tube=tube, fluid=fluid, axes=axes, **solver, units=units,
+    return SweepConfig(tube=tube, fluid=fluid, axes=axes, **solver, delta_p=delta_p, units=units,
                        **_parse_output(data, default_name))
 
 

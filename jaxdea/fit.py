@@ -82,7 +82,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base_state import inner_stretch
+from .base_state import inner_stretch_traced
 from .params import Fluid, Tube, require_x64
 from .roots import frequencies, frequency
 from .transfer import Layers, laminate, validate_scheme
@@ -228,7 +228,7 @@ def dimensionless(values, voltage_V, n, coupling=None, bessel_order=None, load=N
     tube = Tube(voltage=voltage_V * jnp.sqrt(eps / mu) / ri, lambda_i=li, lambda_z=lz, eta=eta,
                 gent=gent, length_ratio=length * eta / ri)
     if by_pressure:
-        tube = tube.replace(lambda_i=inner_stretch(tube, dp / mu)[0])
+        tube = tube.replace(lambda_i=inner_stretch_traced(tube, dp / mu)[0])
     alpha = 2.0 * math.pi * n * ri / (lz * length)
     fluid = None if coupling is None else Fluid(density_ratio=rho_f / rho,
                                                 speed_ratio=c_f / jnp.sqrt(mu / rho),

@@ -21,6 +21,8 @@ and no division by D_0 (zero at the rigid-wall cavity resonances) or by N_0 is e
 """
 
 
+from typing import NamedTuple
+
 import jax
 import jax.numpy as jnp
 
@@ -240,6 +242,41 @@ def _solve(tube, alpha, omega, fluid, n_points, n_layers, scheme, m, torsional):
     return out[:-1]
 
 
+ROWS_6 = {"u": 0, "v": None, "w": 1, "phi": 2, "T": 3, "Q": None, "S": 4, "D": 5}
+ROWS_8 = {"u": 0, "v": 1, "w": 2, "phi": 3, "T": 4, "Q": 5, "S": 6, "D": 7}
+"""Rows of the fields: the longitudinal state [ū, w̄, Φ, T̄, S̄, D̄] (docs/theory/axisymmetric.md §3)
+and the order-m state [ū, v̄, w̄, Φ, T̄, Q̄, S̄, D̄] (docs/theory/order_m.md §1)."""
+
+
+class ModeShape(NamedTuple):
+    """What :func:`mode_shape` returns: ``(r, fields)``, with the fields by name as well.
+
+    ``fields`` has the rows of the family's state (API.md): 6 for the longitudinal family at a
+    concrete m = 0, 8 otherwise. The names are the same for every family, concrete or traced m:
+    ``u, v, w`` (ū, v̄, w̄), ``phi`` (Φ), ``T, Q, S, D`` (T̄, Q̄, S̄, D̄); v̄ and Q̄ are zero where the
+    state has no such row (a longitudinal mode has no u_θ)."""
+
+    r: jax.Array
+    fields: jax.Array
+
+    def field(self, name: str) -> jax.Array:
+        """The named field (shape of ``r``, batch axes included)."""
+        rows = ROWS_6 if self.fields.shape[-2] == 6 else ROWS_8
+        if name not in rows:
+            raise ValueError(f"name must be one of {', '.join(rows)}, got {name!r}")
+        row = rows[name]
+        return jnp.zeros_like(self.fields[..., 0, :]) if row is None else self.fields[..., row, :]
+
+    u = property(lambda self: self.field("u"))
+    v = property(lambda self: self.field("v"))
+    w = property(lambda self: self.field("w"))
+    phi = property(lambda self: self.field("phi"))
+    T = property(lambda self: self.field("T"))
+    Q = property(lambda self: self.field("Q"))
+    S = property(lambda self: self.field("S"))
+    D = property(lambda self: self.field("D"))
+
+
 def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: int = 64,
                n_layers: int | None = None, m=0, torsional: bool = False, scheme: str | None = None):
     """The state fields [ū, w̄, Φ, T̄, S̄, D̄] across the wall for the root ``omega``
@@ -278,8 +315,9 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
         torsional: with m = 0, the torsional family (static).
 
     Returns:
-        (r, fields): radii r̂ (n_points,) from r̂_i to r̂_o and fields (6, n_points) for m = 0
-        (longitudinal), (8, n_points) otherwise.
+        A :class:`ModeShape` ``(r, fields)``: radii r̂ (n_points,) from r̂_i to r̂_o and fields
+        (6, n_points) for m = 0 (longitudinal), (8, n_points) otherwise; the same named fields
+        (``.u``, ``.v``, ``.w``, ``.phi``, ``.T``, ``.Q``, ``.S``, ``.D``) for every family.
 
     Raises:
         ValueError: for invalid concrete inputs, naming the parameter (m not an integer ≥ 0,
@@ -293,9 +331,10 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
         >>> r, (u, w, phi, t, s, d) = jd.mode_shape(tube, 0.445, omega)
         >>> omega2 = jd.frequencies(tube, 0.445, m=2)[0]
         >>> r, (u, v, w, phi, t, q, s, d) = jd.mode_shape(tube, 0.445, omega2, m=2)
+        >>> jd.mode_shape(tube, 0.445, omega).w  # by name: the same for every family
     """
     r, fields, _, _ = _solve(tube, alpha, omega, fluid, n_points, n_layers, scheme, m, torsional)
-    return r, fields
+    return ModeShape(r, fields)
 
 
 def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64,

@@ -38,6 +38,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
+from .base_state import inner_stretch_traced
 from .compiled import cached_jit
 from .dispersion import characteristic_on_wall, mode_family
 from .files import atomic_write
@@ -102,6 +103,8 @@ class SweepResult:
             NaN-padded (all NaN: stable at that point), shape (*grid_shape, n_growth), or None
             (``n_growth=0``).
         settings: the fixed parameters and solver settings (JSON-serialisable dict).
+        lambda_i: with ``delta_p`` (a pressure-held tube) the inner stretch λ_i solved at every
+            point from ΔP̂ (:func:`jaxdea.inner_stretch`), shape grid_shape; else None.
     """
 
     axes: dict
@@ -113,6 +116,7 @@ class SweepResult:
     group_velocity: np.ndarray | None = None
     growth_rate: np.ndarray | None = None
     settings: dict = dataclasses.field(default_factory=dict)
+    lambda_i: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple:
@@ -150,6 +154,8 @@ class SweepResult:
                 if name in si_axes:
                     cols[si_axes[name][0]] = g.ravel()
         cols["alpha_hat"] = self.alpha.ravel()
+        if self.lambda_i is not None:
+            cols["lambda_i"] = self.lambda_i.ravel()
         if self.scales is not None:
             cols["wavelength_m"] = self.wavelength_m.ravel()
         k = self.omega.shape[-1]
@@ -252,6 +258,8 @@ class SweepResult:
             arrays.update(jacobian=self.jacobian, group_velocity=self.group_velocity)
         if self.growth_rate is not None:
             arrays.update(growth_rate=self.growth_rate)
+        if self.lambda_i is not None:
+            arrays.update(lambda_i=self.lambda_i)
         if self.scales is not None:  # SI values beside (recomputed by from_npz's result)
             arrays.update(frequency_Hz=self.frequency_hz, wavelength_m=self.wavelength_m)
             arrays.update({si_name: values for si_name, values, _ in self._si_axes().values()})
@@ -297,6 +305,9 @@ class SweepResult:
                 "flag_meanings": " ".join(s.name.lower() for s in Status)}),
             "alpha_hat": (dims, self.alpha, {"long_name": "axial wavenumber alpha R_i", **dimensionless}),
         }
+        if self.lambda_i is not None:
+            data["lambda_i"] = (dims, self.lambda_i, {
+                "long_name": "inner stretch held by the pressure difference delta_p", **dimensionless})
         if self.group_velocity is not None:
             data["group_velocity"] = (roots, self.group_velocity,
                                       {"long_name": "dOmega/dalpha_hat", **dimensionless})
@@ -360,6 +371,7 @@ class SweepResult:
                 group_velocity=data["group_velocity"] if "group_velocity" in data else None,
                 growth_rate=data["growth_rate"] if "growth_rate" in data else None,
                 settings=json.loads(str(data["settings"])),
+                lambda_i=data["lambda_i"] if "lambda_i" in data else None,
             )
 
     def __repr__(self) -> str:
@@ -576,7 +588,7 @@ def _grid_layers(n_layers, scheme, tube, fluid, grids, n_roots, m):
 def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max=None,
           n_layers: int | None = None, scheme: str | None = None, jacobian=None, chunk_size: int = CHUNK_SIZE,
           batch_size=None, progress=None, devices=None, client=None, m=0, torsional: bool = False,
-          n_growth: int = 0, **axes) -> SweepResult:
+          n_growth: int = 0, delta_p=None, **axes) -> SweepResult:
     """The ``n_roots`` lowest frequencies over the grid spanned by ``axes``.
 
     Args:
@@ -614,6 +626,15 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
             automatic limit); ``SweepResult.growth_rate`` and ``.unstable``. ``frequencies`` lists
             only the positive real roots: past an instability its first column is the second
             branch, and ``unstable`` says so.
+        delta_p: None (the tube held by its stretch: λ_i of ``tube`` or of an axis, at every
+            voltage), or ΔP̂ = (P_i − P_o)/μ, a finite number: the tube held by this pressure
+            difference, as in a lab. At every point λ_i is then the stable static state of
+            ΔP̂_el(λ_i) − V̂² E(λ_i) = ΔP̂ (docs/theory/axisymmetric.md Eq. 1.1;
+            :func:`jaxdea.inner_stretch`), so λ_i follows the voltage; ``SweepResult.lambda_i``
+            holds it. ``jaxdea.pressure_difference(tube.replace(voltage=0))`` is the pressure that
+            holds the tube's λ_i at V̂ = 0; ``Scales.pressure_from_si`` converts Pa. Past pull-in
+            (no static state) a point is NaN, status INVALID. Not with an axis ``lambda_i`` or
+            ``thickness_ratio`` (the deformed wall depends on λ_i: give ``eta``) or ``jacobian``.
         **axes: ``name=values`` grid axes (1-D arrays, or scalars for a fixed value) over the names
             of :mod:`jaxdea.leaves`; exactly one of ``alpha`` / ``n`` is required.
 
@@ -634,6 +655,8 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         >>> res = sweep(Tube(lambda_z=1.2), voltage=np.linspace(0, 0.2, 5), n=np.arange(1, 11))
         >>> res.omega.shape  # (5, 10, 3)
         >>> sweep(Tube(lambda_z=1.2), m=np.arange(4), alpha=0.445).omega.shape  # (4, 1, 3)
+        >>> held = jd.pressure_difference(Tube(lambda_i=1.1, lambda_z=1.2))  # ΔP̂ at V̂ = 0
+        >>> sweep(Tube(lambda_z=1.2), delta_p=held, voltage=[0, 0.2], n=1).lambda_i  # λ_i grows
     """
     require_x64()
     if not isinstance(tube, Tube):
@@ -676,6 +699,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         raise ValueError("give the wavenumber axis: alpha=... (α̂) or n=... (axial mode numbers)")
     axes = {name: v if name == "m" else _axis(name, v) for name, v in axes.items()}
     jac_names = _jacobian_names(jacobian, fluid)
+    delta_p = _check_pressure(delta_p, axes, jac_names)
     if omega_max is not None:
         validate_positive("omega_max", omega_max, "a finite number > 0")
         omega_max = float(omega_max)
@@ -696,8 +720,15 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
     size = min(int(chunk_size), 1 << (per_device - 1).bit_length())  # power of two ≤ chunk_size
     size *= max(len(devices), 1)  # points per chunk, a multiple of the device count
     grids = [g.ravel() for g in np.meshgrid(*axes.values(), indexing="ij")]
-    layers = _grid_layers(n_layers, scheme, tube, fluid, dict(zip(axes, grids, strict=True)), n_roots, m)
-    static = dict(names=tuple(axes), n_roots=int(n_roots), n_layers=layers, order=order,
+    names = tuple(axes)
+    held = None
+    if delta_p is not None:  # a column λ_i(point) beside the axes, solved from ΔP̂
+        held = _held_stretch(tube, names, grids, delta_p)
+        names, grids = (*names, "lambda_i"), [*grids, held]
+        tube = tube.replace(lambda_i=1.0)  # replaced at every point
+    layers = _grid_layers(n_layers, scheme, tube, fluid, dict(zip(names, grids, strict=True)),
+                          n_roots, m)
+    static = dict(names=names, n_roots=int(n_roots), n_layers=layers, order=order,
                   jac_names=jac_names, batch_size=min(int(batch_size), size))
     if family != LONGITUDINAL or n_growth:  # the longitudinal program is called as before order m
         static.update(m=float(0 if m_axis is not None else m), family=family, n_growth=int(n_growth))
@@ -743,6 +774,9 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
     k = 4 if n_growth else 3  # the first output after the growth rates
     reshape = lambda a: a.reshape(*shape, *a.shape[1:])  # noqa: E731
     settings = _settings(tube, fluid, n_roots, omega_max, layers, m_axis, m, torsional)
+    if delta_p is not None:
+        settings["delta_p"] = delta_p
+        settings["tube"]["lambda_i"] = None  # not fixed: solved from ΔP̂ at every point
     if n_growth:
         settings["n_growth"] = int(n_growth)
     if interrupted:
@@ -756,10 +790,48 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         group_velocity=None if jac_names is None else reshape(outputs[k]),
         growth_rate=reshape(outputs[3]) if n_growth else None,
         settings=settings,
+        lambda_i=None if held is None else held.reshape(shape),
     )
     if interrupted:
         raise SweepInterrupted(result, int(solved.sum()), total)
     return result
+
+
+def _check_pressure(delta_p, axes, jac_names):
+    """ΔP̂ as a float, or None; ValueError naming ``delta_p`` (or the clashing option)."""
+    if delta_p is None:
+        return None
+    value = real_value("delta_p", delta_p)
+    if value is None or not math.isfinite(value):
+        raise ValueError("delta_p must be None (held by stretch) or a finite real number (ΔP̂ = "
+                         f"ΔP/μ, the pressure difference that holds the tube), got {delta_p!r}")
+    for name in ("lambda_i", "thickness_ratio"):
+        if name in axes:
+            raise ValueError(f"axis {name!r} with delta_p: λ_i follows from the pressure difference "
+                             "at every point (give the wall as eta, the undeformed R_i/R_o)")
+    if jac_names is not None:
+        raise ValueError("jacobian with delta_p is not supported: the derivatives would be at "
+                         "fixed λ_i, not at fixed pressure (sweep with jacobian=None)")
+    return float(value)
+
+
+@cached_jit(static_argnames=("names",))
+def _held_stretch_points(tube, names, columns, delta_p):
+    """λ_i of every point (vmapped :func:`jaxdea.base_state.inner_stretch`; NaN past pull-in)."""
+    def one(vals):
+        point = apply_parameters(tube, 1.0, None, dict(zip(names, vals, strict=True)))[0]
+        return inner_stretch_traced(point.replace(lambda_i=1.0), delta_p)[0]
+
+    return jax.vmap(one)(columns)
+
+
+def _held_stretch(tube, names, grids, delta_p):
+    """The column λ_i (NumPy, one per point) of a pressure-held sweep."""
+    columns = tuple(np.asarray(g, np.float64) for g in grids)
+    keep = tuple(k for k in names if k not in ("alpha", "n", "m") and k not in FLUID_LEAVES)
+    cols = tuple(c for k, c in zip(names, columns, strict=True) if k in keep)
+    base = jax.tree_util.tree_map(as_float, tube)
+    return np.asarray(_held_stretch_points(base, keep, cols, as_float(delta_p)))
 
 
 def _orders(m, torsional, fluid):
