@@ -111,6 +111,14 @@ BOUND_TOLERANCE = 1e-6
 """A parameter within this fraction of its bound range from a bound has stopped on that bound."""
 MAX_GRID = 81
 """Largest grid of starts; beyond it (grid_points^p) the starts are a Latin hypercube of this size."""
+RECIPROCAL = ("gent",)
+"""Parameters fitted as their reciprocal θ = 1/value: the Gent constant enters the energy through
+(I₁ − 3)/G, so the frequencies are nearly linear in 1/G (the neo-Hookean limit 1/G = 0), and a
+weakly determined G is fitted, and its interval computed, where the model is nearly linear."""
+LOG_STARTS = ("shear_modulus", "density", "permittivity", "inner_radius", "length", "gent",
+              "fluid_density", "fluid_speed")
+"""Parameters whose grid of starts is spaced evenly in log (scales: f ∝ sqrt(μ/ρ_s)/R_i); the
+others' evenly."""
 CURVE_CHUNK = 8
 """Points per compiled batch of :func:`fitted_frequencies` (the smallest batch of :func:`fit`)."""
 HELP = dict(
@@ -329,6 +337,8 @@ class _Problem(NamedTuple):
     load: np.ndarray | None = None  # (N, 3) per-peak (λ_i, λ_z, ΔP), NaN: the parameter's value
     by_pressure: bool = False  # λ_i follows from ΔP at every voltage
     condition: np.ndarray | None = None  # (N,) index of each peak's (V, load): peaks measured together
+    reciprocal: np.ndarray | None = None  # (p,) bool: θ_k is 1/value (:data:`RECIPROCAL`)
+    bounds: np.ndarray | None = None  # (p, 2) the bounds as given (lower, upper are internal)
 
 
 def _load(problem: _Problem, index=None):
@@ -339,9 +349,31 @@ def _load(problem: _Problem, index=None):
     return problem.load if index is None else problem.load[index]
 
 
+def _recip(problem: _Problem):
+    return np.zeros(len(problem.free), bool) if problem.reciprocal is None else problem.reciprocal
+
+
+def _physical(problem: _Problem, theta):
+    """The free parameters' values of the internal vector θ (1/θ_k where :data:`RECIPROCAL`)."""
+    theta = np.asarray(theta, float)
+    with np.errstate(divide="ignore"):
+        return np.where(_recip(problem), 1.0 / theta, theta)
+
+
+def _internal(problem: _Problem, value):
+    """θ of the free parameters' values (the inverse of :func:`_physical`)."""
+    return _physical(problem, value)
+
+
+def _chain(problem: _Problem, theta):
+    """d value/dθ per free parameter: −1/θ² where :data:`RECIPROCAL`, 1 elsewhere."""
+    theta = np.asarray(theta, float)
+    return np.where(_recip(problem), -1.0 / theta**2, 1.0)
+
+
 def _values(problem: _Problem, theta):
     values = problem.base.copy()
-    values[problem.free_index] = theta
+    values[problem.free_index] = _physical(problem, theta)
     return values
 
 
@@ -380,7 +412,7 @@ def _evaluate(problem: _Problem, theta, labels, guess):
         omega[rows] = np.asarray(w)[:index.size]
         f[rows] = np.asarray(hz)[:index.size]
         jac[rows] = np.asarray(j)[:index.size][:, problem.free_index]
-    return omega, f, jac
+    return omega, f, jac * _chain(problem, theta)[None, :]
 
 
 def _seed(problem: _Problem, theta, labels):
@@ -440,10 +472,16 @@ def assign_modes(problem: _Problem, theta, modes, wide: bool = False):
     Returns:
         (labels (N, 4) int, (−1, −1, −1, 0) for an outlier; the robust cost Σ min(c, τ²)).
     """
+    return _match(problem, _mode_table(problem, theta, modes), modes[2], wide)
+
+
+def _match(problem: _Problem, table, n_branches, wide, factor=1.0):
+    """:func:`assign_modes` on a mode table (:func:`_mode_table`) whose frequencies are multiplied by
+    ``factor``."""
     from scipy.optimize import linear_sum_assignment  # scipy: imported where it is used
 
-    n_branches = modes[2]
-    grid, roots, scale = _mode_table(problem, theta, modes)
+    grid, roots, scale = table
+    scale = scale * factor
     relative = wide or not problem.has_sigma
     tau2 = 1.0 if relative else problem.outlier**2
     labels = np.full((problem.voltage.size, 4), -1, dtype=int)
@@ -615,14 +653,23 @@ def uncertainty(problem: _Problem, theta, r, jac):
     return covariance, correlation, intervals, null, float(quantile), variance
 
 
+def _bounds(problem: _Problem):
+    """(p, 2) bounds of the free parameters as given (``problem.lower``, ``upper`` are of θ)."""
+    if problem.bounds is not None:
+        return problem.bounds
+    return np.stack([problem.lower, problem.upper], axis=1)
+
+
 def _pinned(problem: _Problem, k: int, value: float) -> _Problem:
     """``problem`` with free parameter k held at ``value`` (the others free)."""
     keep = np.arange(len(problem.free)) != k
     base = problem.base.copy()
-    base[problem.free_index[k]] = value
+    base[problem.free_index[k]] = 1.0 / value if _recip(problem)[k] else value
     return problem._replace(free=tuple(n for i, n in enumerate(problem.free) if keep[i]),
                             lower=problem.lower[keep], upper=problem.upper[keep], base=base,
-                            free_index=problem.free_index[keep])
+                            free_index=problem.free_index[keep],
+                            reciprocal=_recip(problem)[keep],
+                            bounds=None if problem.bounds is None else problem.bounds[keep])
 
 
 def profile_end(problem: _Problem, theta, labels, k: int, side: int, rise: float,
@@ -706,7 +753,8 @@ def readable_intervals(problem: _Problem, theta, labels, intervals, quantile, va
 
 
 def identifiability_messages(problem: _Problem, null, intervals, correlation):
-    """The sentences of :class:`IdentifiabilityWarning` (empty: every parameter is determined)."""
+    """The sentences of :class:`IdentifiabilityWarning` (empty: every parameter is determined);
+    ``intervals`` and ``correlation`` of the parameters as given (not internal)."""
     names, parts, involved = problem.free, [], set()
     if null is not None:
         terms = " · ".join(f"{name}^{c:+.3f}" for name, c in zip(names, null, strict=True)
@@ -716,12 +764,13 @@ def identifiability_messages(problem: _Problem, null, intervals, correlation):
                      f"NaN (fix one of them)")
         involved |= {name for name, c in zip(names, null, strict=True) if abs(c) > 0.1}
     loose = []
+    bounds = _bounds(problem)
     for k, name in enumerate(names):
         low, high = intervals[name]
         if np.isfinite(low) and np.isfinite(high) and \
-                high - low >= 0.5 * (problem.upper[k] - problem.lower[k]):
+                high - low >= 0.5 * (bounds[k, 1] - bounds[k, 0]):
             loose.append(f"{name} (95 % interval [{low:.4g}, {high:.4g}] within bounds "
-                         f"[{problem.lower[k]:.4g}, {problem.upper[k]:.4g}])")
+                         f"[{bounds[k, 0]:.4g}, {bounds[k, 1]:.4g}])")
             involved.add(name)
     if loose:
         parts.append("the data do not pin down " + "; ".join(loose))
@@ -904,10 +953,14 @@ def _validate(data, free, fixed, fluid):
     _, condition = np.unique(np.column_stack([voltage, np.nan_to_num(load, nan=np.inf)]), axis=0,
                              return_inverse=True)
     names = tuple(free)
+    reciprocal = np.array([name in RECIPROCAL for name in names])
+    bounds = np.stack([lower, upper], axis=1)
+    inside = np.where(reciprocal[:, None], 1.0 / bounds[:, ::-1], bounds)  # θ's bounds
     problem = _Problem(voltage, frequency_hz, np.ones_like(voltage) if sigma is None else sigma,
-                       sigma is not None, names, np.array(lower), np.array(upper), base,
+                       sigma is not None, names, inside[:, 0].copy(), inside[:, 1].copy(), base,
                        np.array([NAMES.index(k) for k in names]), 0, coupling, bessel_order,
-                       load=load, by_pressure=by_pressure, condition=condition.ravel())
+                       load=load, by_pressure=by_pressure, condition=condition.ravel(),
+                       reciprocal=reciprocal, bounds=bounds)
     return problem, labels
 
 
@@ -1174,12 +1227,16 @@ def _result(problem, best, max_unmatched, max_iterations):
                     loading="pressure" if problem.by_pressure else "stretch")
     torsional = final_labels[:, 3] > 0
     final_labels = final_labels[:, :3]
-    estimate = dict(zip(problem.free, theta.tolist(), strict=True))
+    bounds = _bounds(problem)
+    value = np.clip(_physical(problem, theta), bounds[:, 0], bounds[:, 1])
+    estimate = dict(zip(problem.free, value.tolist(), strict=True))
     unmatched = float(np.mean(~active))
     dof = int(active.sum()) - p
     chi2 = float(r @ r) if r.size and np.all(np.isfinite(r)) else np.nan
     chi2_per_dof = chi2 / dof if dof > 0 else np.nan
-    at_bound = {problem.free[k]: side for k, side in _on_bound(problem, theta).items()}
+    flip = dict(lower="upper", upper="lower")
+    at_bound = {problem.free[k]: flip[side] if _recip(problem)[k] else side
+                for k, side in _on_bound(problem, theta).items()}
     if status == FitStatus.NOT_FINITE or not np.all(np.isfinite(jac)) or r.size == 0:
         nan = np.full((p, p), np.nan)
         return FitResult(estimate, {k: (np.nan, np.nan) for k in problem.free}, nan, nan,
@@ -1190,6 +1247,7 @@ def _result(problem, best, max_unmatched, max_iterations):
                                                                                 jac)
     intervals = readable_intervals(problem, theta, best.labels, intervals, quantile, variance,
                                    max_iterations)
+    covariance, correlation, intervals = _as_given(problem, theta, covariance, intervals)
     messages = identifiability_messages(problem, null, intervals, correlation)
     if messages:
         warnings.warn("; ".join(messages), IdentifiabilityWarning, stacklevel=3)
@@ -1212,7 +1270,7 @@ def _result(problem, best, max_unmatched, max_iterations):
                            f"assignment, a parameter held at a wrong value)")
     for name, side in at_bound.items():
         k = problem.free.index(name)
-        value = problem.lower[k] if side == "lower" else problem.upper[k]
+        value = bounds[k, 0] if side == "lower" else bounds[k, 1]
         quality.append(f"{name} stopped on its {side} bound {value:.6g}: the data pull it beyond "
                        f"(restarts inside the bounds found no lower χ²); widen the bound or fix "
                        f"the parameter")
@@ -1223,9 +1281,30 @@ def _result(problem, best, max_unmatched, max_iterations):
                      chi2_per_dof, unmatched, at_bound, torsional)
 
 
+def _as_given(problem: _Problem, theta, covariance, intervals):
+    """(covariance, correlation, intervals) of the parameters as given from those of the internal θ
+    (:data:`RECIPROCAL`): cov by the delta method, each interval's ends mapped (and swapped where
+    θ = 1/value), inside the bounds as given."""
+    d = _chain(problem, theta)
+    covariance = covariance * np.outer(d, d)
+    with np.errstate(all="ignore"):
+        std = np.sqrt(np.diag(covariance))
+        correlation = covariance / np.outer(std, std)
+    bounds, out = _bounds(problem), {}
+    for k, name in enumerate(problem.free):
+        ends = np.asarray(intervals[name], float)
+        if _recip(problem)[k]:
+            with np.errstate(divide="ignore"):
+                ends = 1.0 / ends[::-1]
+        ends = np.where(np.isnan(ends), ends, np.clip(ends, bounds[k, 0], bounds[k, 1]))
+        out[name] = (float(ends[0]), float(ends[1]))
+    return covariance, correlation, out
+
+
 def _starts(problem: _Problem, initial, grid_points):
-    """Candidate starts: ``initial`` (validated inside the bounds), and a grid of ``grid_points``
-    per parameter or, beyond :data:`MAX_GRID` points, a Latin hypercube of MAX_GRID points."""
+    """Candidate starts (internal θ): ``initial`` (validated inside the bounds), and a grid of
+    ``grid_points`` per parameter or, beyond :data:`MAX_GRID` points, a Latin hypercube of MAX_GRID
+    points, spaced evenly in log for the scales of :data:`LOG_STARTS`, evenly for the others."""
     starts = []
     if initial is not None:
         if not isinstance(initial, Mapping):
@@ -1243,11 +1322,12 @@ def _starts(problem: _Problem, initial, grid_points):
             except (TypeError, ValueError) as exc:
                 raise ValueError(f"initial[{name!r}] must be a real number, got "
                                  f"{initial[name]!r}") from exc
-            if not (problem.lower[i] < value < problem.upper[i]):
+            low, high = _bounds(problem)[i]
+            if not (low < value < high):
                 raise ValueError(f"initial[{name!r}] = {value!r} must lie strictly inside "
-                                 f"({problem.lower[i]!r}, {problem.upper[i]!r})")
+                                 f"({low!r}, {high!r})")
             theta.append(value)
-        starts.append(np.array(theta))
+        starts.append(_internal(problem, np.array(theta)))
     p = len(problem.free)
     if grid_points**p <= MAX_GRID:
         fractions = (np.arange(grid_points) + 0.5) / grid_points
@@ -1256,20 +1336,60 @@ def _starts(problem: _Problem, initial, grid_points):
         rng = np.random.default_rng(0)
         grid = np.stack([(rng.permutation(MAX_GRID) + rng.uniform(size=MAX_GRID)) / MAX_GRID
                          for _ in range(p)], axis=1)
-    return starts, list(problem.lower + (problem.upper - problem.lower) * grid)
+    low, high = _bounds(problem).T
+    log = np.array([name in LOG_STARTS and low[i] > 0 for i, name in enumerate(problem.free)])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        spaced = np.where(log, low * (high / low) ** grid, low + (high - low) * grid)
+    return starts, list(_internal(problem, spaced))
+
+
+SCALE_FACTORS = 121
+"""Frequency factors tried per start of unlabelled peaks (:func:`_scaled_start`)."""
+
+
+def _scaled_start(problem: _Problem, theta, modes):
+    """(start, its wide robust cost) of unlabelled peaks, the frequency scale searched: with μ (or
+    else ρ_s) free, every model frequency is multiplied by a factor k on a log grid of
+    :data:`SCALE_FACTORS` points (μ k² or ρ_s/k² inside its bounds; f ∝ sqrt(μ/ρ_s), exactly at
+    V = 0), the peaks are matched at each (:func:`assign_modes`, wide), and the start moves to the
+    best k, where its cost is evaluated anew (V̂ ∝ 1/sqrt(μ) moves too). A grid of starts spaced
+    in μ alone puts the modes a whole mode spacing apart (0.5 ln 5 = 0.8 in ln f across bounds
+    (2e4, 1e5) Pa), so that the best start of a coarse grid may match every peak to its
+    neighbour's mode; the search finds the scale that the spectrum of peaks sets."""
+    table = _mode_table(problem, theta, modes)
+    wide = _match(problem, table, modes[2], True)[1]
+    names = problem.free
+    which = next((name for name in ("shear_modulus", "density") if name in names), None)
+    if which is None:
+        return theta, wide
+    k = names.index(which)
+    power = 2.0 if which == "shear_modulus" else -2.0  # the parameter moves as k^power
+    low, high = sorted((problem.lower[k] / theta[k], problem.upper[k] / theta[k]))
+    factors = np.exp(np.linspace(math.log(low), math.log(high), SCALE_FACTORS) / power)
+    costs = [_match(problem, table, modes[2], True, factor)[1] for factor in factors]
+    best = int(np.argmin(costs))
+    if costs[best] >= wide:
+        return theta, wide
+    moved = theta.copy()
+    span = problem.upper[k] - problem.lower[k]
+    moved[k] = np.clip(theta[k] * factors[best] ** power, problem.lower[k] + 1e-3 * span,
+                       problem.upper[k] - 1e-3 * span)
+    cost = assign_modes(problem, moved, modes, wide=True)[1]
+    return (moved, cost) if cost <= wide else (theta, wide)
 
 
 def _best_starts(problem, starts, labels, n_starts, modes):
     """``initial`` (first, if given) and the ``n_starts`` candidates of lowest initial cost (the
-    wide robust cost of :func:`assign_modes` for unlabelled peaks, Σ r² of the seeded branches
-    otherwise)."""
+    wide robust cost of :func:`assign_modes` for unlabelled peaks, each start moved to its best
+    frequency scale first (:func:`_scaled_start`); Σ r² of the seeded branches otherwise)."""
     initial, starts = starts
     if n_starts == 0:
         return initial
-    costs = []
-    for theta in starts:
+    costs, starts = [], list(starts)
+    for i, theta in enumerate(starts):
         if labels is None:
-            costs.append(assign_modes(problem, theta, modes, wide=True)[1])
+            starts[i], cost = _scaled_start(problem, theta, modes)
+            costs.append(cost)
         else:
             seed = _seed(problem, theta, labels)
             scale = float(hz_per_omega(_values(problem, theta)))
