@@ -35,10 +35,13 @@ re-seeded from the accepted iterate (the Newton guesses of the next residual), b
 re-checked with the global root scan, and unlabelled peaks are re-assigned to modes with
 :func:`scipy.optimize.linear_sum_assignment`; the problem is tiny (≤ 11 parameters) and its cost
 is the residual/Jacobian evaluation, so a NumPy loop adds nothing measurable (and no dependency
-beyond scipy). Starts: ``initial`` when given, and the best (by initial cost) of a grid inside the
-bounds, or of a Latin hypercube where the grid would exceed :data:`MAX_GRID` points. A parameter
-that stops on a bound (where the sigmoid's slope vanishes) is restarted from inside its bounds,
-and the lower cost is kept.
+beyond scipy). The Gent constant is iterated as θ = 1/G (:data:`RECIPROCAL`): the frequencies are
+nearly linear in 1/G, far from linear in G. Starts: ``initial`` when given, and the best (by
+initial cost) of a grid inside the bounds (spaced in log for the scales of :data:`LOG_STARTS`), or
+of a Latin hypercube where the grid would exceed :data:`MAX_GRID` points; for unlabelled peaks each
+start is first moved to the frequency scale (μ, or else ρ_s) that best matches the peaks
+(:func:`_scaled_start`). A parameter that stops on a bound (where the sigmoid's slope vanishes) is
+restarted from inside its bounds, and the lower cost is kept.
 
 Unlabelled peaks. Given θ, each peak is matched to a mode (m ≤ m_max, 1 ≤ n ≤ n_max, branch <
 n_branches) or declared an outlier, minimising the total cost Σ min(r², τ²) (τ = ``outlier_sigma``
@@ -49,9 +52,11 @@ assignment of a start uses the wide relative tolerance ``threshold``, the later 
 and fit alternate until the labels settle (the robust cost never increases), and the starts are
 compared by that robust cost, so that leaving peaks unmatched is never free.
 
-Uncertainty. At the optimum, cov(θ) = s² (JᵀJ)⁻¹ with J = ∂r/∂θ in the physical parameters; s² = 1
-when ``sigma_Hz`` is given (the 95 % interval is θ ± 1.95996 √cov, normal quantile), otherwise
-s² = Σr²/(N − p) and the interval uses Student's t with N − p degrees of freedom. Where that
+Uncertainty. At the optimum, cov(θ) = s² (JᵀJ)⁻¹ with J = ∂r/∂θ (θ the physical parameters, 1/G
+for the Gent constant); s² = 1 when ``sigma_Hz`` is given (the 95 % interval is θ ± 1.95996 √cov,
+normal quantile), otherwise s² = Σr²/(N − p) and the interval uses Student's t with N − p degrees
+of freedom; G's interval is that of 1/G mapped (asymmetric), its covariance by the delta method.
+Where that
 interval would leave the bounds, the side is replaced by the profile-likelihood one (the others
 re-fitted at each value, the end where Σr² rises by q² s²), which is the bound itself when the
 profile stays below: intervals never leave the bounds, and may be one-sided. A Jacobian whose
@@ -1023,7 +1028,7 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
         n_starts: the number of starts (the lowest initial cost) that are fitted; 0 (with
             ``initial``): ``initial`` only.
         grid_points: candidate starts per free parameter (at fractions (k + ½)/grid_points of
-            each bound interval); beyond :data:`MAX_GRID` candidates in all, a Latin hypercube of
+            each bound interval, in log for :data:`LOG_STARTS`); beyond :data:`MAX_GRID` candidates in all, a Latin hypercube of
             :data:`MAX_GRID` points instead (fixed seed).
         max_iterations: Levenberg–Marquardt iterations per fit.
         max_reassignments: outer assign–fit rounds for unlabelled peaks.
