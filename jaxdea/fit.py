@@ -960,7 +960,8 @@ def _validate(data, free, fixed, fluid):
     names = tuple(free)
     reciprocal = np.array([name in RECIPROCAL for name in names])
     bounds = np.stack([lower, upper], axis=1)
-    inside = np.where(reciprocal[:, None], 1.0 / bounds[:, ::-1], bounds)  # θ's bounds
+    with np.errstate(divide="ignore"):  # a bound 0 of a parameter that is not reciprocal
+        inside = np.where(reciprocal[:, None], 1.0 / bounds[:, ::-1], bounds)  # θ's bounds
     problem = _Problem(voltage, frequency_hz, np.ones_like(voltage) if sigma is None else sigma,
                        sigma is not None, names, inside[:, 0].copy(), inside[:, 1].copy(), base,
                        np.array([NAMES.index(k) for k in names]), 0, coupling, bessel_order,

@@ -288,7 +288,8 @@ def test_grid_start_converges_without_an_initial_guess():
 
 @pytest.mark.slow
 def test_water_filled_tube_recovers_modulus_and_fluid_density():
-    """Acoustic coupling: ρ̂_f = ρ_f/ρ_s, ĉ_f = c_f/c_s from the SI names (units.fluid_from_si)."""
+    """Acoustic coupling: ρ̂_f = ρ_f/ρ_s, ĉ_f = c_f/c_s from the SI names (units.fluid_from_si);
+    both to 1e-8 on exact peaks, with the μ–ρ_f correlation beyond 0.99 named in a warning."""
     truth = TRUTH | dict(fluid_density=1000.0, fluid_speed=1480.0)
     scales = Scales(truth["shear_modulus"], truth["density"], truth["permittivity"],
                     truth["inner_radius"])
@@ -306,9 +307,11 @@ def test_water_filled_tube_recovers_modulus_and_fluid_density():
                 n=table[:, 3].astype(int))
     free = dict(shear_modulus=(5e4, 2e5), fluid_density=(500.0, 2000.0))
     fixed = {k: v for k, v in truth.items() if k not in free}
-    result = fit(data, free, fixed, fluid="acoustic",
-                         initial=dict(shear_modulus=1.2e5, fluid_density=800.0),
-                         n_layers=N_LAYERS, n_starts=1, grid_points=1)
+    # these eight peaks determine μ and ρ_f through a combination (correlation +0.995): said
+    with pytest.warns(IdentifiabilityWarning, match="shear_modulus and fluid_density"):
+        result = fit(data, free, fixed, fluid="acoustic",
+                     initial=dict(shear_modulus=1.2e5, fluid_density=800.0),
+                     n_layers=N_LAYERS, n_starts=1, grid_points=1)
     assert result.status == FitStatus.CONVERGED
     for name in free:
         assert abs(result.estimate[name] / truth[name] - 1.0) <= 1e-8, name
