@@ -1,9 +1,11 @@
-"""``jax.vmap`` of the solvers (jaxdea.roots.one_point_at_a_time): on the CPU a batch of points is
-mapped one point after another, the values equal the points solved alone (to rounding, the
-standard of tests/test_determinism.py), statuses equal, and implicit derivatives pass through the
-vmapped call (forward and reverse mode), also over tube parameters, some arguments batched only,
-and nested vmaps. The default run checks the frequencies and the critical voltages' values; the
-derivatives of ``frequency`` and ``critical_voltage`` and forward mode are marked slow."""
+"""``jax.vmap`` of the solvers (jaxdea.roots.one_point_at_a_time): on the CPU a batch over α̂ alone
+is continued along α̂ (jaxdea.curves.frequencies_along, critical_voltages_along: continuation where
+the batch is ordered, the scan of each point where not), any other batch is mapped one point after
+another; the values equal the points solved alone (to rounding, the standard of
+tests/test_determinism.py), statuses equal, and implicit derivatives pass through the vmapped call
+(forward and reverse mode), also over tube parameters, some arguments batched only, and nested
+vmaps. The default run checks the frequencies and the critical voltages' values; the derivatives
+of ``frequency`` and ``critical_voltage`` and forward mode are marked slow."""
 
 import jax
 import jax.numpy as jnp
@@ -12,6 +14,7 @@ import pytest
 from conftest import fd_derivative
 
 import jaxdea as jd
+from jaxdea import roots
 from jaxdea.scalar import Status
 
 TUBE = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
@@ -44,14 +47,45 @@ def test_vmapped_frequencies_equal_the_points_alone():
     _assert_roots_equal(jax.tree_util.tree_map(lambda x: x[:-1], batched), alone)
 
 
-def test_the_batch_is_mapped_not_vectorised():
-    """The vmapped scan is a loop over the points (a scan of the batch's length) around the
-    one-point solver, not a vectorised copy of its while loops."""
-    jaxpr = jax.make_jaxpr(jax.vmap(lambda a: jd.frequencies(TUBE, a, n_roots=2, n_layers=N)))(
-        jnp.asarray(ALPHA))
+def test_a_batch_over_alpha_alone_is_continued_any_other_is_mapped(monkeypatch):
+    """A batch over α̂ alone goes to the continuation engine (with the 4×4 propagation for a
+    concrete V̂ = 0, the 6×6 one otherwise); with the tube batched too, the vmapped scan is a loop
+    over the points (a scan of the batch's length) around the one-point solver, not a vectorised
+    copy of its while loops. Traced only."""
+    calls = []
+    engine = roots.BATCH_ENGINES["frequencies"]
+    monkeypatch.setitem(roots.BATCH_ENGINES, "frequencies",
+                        lambda *args, **static: calls.append(static) or engine(*args, **static))
+    alpha = jnp.asarray(ALPHA)
+    for tube, decoupled in ((TUBE, False), (TUBE.replace(voltage=0.0), True)):
+        jax.make_jaxpr(jax.vmap(lambda a, t=tube: jd.frequencies(t, a, n_roots=2, n_layers=N)))(alpha)
+        assert calls[-1]["decoupled"] is decoupled
+    assert len(calls) == 2
+    jaxpr = jax.make_jaxpr(jax.vmap(lambda li, a: jd.frequencies(TUBE.replace(lambda_i=li), a, n_roots=2,
+                                                                 n_layers=N)))(0.9 + 0.0 * alpha, alpha)
+    assert len(calls) == 2
     scans = [e for e in jaxpr.jaxpr.eqns if e.primitive.name == "scan"]
     assert [e.params["length"] for e in scans] == [len(ALPHA)]
     assert all(v.aval.shape[:1] == (len(ALPHA),) for v in scans[0].outvars)
+
+
+def test_continued_batches_equal_the_points_alone():
+    """Over α̂ alone, ordered upwards, downwards and shuffled (every point scanned), with an α̂
+    below ALPHA_MIN (INVALID) and a search range omega_max = 2.5 that holds 2, 1 or no roots at
+    the points: the roots of the points alone inside (0, 2.5], NaN-padded with status NO_ROOT
+    (the second root, continued from 2.26 at α̂ = 1 to 2.53 at α̂ = 1.2, leaves the range there:
+    that step is scanned)."""
+    alpha, limit = np.array([1e-13, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.4, 3.0, 5.0]), 2.5
+    batched = jax.jit(jax.vmap(lambda a, w: _roots(TUBE, a, omega_max=w), in_axes=(0, None)))
+    alone = _stacked([_roots(TUBE, float(a)) for a in alpha[1:]])
+    inside = np.asarray(alone.omega) <= limit
+    assert inside.sum(axis=1).tolist() == [2, 2, 2, 2, 2, 1, 1, 1, 0]
+    expected = jd.Roots(np.vstack([np.full(2, np.nan), np.where(inside, alone.omega, np.nan)]),
+                        np.vstack([np.full(2, Status.INVALID),
+                                   np.where(inside, alone.status, Status.NO_ROOT)]))
+    for order in (np.arange(10), np.arange(10)[::-1], np.array([3, 8, 0, 5, 9, 1, 7, 4, 2, 6])):
+        got = batched(jnp.asarray(alpha[order]), limit)
+        _assert_roots_equal(got, jax.tree_util.tree_map(lambda x, o=order: x[o], expected))
 
 
 def test_vmap_over_tube_parameters_with_some_arguments_batched():
@@ -142,7 +176,8 @@ def test_vmapped_frequency_equals_the_points_alone_and_differentiates():
 
 
 def test_vmapped_critical_voltages_equal_the_points_alone():
-    """Over α̂ and a batched λ_i (under jit)."""
+    """Over α̂ and a batched λ_i (under jit: mapped), and over α̂ alone, ordered and shuffled
+    (continued along α̂ where ordered)."""
     stretches = jnp.array([0.9, 0.95, 1.05])
     batched = jax.jit(jax.vmap(lambda li, a: jd.solve_critical_voltage(
         TUBE.replace(lambda_i=li), a, n_layers=N)))(stretches, jnp.asarray(ALPHA[:3]))
@@ -150,6 +185,11 @@ def test_vmapped_critical_voltages_equal_the_points_alone():
                       for li, a in zip(stretches, ALPHA[:3], strict=True)])
     assert np.all(np.asarray(batched.status) == Status.CONVERGED)
     _assert_roots_equal(batched, alone)
+    over_alpha = jax.jit(jax.vmap(lambda a: jd.solve_critical_voltage(TUBE, a, n_layers=N)))
+    alone = _stacked([jd.solve_critical_voltage(TUBE, float(a), n_layers=N) for a in ALPHA])
+    for order in (np.arange(4), np.array([2, 0, 3, 1])):
+        _assert_roots_equal(over_alpha(jnp.asarray(ALPHA[order])),
+                            jax.tree_util.tree_map(lambda x, o=order: x[o], alone))
 
 
 @pytest.mark.slow
