@@ -1,18 +1,19 @@
 """The straightforward NumPy/SciPy implementation of jaxdea's method: the baseline of the benchmarks.
 
-This is the code a researcher would write from theory.md §1–4, independent of jaxdea (no import of
-it): the same corrected physics and the same discretisation, in plain NumPy/SciPy loops.
+This is the code a researcher would write from docs/theory/axisymmetric.md §1–4, independent of jaxdea (no
+import of it): the same corrected physics and the same discretisation, in plain NumPy/SciPy loops.
 
-* Base state (theory.md §1): λ(r̂) = r̂/sqrt(λ_z(r̂² − r̂_i²) + 1), D̂_r = V̂/(r̂ ln(r̂_o/r̂_i)),
+* Base state (docs/theory/axisymmetric.md §1): λ(r̂) = r̂/sqrt(λ_z(r̂² − r̂_i²) + 1),
+  D̂_r = V̂/(r̂ ln(r̂_o/r̂_i)),
   ΔP̂ = ∫ 2W_1(λ² − λ_r²) dr̂/r̂ − V̂²(1 − r̂_i²/r̂_o²)/(2 r̂_i² ln²(r̂_o/r̂_i)) by ``scipy.integrate.quad``,
   p̂ = 2W_1λ_r² + D̂_r² − τ̂_rr (gauge P̂_o = 0, P̂_i = ΔP̂), Gent W_1 = 1/(2[1 − (I_1 − 3)/G]),
   W_11 = 2W_1²/G.
-* Closed-form moduli combinations a, b, c, d, g, q (theory.md §3, corrected Eq. 33) and the 6×6
-  state matrix M(r̂) (corrected Eq. 40).
+* Closed-form moduli combinations a, b, c, d, g, q (docs/theory/axisymmetric.md §3, corrected Eq. 33) and the
+  6×6 state matrix M(r̂) (corrected Eq. 40).
 * Laminate (Eqs. 42–44): N equal sublayers, T_k = ``scipy.linalg.expm``((ĥ/N) M(r̂_k)) at the
   mid-radii, A = T_N ⋯ T_1 (plain 6×6 products).
-* Characteristic function (theory.md §4): det(B A S) with B the rows Φ, T̄, S̄ at r̂_o and S the 6×3
-  initial basis (follower pressure ΔP̂ at r̂_i; the consistent acoustic fluid coupling with the
+* Characteristic function (docs/theory/axisymmetric.md §4): det(B A S) with B the rows Φ, T̄, S̄ at r̂_o and S
+  the 6×3 initial basis (follower pressure ΔP̂ at r̂_i; the consistent acoustic fluid coupling with the
   pole-free pair N_0 = r̂_i J_0(x), D_0 = −x J_1(x), or r̂_i I_0(x̃), x̃ I_1(x̃), from
   ``scipy.special``). ``normalise=True`` returns det(B Q) with A S = Q R the QR factorisation
   (diag R > 0): the same zeros and sign, in [−1, 1]; Q is unique, so this is the very function that
@@ -118,13 +119,13 @@ def _electric_integral(tube, r_end):
 
 
 def pressure_difference(tube) -> float:
-    """ΔP̂ (theory.md Eq. 1.1)."""
+    """ΔP̂ (docs/theory/axisymmetric.md Eq. 1.1)."""
     _, ro = radii(tube)
     return _elastic_integral(tube, ro) - _electric_integral(tube, ro)
 
 
 def coefficients(tube, r, delta_p):
-    """a, b, c, d, g, q, p at the radii r (theory.md §3 closed forms; p from Eq. 1.3)."""
+    """a, b, c, d, g, q, p at the radii r (docs/theory/axisymmetric.md §3 closed forms; p from Eq. 1.3)."""
     lz, gent = float(tube.lambda_z), float(tube.gent)
     ri, ro = radii(tube)
     lam, lam_r = _stretches(tube, r)
@@ -155,7 +156,7 @@ def discretize(tube, n_layers: int) -> Wall:
 
 
 def state_matrix(coef, k, r, omega, alpha):
-    """M(r̂) of theory.md §3 at sublayer k (ε = 1)."""
+    """M(r̂) of docs/theory/axisymmetric.md §3 at sublayer k (ε = 1)."""
     a, b, c, d, g, q, p = (coef[x][k] for x in "abcdgqp")
     shear = c - d * d
     d1, d2, d3, d4, d5 = (p - d * d) / shear, d / shear, 1.0 / shear, 2.0 * d, c / shear
@@ -181,7 +182,7 @@ def transfer_matrix(wall: Wall, omega, alpha):
 
 
 def fluid_pair(omega, alpha, r_inner, fluid):
-    """(N_0, D_0) with B̂_0 = N_0/D_0 (theory.md §4(c)), up to a common positive factor."""
+    """(N_0, D_0) with B̂_0 = N_0/D_0 (docs/theory/axisymmetric.md §4(c)), up to a common positive factor."""
     chi2 = (omega / fluid.speed_ratio) ** 2 - alpha**2
     if chi2 > 0:
         x = math.sqrt(chi2) * r_inner
@@ -193,7 +194,8 @@ def fluid_pair(omega, alpha, r_inner, fluid):
 
 
 def initial_basis(wall: Wall, omega, alpha, fluid=None):
-    """S (6×3) with Y(r̂_i) = S [ū_i, w̄_i, D̄_i] (theory.md §4), the fluid denominator cleared."""
+    """S (6×3) with Y(r̂_i) = S [ū_i, w̄_i, D̄_i] (docs/theory/axisymmetric.md §4), the fluid denominator
+    cleared."""
     p, ri = wall.pressure_inner, wall.r_inner
     s = np.zeros((6, 3))
     s[U, 0], s[T, 0], s[S, 0] = 1.0, -p / ri, -alpha * p

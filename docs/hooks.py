@@ -5,6 +5,8 @@ reST cross-references become links."""
 from __future__ import annotations
 
 import ast
+import html
+import os
 import re
 from pathlib import Path
 
@@ -65,6 +67,16 @@ def api_markdown(init_file: Path) -> str:
     return "\n".join(lines)
 
 
+def on_config(config):
+    """The notebooks run at build time on their quick grids (``JAXDEA_NOTEBOOK_FAST=1``, unless the
+    environment says otherwise), sharing one compile cache; ``JAXDEA_DOCS_EXECUTE=0`` shows them
+    unexecuted (a fast build: the docs test of the default tier)."""
+    os.environ.setdefault("JAXDEA_NOTEBOOK_FAST", "1")
+    if os.environ.get("JAXDEA_DOCS_EXECUTE") == "0":
+        config["plugins"]["mkdocs-jupyter"].config["execute"] = False
+    return config
+
+
 def on_page_markdown(markdown, page, config, files):
     if MARKER not in markdown:
         return markdown
@@ -89,4 +101,67 @@ def resolve_roles(page_html: str) -> str:
 
 
 def on_page_content(html, page, config, files):
-    return resolve_roles(html) if ":<code>" in html else html
+    html = resolve_roles(html) if ":<code>" in html else html
+    html = typeset_math(html) if 'class="arithmatex"' in html else html
+    return link_theory(html, page, Path(config["docs_dir"])) if "docs/theory/" in html else html
+
+
+# ----------------------------------------------------------------------------- math and theory
+
+MATH = re.compile(r'<(span|div) class="arithmatex">(.*?)</\1>', re.S)
+THEORY_CITATION = re.compile(r"docs/theory/(\w+)\.md(?:(?:,? (?:§|section )|#)(\d+))?")
+
+
+def typeset_math(page_html: str) -> str:
+    """Each formula that ``pymdownx.arithmatex`` marked (``\\(…\\)`` inline, ``\\[…\\]`` display) becomes
+    MathML (latex2mathml), which browsers typeset natively: no script, no network."""
+    from latex2mathml.converter import convert
+
+    def mathml(match):
+        tag, body = match.groups()
+        latex = html.unescape(body.strip())
+        display = tag == "div"
+        latex = latex[2:-2] if latex[:2] in ("\\(", "\\[") else latex
+        return convert(latex, display="block" if display else "inline")
+
+    return MATH.sub(mathml, page_html)
+
+
+def section_anchors(theory_file: Path) -> dict[str, str]:
+    """{section number: heading anchor} of a theory page (``## N. Title``), as the toc extension
+    writes the anchors."""
+    from markdown.extensions.toc import slugify
+
+    anchors = {}
+    for line in theory_file.read_text(encoding="utf-8").splitlines():
+        match = re.match(r"^## (\d+)\. (.*)$", line)
+        if match:
+            anchors[match.group(1)] = slugify(f"{match.group(1)}. {match.group(2)}", "-")
+    return anchors
+
+
+def link_theory(page_html: str, page, docs_dir: Path) -> str:
+    """Citations ``docs/theory/NAME.md §N`` (docstrings, pages) become links to that section of the
+    theory page; outside tags only (text, code spans)."""
+    from mkdocs.utils import get_relative_url
+
+    anchors = {f.stem: section_anchors(f) for f in (docs_dir / "theory").glob("*.md")}
+
+    def link(match):
+        name, section = match.groups()
+        if name not in anchors:
+            return match.group(0)
+        target = get_relative_url(f"theory/{name}/", page.url)
+        anchor = anchors[name].get(section or "", "")
+        return f'<a href="{target}{"#" + anchor if anchor else ""}">{match.group(0)}</a>'
+
+    parts = re.split(r"(<[^>]*>)", page_html)
+    inside_link = False
+    for k, part in enumerate(parts):
+        if part.startswith("<a ") or part == "<a>":
+            inside_link = True
+        elif part == "</a>":
+            inside_link = False
+        elif not part.startswith("<") and not inside_link and "docs/theory/" in part:
+            parts[k] = THEORY_CITATION.sub(link, part)
+    return "".join(parts)

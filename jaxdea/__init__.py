@@ -1,10 +1,12 @@
 """jaxdea: differentiable dispersion (every circumferential order m) of pre-stretched, voltage-driven soft dielectric
-elastomer tubes, empty or filled with an inviscid compressible fluid (see theory.md).
+elastomer tubes, empty or filled with an inviscid compressible fluid (see docs/theory/axisymmetric.md).
 
 64-bit floats are required: ``jax.config.update("jax_enable_x64", True)`` before use.
 Importing jaxdea changes nothing in the process; :func:`configure` opts in to the on-disk program
 cache and XLA's loop threshold (:mod:`jaxdea.compiled`).
 """
+
+from importlib import metadata as _metadata
 
 from . import compiled, units
 from .accuracy import Estimate, frequencies_with_error
@@ -23,7 +25,7 @@ from .dispersion import characteristic
 from .explore import explore  # ipywidgets is imported on the first call only
 from .fit import FitResult, FitStatus, IdentifiabilityWarning, fit, fitted_frequencies
 from .fit_io import plot_fit, read_peaks, write_fit, write_peaks
-from .modes import fluid_pressure, mode_shape
+from .modes import ModeShape, fluid_pressure, mode_shape
 from .params import Fluid, Tube, axial_wavenumber
 from .roots import (
     Instability,
@@ -87,6 +89,7 @@ __all__ = [
     "inner_stretch",
     "maximise_tunability",
     "mode_shape",
+    "ModeShape",
     "phase_velocity",
     "plot_fit",
     "pressure_difference",
@@ -106,5 +109,8 @@ __all__ = [
     "write_fit",
     "write_peaks",
 ]
-__version__ = "0.1.0"
+try:
+    __version__ = _metadata.version("jaxdea")
+except _metadata.PackageNotFoundError:  # a source tree that is not installed
+    __version__ = "0+unknown"
 

@@ -47,7 +47,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .compiled import cached_jit, serializable
-from .params import Fluid, Tube, canonical, validate_count, validate_layers
+from .params import Fluid, Tube, canonical, validate_layers, validate_roots
 from .roots import _guard_order, _order_inputs, _problem, guard, scan_step, solve_frequencies
 from .state_matrix import LONGITUDINAL
 from .scalar import Status, run_lanes, start_lanes
@@ -123,14 +123,14 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
             level follows the roots of that order.
 
     Returns:
-        :class:`Estimate`.
+        An instance of :class:`Estimate`.
 
-    Example:
+    Examples:
         >>> est = frequencies_with_error(Tube(), 0.445, rtol=1e-10)
         >>> est.omega, est.error
     """
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
-    n_roots = validate_count("n_roots", n_roots)
+    n_roots = validate_roots(n_roots)
     base = laminate(n_layers, scheme, *canonical(tube, alpha), n_roots, canonical(m))
     count, scheme = split_layers(base)
     graded = is_graded(base)

@@ -1,4 +1,5 @@
-"""Static (biasing) deformation and field of the tube (theory.md §1; paper Eqs. 5–8, 15–17 corrected).
+"""Static (biasing) deformation and field of the tube (docs/theory/axisymmetric.md §1; paper Eqs. 5–8, 15–17
+corrected).
 
 All lengths are in units of R_i and stresses in units of μ. The reference gauge is P_o = 0,
 P_i = ΔP̂. The elastic integral of Eq. (1.1) is rational in x = λ² for the Gent and neo-Hookean
@@ -79,7 +80,8 @@ def _w1(tube: Tube, r):
 
 
 def _elastic_integrand(tube: Tube, r):
-    """2W_1(λ² − λ_r²)/r̂, the elastic part of the radial equilibrium integrand (theory.md 1.1)."""
+    """2W_1(λ² − λ_r²)/r̂, the elastic part of the radial equilibrium integrand (docs/theory/axisymmetric.md
+    1.1)."""
     w1, lam = _w1(tube, r)
     lam_r = 1.0 / (lam * as_float(tube.lambda_z))
     return 2.0 * w1 * (lam**2 - lam_r**2) / r
@@ -195,7 +197,8 @@ def _electric_integral(tube: Tube, width):
 
 
 def pressure_difference_unchecked(tube: Tube):
-    """ΔP̂ = P̂_i − P̂_o holding the tube at (λ_i, λ_z, V̂) (theory.md Eq. 1.1; corrected paper Eq. 15)."""
+    """ΔP̂ = P̂_i − P̂_o holding the tube at (λ_i, λ_z, V̂) (docs/theory/axisymmetric.md Eq. 1.1; corrected
+    paper Eq. 15)."""
     geo = geometry(tube)
     return _elastic_integral(tube, geo.thickness) - _electric_integral(tube, geo.thickness)
 
@@ -203,10 +206,10 @@ def pressure_difference_unchecked(tube: Tube):
 def pressure_difference(tube: Tube):
     """Static pressure difference ΔP̂ = (P_i − P_o)/μ that holds the tube at (λ_i, λ_z, V̂).
 
-    Equation (1.1) of theory.md (the paper's Eq. 15 corrected, erratum E4):
+    Equation (1.1) of docs/theory/axisymmetric.md (the paper's Eq. 15 corrected, erratum E4):
     ΔP̂ = ∫ 2W_1(λ² − λ_r²) dr̂/r̂ − V̂²(1 − r̂_i²/r̂_o²)/(2 r̂_i² ln²(r̂_o/r̂_i)).
 
-    Example:
+    Examples:
         >>> float(pressure_difference(Tube(lambda_i=1.2 ** -0.5, lambda_z=1.2)))  # homogeneous
         0.0
     """
@@ -231,7 +234,7 @@ class BaseState(NamedTuple):
 
 
 def base_state(tube: Tube, r) -> BaseState:
-    """λ(r̂), D̂_r(r̂) and the Lagrange multiplier p̂(r̂) of theory.md Eqs. (1.2)–(1.3).
+    """λ(r̂), D̂_r(r̂) and the Lagrange multiplier p̂(r̂) of docs/theory/axisymmetric.md Eqs. (1.2)–(1.3).
 
     p̂ = 2W_1λ_r² + D̂_r² − τ̂_rr, τ̂_rr(r̂) = −ΔP̂ + ∫_{r̂_i}^{r̂} [2W_1(λ² − λ_r²) − D̂_r²] dr̂/r̂.
     """
@@ -310,7 +313,7 @@ def _stretch_grid(lower=0.05, upper=20.0, points=400):
 def inner_stretch(tube: Tube, delta_p=0.0):
     """λ_i of the stable static state at pressure difference ΔP̂, voltage V̂ and stretch λ_z.
 
-    Solves ΔP̂_el(λ_i) − V̂²E(λ_i) = ΔP̂ (theory.md Eq. 1.1) on the branch connected to the
+    Solves ΔP̂_el(λ_i) − V̂²E(λ_i) = ΔP̂ (docs/theory/axisymmetric.md Eq. 1.1) on the branch connected to the
     unpressurised small-λ_i states: the first sign change of V̂²E + ΔP̂ − ΔP̂_el on a geometric λ_i grid
     (0.05 … 20), refined by safeguarded Newton. Beyond pull-in (no such state) the result is NaN with
     status NO_ROOT. Derivatives with respect to ΔP̂ and every tube leaf are implicit.
@@ -360,8 +363,8 @@ def _inner_stretch_unchecked(tube: Tube, delta_p):
 def pull_in(tube: Tube, delta_p=0.0):
     """Pull-in point of the static response at fixed ΔP̂: the first maximum of V̂(λ_i).
 
-    V̂²(λ_i) = (ΔP̂_el(λ_i) − ΔP̂)/E(λ_i) (theory.md Eq. 1.1 solved for V̂²); the pull-in point is its
-    first local maximum beyond the unpressurised state, where d(V̂²)/dλ_i = 0 (refined by
+    V̂²(λ_i) = (ΔP̂_el(λ_i) − ΔP̂)/E(λ_i) (docs/theory/axisymmetric.md Eq. 1.1 solved for V̂²); the pull-in
+    point is its first local maximum beyond the unpressurised state, where d(V̂²)/dλ_i = 0 (refined by
     safeguarded Newton with the autodiff second derivative). Differentiable by implicit derivatives.
 
     Returns:

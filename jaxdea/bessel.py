@@ -1,4 +1,4 @@
-"""Entire Bessel combinations for the fluid coupling functions (theory.md §4(b), §4(c)).
+"""Entire Bessel combinations for the fluid coupling functions (docs/theory/axisymmetric.md §4(b), §4(c)).
 
 For s = χ̂² r̂_i² (either sign) and an integer order ν ≥ 0 this module returns the pair
 

@@ -3,33 +3,45 @@
 DATA.csv --config fit.toml`` (material and geometry from measured resonances: a summary, JSON and a
 plot; :mod:`jaxdea.fit_io`).
 
-:func:`main` takes the arguments as a list and returns the exit status (0: done, 2: bad usage or a
-bad configuration, reported in one line on stderr without a traceback).
+:func:`main` takes the arguments as a list and returns the exit status (0: done, 2: any error,
+reported in one line on stderr without a traceback; 130: Ctrl-C, 143: SIGTERM, also one line).
+Outputs are written through :mod:`jaxdea.files`: whole or not at all.
 """
 
 import argparse
+import contextlib
 import importlib.util
 import itertools
 import os
+import signal
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
 import jax
 import numpy as np
 
+from .files import save_figure, write_together
+from .plotstyle import LABELS, OMEGA_LABEL, SYMBOLS  # axis labels: the style of every figure
+
 TABLE_HELP = """Lowest three frequencies Ω of the paper's tube (η = 0.85, λ_z = 1.2, G = 97.2) for
 λ_i = 0.9 and 1.1, V̂ = 0 and 0.2, axial modes n = 1..3: empty, filled with the consistent
-acoustic fluid (ρ̂_f = 0.13, ĉ_f = 0.27) and with the paper's coupling (Bessel order ν = n)."""
+acoustic fluid (ρ̂_f = 0.13, ĉ_f = 0.27) and with the paper's coupling (Bessel order ν = n).
+A row past the tube's first instability (V̂ ≥ V̂_first over m ≤ 4, n ≤ 3) is marked; where V̂ ≥ V̂_cr
+of the axisymmetric mode n its lowest root is imaginary and Ω_1 is the next branch (said so)."""
 
 
-def paper_table(n_layers=30, n_modes=3, n_roots=3):
-    """Rows (lambda_i, voltage, n, alpha, model, roots) of the paper's-tube table."""
+def paper_table(n_layers=30, n_modes=3, n_roots=3, log=None):
+    """Rows (lambda_i, voltage, n, alpha, model, roots) of the paper's-tube table; ``log(message)``
+    reports the progress, model by model."""
     import jaxdea as jd
 
     rows = []
     for model in ("empty", "acoustic", "paper"):
+        if log is not None:
+            log(f"  {model}: {2 * 2 * n_modes} cases")
         for lambda_i in (0.9, 1.1):
             for voltage in (0.0, 0.2):
                 tube = jd.Tube(voltage=voltage, lambda_i=lambda_i, lambda_z=1.2, eta=0.85)
@@ -42,11 +54,48 @@ def paper_table(n_layers=30, n_modes=3, n_roots=3):
     return rows
 
 
+def table_stability(rows, n_layers=30, m_max=4, n_max=3):
+    """({λ_i: (V̂_first, m, n)} of :func:`jaxdea.first_instability` over m ≤ ``m_max``, n ≤ ``n_max``,
+    {(λ_i, n): V̂_cr of the axisymmetric mode n}) of the tubes of :func:`paper_table`'s ``rows``;
+    both independent of V̂ and of the fluid."""
+    import jaxdea as jd
+
+    first, critical = {}, {}
+    for lambda_i, _, n, alpha, _, _ in rows:
+        tube = jd.Tube(lambda_i=lambda_i, lambda_z=1.2, eta=0.85)
+        if lambda_i not in first:
+            found = jd.first_instability(tube, n_max=n_max, m_max=m_max, n_layers=n_layers)
+            first[lambda_i] = (float(found.voltage), int(found.m), int(found.n))
+        if (lambda_i, n) not in critical:
+            critical[lambda_i, n] = float(jd.critical_voltage(tube, alpha, n_layers=n_layers))
+    return first, critical
+
+
+def row_notes(voltage, first, v_cr) -> str:
+    """What a table row must say about its state: past the first instability (the rule of
+    :func:`jaxdea.plotstyle.past_first_instability`), and whether its lowest root has gone imaginary."""
+    from .plotstyle import past_first_instability
+
+    notes = []
+    v_first, m, n = first
+    if past_first_instability(voltage, v_first):
+        notes.append(f"UNSTABLE: past the first instability (m, n) = ({m}, {n}) at V̂_first = {v_first:.4f}")
+    if np.isfinite(v_cr) and voltage >= v_cr:
+        notes.append(f"lowest root imaginary (V̂ ≥ V̂_cr = {v_cr:.4f}): Ω_1 is the next branch")
+    return "; ".join(notes)
+
+
 def _table(args):
     if args.n_layers < 1:
         return _error("table", "--n-layers must be >= 1")
     t0 = time.perf_counter()
-    rows = paper_table(n_layers=args.n_layers)
+    log = None if args.quiet else (lambda message: print(message, file=sys.stderr, flush=True))
+    if log:
+        log("solving 36 cases of the paper's tube (a first run is compiling the solvers, once…)")
+    rows = paper_table(n_layers=args.n_layers, log=log)
+    if log:
+        log("  the first instability and the critical voltages…")
+    first, critical = table_stability(rows, n_layers=args.n_layers)
     header = f"{'model':>8} {'λ_i':>5} {'V̂':>5} {'n':>2} {'α̂':>8}   Ω_1 … Ω_3"
     print(TABLE_HELP.replace("\n", " "))
     print(header)
@@ -54,34 +103,14 @@ def _table(args):
     for lambda_i, voltage, n, alpha, model, roots in rows:
         values = "  ".join(f"{float(w):12.8f}" for w in roots.omega)
         flags = "" if int(roots.status.max()) == 0 else f"  status {roots.status.tolist()}"
-        print(f"{model:>8} {lambda_i:5.2f} {voltage:5.2f} {n:2d} {alpha:8.5f}   {values}{flags}")
+        notes = row_notes(voltage, first[lambda_i], critical[lambda_i, n])
+        print(f"{model:>8} {lambda_i:5.2f} {voltage:5.2f} {n:2d} {alpha:8.5f}   {values}{flags}"
+              + (f"  [{notes}]" if notes else ""))
     print(f"({len(rows)} cases, N = {args.n_layers} sublayers, {time.perf_counter() - t0:.1f} s)")
     return 0
 
 
-# axis labels (matplotlib mathtext): the symbol, and the dimensionless quantity it stands for
-SYMBOLS = {
-    "voltage": r"$\hat V$", "lambda_i": r"$\lambda_i$", "lambda_z": r"$\lambda_z$", "eta": r"$\eta$",
-    "gent": r"$G$", "length_ratio": r"$L/R_o$", "thickness_ratio": r"$h/R_i$",
-    "density_ratio": r"$\hat\rho_f$", "speed_ratio": r"$\hat c_f$", "alpha": r"$\hat\alpha$", "n": r"$n$",
-    "m": r"$m$",
-}
-LABELS = {
-    "voltage": r"voltage $\hat V = V\sqrt{\varepsilon/\mu}\,/R_i$",
-    "lambda_i": r"inner circumferential stretch $\lambda_i = r_i/R_i$",
-    "lambda_z": r"axial stretch $\lambda_z = l/L$",
-    "eta": r"radius ratio $\eta = R_i/R_o$",
-    "gent": r"Gent constant $G$",
-    "length_ratio": r"length ratio $L/R_o$",
-    "thickness_ratio": r"deformed wall thickness $h/R_i$",
-    "density_ratio": r"density ratio $\hat\rho_f = \rho_f/\rho_s$",
-    "speed_ratio": r"sound speed ratio $\hat c_f = c_f/c_s$",
-    "alpha": r"axial wavenumber $\hat\alpha = \alpha R_i$",
-    "n": r"axial mode number $n$ ($\hat\alpha = 2n\pi\eta/(\lambda_z L/R_o)$)",
-    "m": r"circumferential order $m$ (modes $\propto \cos m\theta$)",
-}
 INTEGER_AXES = ("n", "m")  # axes of integers: integer ticks
-OMEGA_LABEL = r"frequency $\Omega = \omega R_i/c_s$,  $c_s = \sqrt{\mu/\rho_s}$"
 LINE_STYLES = ("-", "--", ":", "-.")
 
 
@@ -92,10 +121,20 @@ def plot_sweep(result, x_name, path, title=None):
     Returns:
         The matplotlib Figure (not shown; no pyplot state is touched).
     """
+    from .plotstyle import style
+
+    with style():
+        return _draw_sweep(result, x_name, path, title)
+
+
+def _draw_sweep(result, x_name, path, title):
+    """:func:`plot_sweep`'s drawing, in the figures' style."""
     from matplotlib import colormaps
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
     from matplotlib.ticker import MaxNLocator
+
+    from .plotstyle import SAVE_DPI
 
     names = list(result.axes)
     x = np.asarray(result.axes[x_name])
@@ -129,7 +168,7 @@ def plot_sweep(result, x_name, path, title=None):
     _si_axes(ax, result, x_name)
     ax.set_title(title or _auto_title(result, others), fontsize="medium")
     ax.grid(alpha=0.3)
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=SAVE_DPI)
     return fig
 
 
@@ -165,6 +204,10 @@ def _auto_title(result, others):
     return f"{result.omega.shape[-1]} lowest frequencies, {case}\n{values}"
 
 
+INTERRUPTED = ("every output file is whole: written completely, or left as it was before the "
+               "command")
+
+
 def _error(command, message):
     """Report an error in one line on stderr; the exit status 2."""
     print(f"jaxdea {command}: error: {' '.join(str(message).split())}", file=sys.stderr)
@@ -189,6 +232,7 @@ def _writable_folder(out):
 def _sweep(args):
     from . import Fluid, Status, Tube, sweep
     from .config import SUFFIXES, load_config
+    from .sweeps import SweepInterrupted
 
     try:
         cfg = load_config(args.config)
@@ -197,7 +241,10 @@ def _sweep(args):
     if "netcdf" in cfg.formats and not all(importlib.util.find_spec(m) for m in ("xarray", "netCDF4")):
         return _error("sweep", "output format netcdf needs xarray and netCDF4: "
                       "pip install 'jaxdea[xarray]'")
-    out = Path(args.out) if args.out is not None else Path(args.config).parent / (cfg.out_dir or "")
+    if args.out is not None:
+        out = Path(args.out)
+    else:
+        out = Path(args.config).parent / cfg.out_dir if cfg.out_dir else Path()
     problem = _writable_folder(out)
     if problem:
         return _error("sweep", problem)
@@ -208,20 +255,19 @@ def _sweep(args):
         result = sweep(tube, fluid, progress=False if args.quiet else None, **cfg.sweep_arguments())
     except ValueError as exc:
         return _error("sweep", exc)
-    if cfg.scales is not None:
-        result = result.with_units(cfg.scales)
+    except SweepInterrupted as stop:  # the points solved so far, as NAME.partial.*
+        if stop.result is None:
+            raise _Interrupted(f"0 of {stop.total} points solved; no file was written") from None
+        paths = _write_sweep(stop.result, cfg, out, f"{cfg.name}.partial")
+        for path in paths:
+            print(path)
+        raise _Interrupted(f"{stop.solved} of {stop.total} points solved, written to "
+                           f"{out / cfg.name}.partial.* (the others NaN, status "
+                           f"{Status.NOT_SOLVED.value} not solved)") from None
     seconds = time.perf_counter() - t0
-    writers = {"csv": result.to_csv, "npz": result.to_npz, "netcdf": result.to_netcdf}
-    files = [(out / f"{cfg.name}.{SUFFIXES[f]}", writers[f]) for f in cfg.formats]
-    if cfg.plot:
-        files.append((out / f"{cfg.name}.png",
-                      lambda path: plot_sweep(result, cfg.plot_axis, path, cfg.title)))
-    paths = [path for path, _ in files]
-    try:
-        for path, write in files:
-            write(path)
-    except OSError as exc:
-        return _error("sweep", f"cannot write into {out}: {exc.strerror or exc}")
+    paths = _write_sweep(result, cfg, out, cfg.name)
+    for path in (out / f"{cfg.name}.partial.{suffix}" for suffix in (*SUFFIXES.values(), "png")):
+        path.unlink(missing_ok=True)  # superseded by the complete result
     if not args.quiet:
         converged = int(np.sum(result.status == Status.CONVERGED))
         grid = " x ".join(f"{k}[{len(v)}]" for k, v in result.axes.items())
@@ -234,6 +280,25 @@ def _sweep(args):
     return 0
 
 
+def _write_sweep(result, cfg, out, name):
+    """Write the outputs of a sweep (the formats of ``cfg`` and the plot) as NAME.* into ``out``,
+    all of them or none (:func:`jaxdea.files.write_together`); their paths."""
+    from .config import SUFFIXES
+
+    if cfg.scales is not None:
+        result = result.with_units(cfg.scales)
+    writers = {"csv": result.to_csv, "npz": result.to_npz, "netcdf": result.to_netcdf}
+    files = [(out / f"{name}.{SUFFIXES[f]}", writers[f]) for f in cfg.formats]
+    if cfg.plot:
+        files.append((out / f"{name}.png",
+                      lambda path: plot_sweep(result, cfg.plot_axis, path, cfg.title)))
+    try:
+        return write_together(files)
+    except (OSError, RuntimeError) as exc:  # RuntimeError: the netCDF library's "HDF error"
+        raise ValueError(f"cannot write into {out}: {getattr(exc, 'strerror', None) or exc} (the "
+                         "previous files are unchanged)") from None
+
+
 def _fit(args):
     from .fit_io import run_fit
 
@@ -241,8 +306,7 @@ def _fit(args):
         _, report, paths = run_fit(args.data, args.config, args.out)
     except ValueError as exc:
         return _error("fit", " ".join(str(exc).split()))
-    if not args.quiet:
-        print(report)
+    print(report)  # the result itself: --quiet leaves it
     for path in paths:
         print(path)
     return 0
@@ -259,13 +323,18 @@ def _figures(args):
     return 0
 
 
-DESCRIPTION = """Axisymmetric dispersion of pre-stretched, voltage-driven (fluid-filled) dielectric
-elastomer tubes, with exact gradients (JAX). All quantities are dimensionless: lengths / R_i, the
-frequency Ω = ω R_i/c_s with c_s = sqrt(μ/ρ_s), the voltage V̂ = V sqrt(ε/μ)/R_i."""
+DESCRIPTION = """Dispersion and stability of pre-stretched, voltage-driven dielectric elastomer tubes,
+empty or filled with a compressible fluid, for every circumferential order m (axisymmetric and
+torsional m = 0, bending m = 1, ovalisation and ring modes m >= 2): frequencies, dispersion curves,
+critical voltages, the first instability, growth rates and mode shapes, with exact gradients (JAX).
+All quantities are dimensionless: lengths / R_i, the frequency Ω = ω R_i/c_s with
+c_s = sqrt(μ/ρ_s), the voltage V̂ = V sqrt(ε/μ)/R_i. Negative voltages are accepted: only V²
+enters the physics, so -V gives the results of V."""
 EXAMPLES = """examples:
   jaxdea sweep examples/sweep.toml            Ω over a grid of V̂ and n: CSV, NPZ and a plot
   jaxdea figures --out figures                the paper's figures, PNG plus CSV
   jaxdea table --n-layers 30                  the lowest frequencies of the paper's tube
+  jaxdea fit peaks.csv --config fit.toml      parameters from measured resonance peaks
   jaxdea COMMAND --help                       the options of a command"""
 SWEEP_HELP = """Solve the lowest frequencies Ω over a grid of parameters described by CONFIG, a TOML or
 JSON file, and write NAME.csv (one row per grid point: axes, α̂, Ω_k, status_k and, with the
@@ -273,10 +342,14 @@ jacobian, dΩ_k/dα̂ and dΩ_k/dθ), NAME.npz (jaxdea.SweepResult.from_npz read
 (netCDF, with output.formats = [..., "netcdf"]) and NAME.png (Ω against the first axis that has more
 than one value). With a [units] table parameters may be given in SI units and the outputs add f in
 Hz, the wavelength in m and the SI value of each axis. An error in CONFIG is reported with the
-offending key and what is allowed there (exit status 2)."""
+offending key and what is allowed there (exit status 2). The files are written together or not at
+all: a failure (a full disk, Ctrl-C) leaves the previous ones as they were. Ctrl-C or SIGTERM during
+the solve writes the points solved so far as NAME.partial.* (the others NaN, status 7 "not solved";
+exit status 130, 143 for SIGTERM); a complete run removes them."""
 FIGURES_HELP = """Regenerate the analogues of the paper's Figs. 2-10 (dispersion against V̂, the axial mode
 number, ĉ_f, ρ̂_f and h/R_i, empty and fluid-filled, consistent acoustic model beside the paper's
-coupling) and the static response, each as a PNG plus the CSV behind it."""
+coupling) and the static response, each as a PNG plus the CSV behind it (written together: a
+failure or Ctrl-C leaves every file whole, new or as it was; exit status 130 for Ctrl-C)."""
 
 
 CACHE_HELP = """Compiled programs are kept under JAXDEA_CACHE_DIR (default ~/.cache/jaxdea, also when
@@ -317,11 +390,13 @@ def build_parser():
     parser = _Parser(prog="jaxdea", description=DESCRIPTION, epilog=EXAMPLES,
                                      formatter_class=formatter)
     parser.add_argument("--quiet", action="store_true",
-                        help="no progress bars or status lines (written paths are still printed)")
+                        help="no progress bars or status lines (results and written paths are still "
+                        "printed)")
     # --quiet is accepted after the command too; SUPPRESS keeps a global --quiet from being reset
     quiet = argparse.ArgumentParser(add_help=False)
     quiet.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
-                       help="no progress bars or status lines (written paths are still printed)")
+                       help="no progress bars or status lines (results and written paths are still "
+                       "printed)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     from .config import FORMAT
@@ -335,7 +410,7 @@ def build_parser():
     sweep.add_argument("config", metavar="CONFIG", help="the sweep configuration (.toml or .json)")
     sweep.add_argument("--out", metavar="DIR", default=None,
                        help="output folder (default: output.dir of CONFIG, relative to CONFIG's "
-                       "folder, else CONFIG's folder)")
+                       "folder, else the current folder)")
     sweep.set_defaults(run=_sweep)
 
     figures = sub.add_parser(
@@ -370,21 +445,47 @@ def build_parser():
         help="material and geometry parameters from measured resonances (CSV + TOML)",
         description="Fit the free parameters of CONFIG to the peaks of DATA (CSV: voltage_V, "
         "frequency_Hz, optional sigma_Hz and labels m, n, branch), print the estimates with 95 % "
-        "intervals and the mode of every peak, and write DATA_fit.json and DATA_fit.png. An error "
-        "is reported in one line naming the file, column or key (exit status 2).",
+        "intervals and the mode of every peak, and write DATA_fit.json and DATA_fit.png (both or "
+        "neither). An error is reported in one line naming the file, column or key (exit status "
+        "2); Ctrl-C stops without writing (exit status 130).",
         epilog=f"config format (TOML):\n{FIT_FORMAT}\nexample:\n"
         "  jaxdea fit peaks.csv --config fit.toml --out results")
     fit.add_argument("data", metavar="DATA", help="the measured peaks (.csv)")
     fit.add_argument("--config", metavar="CONFIG", required=True,
                      help="free parameters, fixed values, fluid and options (.toml)")
     fit.add_argument("--out", metavar="DIR", default=None,
-                     help="output folder (default: DATA's folder)")
+                     help="output folder (default: the current folder)")
     fit.set_defaults(run=_fit)
     return parser
 
 
+class _Interrupted(KeyboardInterrupt):
+    """An interrupt after which a command saved something: the message says what."""
+
+
+@contextlib.contextmanager
+def _terminate_as_interrupt(received: list):
+    """SIGTERM (a batch system's time limit, ``kill``) raises KeyboardInterrupt, as Ctrl-C does,
+    and is recorded in ``received`` (main thread only; the previous handler is restored)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum, frame):
+        received.append(signum)
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv=None):
-    """Entry point of the ``jaxdea`` command: the exit status (0 done, 2 bad usage or config)."""
+    """Entry point of the ``jaxdea`` command: the exit status (0 done, 2 an error, 130 Ctrl-C,
+    143 SIGTERM). Every error and interrupt is one line on stderr, never a traceback."""
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:  # --help (0) or a usage error (2, message already printed)
@@ -394,13 +495,25 @@ def main(argv=None):
         from . import compiled
 
         compiled.configure()  # the on-disk program cache and XLA's loop threshold
+    received = []
     try:
-        return args.run(args)
+        with _terminate_as_interrupt(received):
+            return args.run(args)
+    except KeyboardInterrupt as exc:
+        number = received[0] if received else signal.SIGINT
+        what = str(exc) if isinstance(exc, _Interrupted) else INTERRUPTED
+        print(f"jaxdea {args.command}: interrupted by {signal.Signals(number).name}: {what}",
+              file=sys.stderr)
+        return 128 + number
     except OSError as exc:  # one line, never a traceback
         where = f"{exc.filename}: " if exc.filename else ""
         return _error(args.command, f"{where}{exc.strerror or exc}")
     except (ValueError, ImportError) as exc:
         return _error(args.command, exc)
+    except Exception as exc:  # anything else (MemoryError, a runtime error): still one line
+        message = " ".join(str(exc).split())
+        return _error(args.command, f"unexpected {type(exc).__name__}: "
+                      f"{message[:300]}{' ...' if len(message) > 300 else ''}")
 
 
 if __name__ == "__main__":

@@ -198,13 +198,13 @@ def configure(*, cache: bool | str | os.PathLike = True, xla_flags: bool = True,
     flags = configure_xla() if xla_flags else False
     root = cache_root()
     jax_cache = private_folder("xla") if root is not None else None
-    if jax_cache is not None and shutil.disk_usage(jax_cache).free < MIN_FREE_BYTES:
-        jax_cache = None  # JAX writes in place and warns on a failed write: not on a full disk
+    if jax_cache is not None:
+        repair_jax_cache(jax_cache)
+        evict(root, cache_bytes)
+        if shutil.disk_usage(jax_cache).free < MIN_FREE_BYTES:
+            jax_cache = None  # JAX writes in place and warns on a failed write: not on a full disk
     given = _SETTINGS["jax_cache"]
     if jax.config.jax_compilation_cache_dir in (None, given and str(given)):
-        if jax_cache is not None:
-            repair_jax_cache(jax_cache)
-            evict(root, cache_bytes)
         jax.config.update("jax_compilation_cache_dir", None if jax_cache is None else str(jax_cache))
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
         _SETTINGS["jax_cache"] = jax_cache

@@ -16,19 +16,20 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import tomllib
 from pathlib import Path
 
 import numpy as np
 
+from .files import load_document
 from .leaves import FLUID_LEAVES, NAMES, TUBE_LEAVES
-from .params import COUPLINGS, MATERIALS
-from .sweeps import SI_QUANTITIES
+from .params import COUPLINGS, MATERIALS, MAX_LAYERS, MAX_ROOTS
+from .sweeps import MAX_POINTS, SENSITIVITY, SI_QUANTITIES, check_size
 from .transfer import SCHEMES
 from .units import VACUUM_PERMITTIVITY, Scales
 
 TOP_KEYS = ("tube", "fluid", "axes", "solver", "output", "units")
-TUBE_KEYS = (*TUBE_LEAVES, "thickness_ratio", "material")
+TUBE_KEYS = (*TUBE_LEAVES, "thickness_ratio", "material", "delta_p")
+PRESSURE_SI_KEY = "pressure_Pa"  # [tube] ΔP in Pa (with [units]): delta_p = ΔP/μ
 FLUID_KEYS = (*FLUID_LEAVES, "coupling", "bessel_order")
 SI_NAMES = {si_name: name for name, (si_name, *_) in SI_QUANTITIES.items()}  # SI key -> parameter
 TUBE_SI_KEYS = tuple(k for k, name in SI_NAMES.items() if name in TUBE_KEYS)
@@ -47,7 +48,9 @@ SUFFIXES = {"csv": "csv", "npz": "npz", "netcdf": "nc"}  # output format -> file
 FORMAT = f"""\
 [tube]    fixed parameters (numbers; defaults: those of jaxdea.Tube): voltage V̂, lambda_i λ_i,
           lambda_z λ_z, eta η = R_i/R_o or thickness_ratio h/R_i, gent G (inf: neo-Hookean),
-          length_ratio L/R_o; material = {' | '.join(f'"{m}"' for m in MATERIALS)}
+          length_ratio L/R_o; material = {' | '.join(f'"{m}"' for m in MATERIALS)};
+          delta_p ΔP̂ = ΔP/μ (or {PRESSURE_SI_KEY} in Pa with [units]): the tube held by this pressure
+          difference, λ_i solved at every point (jaxdea.inner_stretch), instead of lambda_i
 [fluid]   optional (leave it out for an empty tube): density_ratio ρ̂_f, speed_ratio ĉ_f (numbers),
           coupling = {' | '.join(f'"{c}"' for c in COUPLINGS)}, bessel_order = ν (integer >= 0; paper only,
           default ν = n)
@@ -65,8 +68,8 @@ FORMAT = f"""\
           s = sqrt(-Ω²) of the unstable modes per point, largest first; 0: none)
 [output]  name = the config file's stem, formats = {json.dumps(list(DEFAULT_FORMATS))} (any of
           {', '.join(FORMATS)}: NAME.csv, NAME.npz, NAME.nc; netcdf needs pip install 'jaxdea[xarray]'),
-          plot = true (NAME.png), dir = the config file's folder (relative to it; --out overrides),
-          title = a plot title
+          plot = true (NAME.png), dir = a folder relative to the config file (default: the
+          current folder; --out overrides), title = a plot title
 [units]   optional SI scales (numbers > 0): shear_modulus μ (Pa), density ρ_s (kg/m³),
           permittivity ε (F/m) or relative_permittivity ε/ε_0, inner_radius R_i (m). With them,
           {', '.join(TUBE_SI_KEYS)} in [tube]/[axes], {', '.join(FLUID_SI_KEYS)} in
@@ -83,6 +86,7 @@ RANGES = {
     "gent": ("> 0 (inf for neo-Hookean)", lambda v: v > 0),
     "length_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
     "thickness_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
+    "delta_p": ("a finite number (ΔP̂ = ΔP/μ)", lambda v: np.isfinite(v)),
     "density_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
     "speed_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
     "alpha": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
@@ -115,6 +119,8 @@ class SweepConfig:
             ``axes``).
         torsional: the torsional family (m = 0 only).
         n_growth: growth rates per point (``jaxdea.sweep``'s ``n_growth``; 0: none).
+        delta_p: ΔP̂ = ΔP/μ of a pressure-held tube (``jaxdea.sweep``'s ``delta_p``: λ_i solved at
+            every point), or None (held by its stretch λ_i).
         units: the SI scales ``{shear_modulus, density, permittivity, inner_radius}`` of the
             ``[units]`` table, or None.
         out_dir: output folder as written in the config (relative to the config file), or None.
@@ -135,6 +141,7 @@ class SweepConfig:
     m: int = 0
     torsional: bool = False
     n_growth: int = 0
+    delta_p: float | None = None
     units: dict | None = None
     out_dir: str | None = None
     name: str = "sweep"
@@ -161,6 +168,8 @@ class SweepConfig:
             orders["torsional"] = True
         if self.n_growth:
             orders["n_growth"] = self.n_growth
+        if self.delta_p is not None:  # None passes nothing: sweep's default, as before
+            orders["delta_p"] = self.delta_p
         axes = {k: v for k, v in self.axes.items() if k != "m"}
         return dict(n_roots=self.n_roots, n_layers=self.n_layers, scheme=self.scheme,
                     jacobian=self.jacobian if self.jacobian else None, omega_max=self.omega_max,
@@ -186,9 +195,11 @@ def _is_number(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
-def _integer(key: str, x, low: int) -> int:
+def _integer(key: str, x, low: int, high: int | None = None, limit: str = "") -> int:
     if not isinstance(x, int) or isinstance(x, bool) or x < low:
         _fail(f"{key!r} must be an integer >= {low}, got {x!r}")
+    if high is not None and x > high:
+        _fail(f"{key!r} must be <= {limit} = {high:,}, got {x:,}")
     return int(x)
 
 
@@ -222,6 +233,15 @@ def _values(key: str, name: str, spec) -> np.ndarray:
         _fail(f"{key!r} must be a number, a list of numbers or a table {{start, stop, num}}, "
               f"got {spec!r}")
     return _in_range(key, name, values)
+
+
+def _length(spec) -> int:
+    """The number of values an axis spec gives (1 where it is malformed: :func:`_values` says why)."""
+    if isinstance(spec, list):
+        return max(len(spec), 1)
+    if isinstance(spec, dict) and isinstance(spec.get("num"), int) and not isinstance(spec["num"], bool):
+        return max(spec["num"], 1)
+    return 1
 
 
 def _in_range(key: str, name: str, values: np.ndarray, converted: bool = False) -> np.ndarray:
@@ -287,7 +307,18 @@ def _parse_units(data) -> dict | None:
 
 def _parse_tube(data, units: dict | None = None) -> dict:
     tube, seen = {}, {}
-    for k, v in _table(data, "tube", (*TUBE_KEYS, *TUBE_SI_KEYS)).items():
+    for k, v in _table(data, "tube", (*TUBE_KEYS, *TUBE_SI_KEYS, PRESSURE_SI_KEY)).items():
+        if k == PRESSURE_SI_KEY:  # ΔP in Pa -> ΔP̂ = ΔP/μ
+            if "delta_p" in seen:
+                _fail(f"'tube.delta_p' and 'tube.{k}' set the same parameter (delta_p); give one")
+            if units is None:
+                _fail(f"'tube.{k}' is in SI units (Pa): add a [units] table (shear_modulus, "
+                      "density, permittivity, inner_radius) or give 'tube.delta_p' (ΔP/μ)")
+            if not _is_number(v) or not math.isfinite(v):
+                _fail(f"'tube.{k}' must be a finite number (Pa), got {v!r}")
+            seen["delta_p"] = k
+            tube["delta_p"] = float(v) / units["shear_modulus"]
+            continue
         name = _parameter("tube", k, seen)
         tube[name] = (_choice("tube.material", v, MATERIALS) if k == "material"
                       else _fixed(f"tube.{k}", k, v, units))
@@ -315,9 +346,13 @@ def _parse_axes(data, tube: dict, fluid: dict | None, units: dict | None = None)
     table = _table(data["axes"], "axes", (*AXIS_NAMES, *SI_NAMES))
     if not table:
         _fail("'axes' is empty: give the wavenumber axis 'alpha' (α̂) or 'n' (axial mode numbers)")
-    axes, seen = {}, {}
+    axes, seen, points = {}, {}, 1
     for key, spec in table.items():
         name = _parameter("axes", key, seen)
+        points *= _length(spec)
+        if points > MAX_POINTS:  # before the axis is built
+            _fail(f"the grid has {points:,} points up to 'axes.{key}'; a sweep takes at most "
+                  f"MAX_POINTS = {MAX_POINTS:,}: split it into several sweeps")
         if name in FLUID_LEAVES and fluid is None:
             _fail(f"'axes.{key}' is a fluid parameter: add a [fluid] table")
         given = f"'tube.{name}'" if name in tube else (f"'fluid.{name}'" if name in (fluid or {}) else "")
@@ -340,15 +375,15 @@ def _parse_axes(data, tube: dict, fluid: dict | None, units: dict | None = None)
 def _parse_solver(data, fluid: dict | None) -> dict:
     table = _table(data.get("solver", {}), "solver", SOLVER_KEYS)
     out = {}
-    for k in ("n_roots", "n_layers"):
+    for k, high in (("n_roots", MAX_ROOTS), ("n_layers", MAX_LAYERS)):
         if k in table:
-            out[k] = _integer(f"solver.{k}", table[k], 1)
+            out[k] = _integer(f"solver.{k}", table[k], 1, high, f"MAX_{k[2:].upper()}")
     if "scheme" in table:
         out["scheme"] = _choice("solver.scheme", table["scheme"], tuple(SCHEMES))
     if "m" in table:
         out["m"] = _integer("solver.m", table["m"], 0)
     if "n_growth" in table:
-        out["n_growth"] = _integer("solver.n_growth", table["n_growth"], 0)
+        out["n_growth"] = _integer("solver.n_growth", table["n_growth"], 0, MAX_ROOTS, "MAX_ROOTS")
     if "torsional" in table:
         if not isinstance(table["torsional"], bool):
             _fail(f"'solver.torsional' must be true or false, got {table['torsional']!r}")
@@ -411,7 +446,7 @@ def parse_config(data, default_name: str = "sweep") -> SweepConfig:
         default_name: file stem of the outputs when ``output.name`` is absent.
 
     Returns:
-        :class:`SweepConfig`.
+        An instance of :class:`SweepConfig`.
 
     Raises:
         ValueError: "sweep config: …" naming the offending key and what is allowed there.
@@ -419,20 +454,40 @@ def parse_config(data, default_name: str = "sweep") -> SweepConfig:
     _table(data, "", TOP_KEYS)
     units = _parse_units(data)
     tube = _parse_tube(data.get("tube", {}), units)
+    delta_p = tube.pop("delta_p", None)
+    fixed = set(tube)  # before a fixed thickness_ratio moves to the axes
     fluid = _parse_fluid(data["fluid"], units) if "fluid" in data else None
     axes = _parse_axes(data, tube, fluid, units)
     solver = _parse_solver(data, fluid)
+    if delta_p is not None:
+        held = "'tube.delta_p'" if "delta_p" in data.get("tube", {}) else f"'tube.{PRESSURE_SI_KEY}'"
+        for where, keys in (("tube", fixed), ("axes", set(axes) - fixed)):
+            for k in ("lambda_i", "thickness_ratio"):
+                if k in keys:
+                    _fail(f"{held} holds the tube by pressure, so λ_i follows from it at every "
+                          f"point: remove '{where}.{k}' (give the wall as eta, R_i/R_o undeformed)")
+        if solver.get("jacobian"):
+            _fail(f"'solver.jacobian' with {held} is not supported (derivatives at fixed λ_i, not "
+                  "at fixed pressure): remove one of them")
     if "m" in axes and "m" in solver:
         _fail("'solver.m' is also a sweep axis ('axes.m'); give it in one place")
     orders = axes["m"] if "m" in axes else np.asarray([solver.get("m", 0)])
     if solver.get("torsional") and np.any(orders != 0):
         _fail(f"'solver.torsional' = true needs m = 0 (the torsional family), got m = {orders.max():g}")
+    try:  # the grid's memory, before anything is allocated for it
+        jacobian = solver.get("jacobian", False)
+        derivatives = None if not jacobian else len(jacobian) if jacobian is not True else sum(
+            fluid is not None or n not in FLUID_LEAVES for n in SENSITIVITY)
+        check_size([v.size for v in axes.values()], solver.get("n_roots", 3), derivatives,
+                   solver.get("n_growth", 0))
+    except ValueError as exc:
+        _fail(str(exc))
     if fluid is not None and fluid.get("coupling") == "paper" and np.any(orders != 0):
         _fail(f"the paper coupling is axisymmetric: it needs m = 0, got m = {orders.max():g}")
     if (fluid is not None and fluid.get("coupling") == "paper" and fluid.get("bessel_order") is None
             and "n" not in axes):
         _fail("the paper coupling needs 'fluid.bessel_order' (ν), or a sweep over 'axes.n' (ν = n)")
-    return SweepConfig(tube=tube, fluid=fluid, axes=axes, **solver, units=units,
+    return SweepConfig(tube=tube, fluid=fluid, axes=axes, **solver, delta_p=delta_p, units=units,
                        **_parse_output(data, default_name))
 
 
@@ -440,18 +495,15 @@ def load_config(path) -> SweepConfig:
     """Read and validate a ``.toml`` or ``.json`` sweep configuration.
 
     Raises:
-        ValueError: an unreadable file, an unknown suffix, a syntax error, or any error of
-            :func:`parse_config`.
+        ValueError: an unreadable file, an unknown suffix, a syntax error, a JSON key given twice,
+            nesting deeper than :data:`jaxdea.files.MAX_NESTING`, or any error of
+            :func:`parse_config`. A UTF-8 byte-order mark is accepted.
     """
     path = Path(path)
     if path.suffix not in (".toml", ".json"):
         _fail(f"{path}: the file must end in .toml or .json")
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        _fail(f"cannot read {path}: {exc.strerror or exc}")
-    try:
-        data = tomllib.loads(text) if path.suffix == ".toml" else json.loads(text)
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
-        _fail(f"{path} is no valid {path.suffix[1:].upper()}: {exc}")
+        data = load_document(path, path.suffix[1:])
+    except ValueError as exc:
+        _fail(str(exc))
     return parse_config(data, default_name=path.stem)

@@ -5,8 +5,8 @@ discretisation (same ``n_layers`` laminate) in (ω_lo, ω_hi), independently of 
 :mod:`jaxdea.roots`, so that ``frequencies`` can be checked: the two agree when the scan missed
 nothing.
 
-Method. F(Ω) = det(B A S)(Ω) (theory.md §4) is entire in Ω: the state matrix is polynomial in Ω, the
-laminate exponentials are entire, and the fluid couplings enter through N_ν, D_ν, entire in
+Method. F(Ω) = det(B A S)(Ω) (docs/theory/axisymmetric.md §4) is entire in Ω: the state matrix is polynomial in
+Ω, the laminate exponentials are entire, and the fluid couplings enter through N_ν, D_ν, entire in
 s = χ̂² r̂_i² = (Ω²/ĉ_f² − α̂²) r̂_i² (:mod:`jaxdea.bessel`). By the argument principle the number of
 zeros inside a closed contour Γ is
 
@@ -225,7 +225,7 @@ def count_roots_unchecked(tube, alpha, omega_lo, omega_hi, fluid, n_layers: int,
                           family=LONGITUDINAL):
     """(count, status, evaluations) for one case (traceable; see :func:`count_roots`).
 
-    ``family`` (static) and ``m`` (traced, ``"order_m"``): the mode family (theory_m.md); off the
+    ``family`` (static) and ``m`` (traced, ``"order_m"``): the mode family (docs/theory/order_m.md); off the
     axisymmetric family F(Ω) = f(w = Ω²) of the 8×8 system, entire and even in Ω as well.
     Inputs outside their range (an inadmissible m included) give count −1 with status INVALID (no
     exception).
@@ -269,7 +269,7 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
     """The number of frequencies in (omega_lo, omega_hi), by the argument principle.
 
     Counts the zeros of det(B A S)(Ω), the characteristic function of the ``n_layers`` laminate
-    (theory.md §4), inside the box [ω_lo, ω_hi] × [−δ, δ] of the complex Ω plane:
+    (docs/theory/axisymmetric.md §4), inside the box [ω_lo, ω_hi] × [−δ, δ] of the complex Ω plane:
     Z = (1/2π) Δ_Γ arg det(B A S) (module docstring: method, guarantee and limits). With the same
     ``n_layers``, ``count`` equals the number of roots :func:`jaxdea.frequencies` returns in the
     interval when the scan misses none.
@@ -291,13 +291,13 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
             counted. torsional: the torsional family at m = 0.
 
     Returns:
-        :class:`RootCount` (count, status): int32 arrays; count −1 unless status is
+        An instance of :class:`RootCount` (count, status): int32 arrays; count −1 unless status is
         ``CountStatus.CERTIFIED``.
 
     Raises:
         ValueError: for concrete inputs out of range, naming the parameter.
 
-    Example:
+    Examples:
         >>> count_roots(Tube(), 0.445, 0.5, 3.0)  # RootCount(count=2, status=0)
     """
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)

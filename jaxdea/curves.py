@@ -116,8 +116,8 @@ from .params import (
     detached,
     guard,
     traced,
-    validate_count,
-    validate_range,
+    validate_alpha,
+    validate_roots,
 )
 from .roots import (
     BATCH_ENGINES,
@@ -127,12 +127,13 @@ from .roots import (
     critical_function,
     critical_voltage_unchecked,
     default_omega_max,
+    inaccurate_where,
     scan_roots,
     scanned_function,
 )
 from .scalar import Status, iterate_lanes, lanes_from_slots, value_and_slope
 from .state_matrix import LONGITUDINAL, ORDER_M
-from .transfer import discretize, laminate, voltage_expansion
+from .transfer import checked_laminate, discretize, voltage_expansion
 
 HISTORY = 12  # rows of the predictor (its order chosen per branch, :func:`_extrapolate`)
 SHARE_OF_GAP = 0.25  # a lane may move at most this share of the distance to its neighbours
@@ -535,27 +536,26 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
             roots of that order at every α̂ (:func:`jaxdea.frequencies`).
 
     Returns:
-        :class:`Curve` (omega, status of shape (M, K); ``scanned`` says where the scan ran).
+        An instance of :class:`Curve` (omega, status of shape (M, K); ``scanned`` says where the scan ran).
 
     Raises:
         ValueError: naming the parameter, for invalid concrete inputs (as ``frequencies``; alpha
             must also be 1-D and non-empty).
 
-    Example:
+    Examples:
         >>> c = dispersion_curve(Tube(), np.linspace(0.05, 5, 100), n_roots=4, n_layers=10)
         >>> c.omega.shape, int(c.scanned.sum())   # (100, 4), 1
     """
-    a = validate_range("alpha", alpha, f">= {ALPHA_MIN!r} and finite (the axial wavenumber α̂ = α R_i)",
-                       lambda v: v >= ALPHA_MIN, scalar=False)
-    if a is not None and (a.ndim != 1 or a.size == 0):
-        raise ValueError(f"alpha must be a non-empty 1-D array of axial wavenumbers, got shape {a.shape}")
     if fluid is not None and fluid.coupling == "paper" and fluid.bessel_order is None:
         raise ValueError("fluid.bessel_order must be set for a dispersion curve with the 'paper' "
                          "coupling (one Bessel order for every α̂ of the curve), got None")
-    order, family = _order_inputs(tube, 1.0, fluid, n_layers, scheme, m, torsional)
-    n_roots = validate_count("n_roots", n_roots)
+    order, family = _order_inputs(tube, None, fluid, n_layers, scheme, m, torsional)
+    a = validate_alpha(alpha, "alpha", tube, scalar=False)
+    if a is not None and (a.ndim != 1 or a.size == 0):
+        raise ValueError(f"alpha must be a non-empty 1-D array of axial wavenumbers, got shape {a.shape}")
+    n_roots = validate_roots(n_roots)
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
-    layers = laminate(n_layers, scheme, tube, alpha, n_roots, m)
+    layers, short = checked_laminate(n_layers, scheme, tube, alpha, n_roots, m)
     values = detached((tube, alpha, fluid))
     if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
         # one propagation compiled, not both: V̂ = 0 decouples the electric block (a program each)
@@ -564,6 +564,7 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
         curve = _solve_curve(*values, n_roots, layers, order, decoupled=decoupled)
     else:
         curve = _solve_curve(*values, n_roots, layers, order, detached(m), family)
+    curve = curve._replace(status=inaccurate_where(short, Roots(curve.omega, curve.status)).status)
     if not traced((tube, alpha, fluid, m)):
         # concrete inputs carry no tangents: the implicit derivatives would leave the values as
         # they are (tracing their attachment over the rows cost 0.4 ms a call, measured)
@@ -571,7 +572,10 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
     with_derivatives = jax.vmap(lambda w, s, x: _with_derivatives(Roots(w, s), (tube, x, fluid, m),
                                                                   layers, order, "omega",
                                                                   family).omega)
-    return curve._replace(alpha=alpha, omega=with_derivatives(curve.omega, curve.status, alpha))
+    # a JAX array: a NumPy grid mapped here beside a traced m or tube failed JAX's check of the
+    # custom-derivative constants (AssertionError: non-canonical constant of type ndarray)
+    return curve._replace(alpha=alpha, omega=with_derivatives(curve.omega, curve.status,
+                                                              jnp.asarray(alpha)))
 
 
 def critical_path_unchecked(tubes, alphas, abscissa, starts, orders, n_layers, family=ORDER_M,

@@ -1,7 +1,9 @@
 """Design optimisation with optax: thickness and voltage for a target frequency, and tunability.
 
-Two example problems on the fluid-free tube, both for the lowest frequency Ω of one axial mode n
-(α̂ = 2nπη/(L/R_o · λ_z), :func:`jaxdea.axial_wavenumber`, so α̂ follows the thickness through η),
+Two example problems on the fluid-free tube, both for the lowest frequency Ω of one mode (m, n):
+any circumferential order m >= 0 (ring modes m >= 1, or the torsional family at m = 0) and axial
+mode n (α̂ = 2nπ/(λ_z L/R_i), :func:`jaxdea.axial_wavenumber`; the frequency design holds the
+undeformed length L/R_i by default, so α̂ does not change with the wall, or L/R_o on request),
 both under the safety constraint V̂ ≤ m V̂_first (m = ``voltage_margin`` = 0.8), where V̂_first is the
 tube's first instability: the smallest critical voltage over every circumferential order
 0 ≤ m ≤ ``m_max`` and axial mode 1 ≤ n ≤ ``n_max`` (:func:`jaxdea.first_instability`). For the
@@ -42,9 +44,13 @@ How the problems are posed, and why (what converged robustly in our runs):
 * The tunability T = dΩ/dV̂ = −(∂f/∂V̂)/(∂f/∂Ω) is evaluated at the root that carries its implicit
   derivatives (:func:`tunability`), so the gradient of T, a second derivative of Ω, is exact
   (nested ``jax.grad`` of :func:`jaxdea.frequency` gives the same second derivatives, tested).
-* The learning rate decays geometrically (``optax.exponential_decay``): adam's steps have the size of
-  the learning rate whatever the gradient, so a constant rate leaves the iterate oscillating at that
-  size; the decay lets it settle to the tolerance.
+* The frequency design is a root of one scalar equation, g(H) = Ω(H, s_op m V̂_first(H))/Ω_t − 1,
+  solved by safeguarded Newton with its exact derivative (quadratic convergence in a few steps);
+  adam only seeks the compromise where the target is out of reach. (adam alone, with its
+  decaying rate, froze 0.31 % short of a reachable 160 Hz target after 500 steps, issue 43.)
+* adam's learning rate decays geometrically (``optax.exponential_decay``): adam's steps have the
+  size of the learning rate whatever the gradient, so a constant rate leaves the iterate
+  oscillating at that size; the decay lets it settle to the tolerance.
 """
 
 from __future__ import annotations
@@ -59,17 +65,20 @@ import numpy as np
 import optax
 
 from .compiled import cached_jit, jit, serializable
-from .dispersion import characteristic, check_inputs
+from .dispersion import characteristic, check_inputs, mode_family
 from .modes import ROOT_RTOL, root_distance
 from .params import Fluid, Tube, as_float, canonical, mode_wavenumber, require_x64, validate_layers
 from .roots import first_instability, frequencies, solve_critical_voltage, solve_frequency
 from .scalar import Status, implicit_root, refuse_non_root
+from .state_matrix import LONGITUDINAL
 from .transfer import laminate, validate_scheme
 
 DECAY = 0.97  # learning-rate factor per step
 FLOOR = 1e-9  # the rate never falls below FLOOR x its initial value
-NEWTON_START = 1e-3  # frequency design: |Ω/Ω_t − 1| below which a stalled adam is finished by Newton
-NEWTON_STEPS = 8
+NEWTON_MAX_STEP = 2.0  # frequency design: the longest Newton step in the thickness variable x_H
+NEWTON_EDGE = 25.0  # |x_H| beyond which the thickness sits on a bound (σ(25) = 1 − 1.4e-11)
+NEWTON_REFRESH = 0.25  # a Newton step longer than this (in x_H) refreshes the candidate modes
+NEWTON_STEPS = 40  # at most this many Newton steps before adam takes over
 PLATEAU = 10  # steps over which maximise_tunability's loss must have settled
 CANDIDATE_BAND = 0.05  # (m, n) with V̂_cr <= (1 + band) V̂_first are solved at every step
 CANDIDATES = 4  # at most this many candidates (the lowest), padded by repeating the first
@@ -127,7 +136,7 @@ class DesignResult(NamedTuple):
 
 
 def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: int | None = None,
-               scheme: str | None = None):
+               scheme: str | None = None, m=0, torsional: bool = False):
     """dΩ/dV̂ on the branch through the root ``omega``: T = −(∂f/∂V̂)/(∂f/∂Ω) (implicit function theorem).
 
     ``omega`` must be a root (from :func:`jaxdea.frequency` or :func:`jaxdea.frequencies`), to the
@@ -144,24 +153,32 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
         fluid: a :class:`~jaxdea.Fluid` or None.
         n_layers: sublayers N (static), or None: the accurate discretisation (:func:`jaxdea.frequencies`).
         scheme: the propagation scheme (static; :func:`jaxdea.frequencies`), that of the root.
+        m: the circumferential order of the root (int >= 0, as :func:`jaxdea.frequencies`).
+        torsional: the torsional family (m = 0 only), as :func:`jaxdea.frequencies`.
 
-    Example:
+    Examples:
         >>> t = Tube(voltage=0.1, lambda_i=1.1, lambda_z=1.2)
         >>> a = axial_wavenumber(t, 1)
         >>> tunability(t, a, frequencies(t, a)[0])  # ≈ −1.217
     """
     require_x64()
     order = check_inputs(tube, alpha, fluid, n_layers, scheme)
+    family = mode_family(m, torsional, fluid)
+    orders = {} if family == LONGITUDINAL else dict(m=m, torsional=torsional)
     tube, alpha, omega = canonical(tube, alpha, omega)
     voltage = as_float(tube.voltage)
 
     def f(om, v):
-        return characteristic(tube.replace(voltage=v), om, alpha, fluid, n_layers, scheme)
+        return characteristic(tube.replace(voltage=v), om, alpha, fluid, n_layers, scheme, **orders)
 
     f_omega = jax.jvp(lambda om: f(om, voltage), (omega,), (jnp.ones_like(omega),))[1]
     f_voltage = jax.jvp(lambda v: f(omega, v), (voltage,), (jnp.ones_like(voltage),))[1]
-    distance = root_distance(*jax.lax.stop_gradient((tube, alpha, omega, fluid)),
-                             laminate(n_layers, scheme, tube, alpha), order)
+    layers = laminate(n_layers, scheme, tube, alpha, m=m)
+    if family == LONGITUDINAL:
+        distance = root_distance(*jax.lax.stop_gradient((tube, alpha, omega, fluid)), layers, order)
+    else:
+        distance = root_distance(*jax.lax.stop_gradient((tube, alpha, omega, fluid)), layers, order,
+                                 as_float(m), family)
     refuse_non_root(omega, distance)
     return jnp.where(distance <= ROOT_RTOL, -f_voltage / f_omega, jnp.nan)
 
@@ -191,7 +208,11 @@ def _point(x, setting, kind):
     tube, n = setting["tube"], setting["n"]
     if kind == "frequency":
         thickness = setting["h_lo"] + (setting["h_hi"] - setting["h_lo"]) * jax.nn.sigmoid(x[0])
-        tube = tube.replace(eta=1.0 / (1.0 + thickness))
+        eta = 1.0 / (1.0 + thickness)
+        # hold = 1: L/R_i held (L/R_o = (L/R_i) η follows the wall); hold = 0: L/R_o held
+        hold = setting["hold_length"]
+        tube = tube.replace(eta=eta, length_ratio=hold * setting["length"] * eta
+                            + (1.0 - hold) * tube.length_ratio)
         fraction = jax.nn.sigmoid(x[1])
     else:
         fraction = _cosine(x[0])
@@ -236,7 +257,7 @@ def _first_instability(tube, m_max, n_max, n_layers, scheme):
 def _solve_candidates(tube, candidates, n_layers, scheme):
     """V̂_cr of each candidate (values; NaN where it has none below pull-in), shape (K,)."""
     values, seen = [], {}
-    for m, n in zip(np.asarray(candidates.m).tolist(), np.asarray(candidates.n).tolist()):
+    for m, n in zip(np.asarray(candidates.m).tolist(), np.asarray(candidates.n).tolist(), strict=True):
         if (m, n) not in seen:
             alpha = mode_wavenumber(tube, n)
             seen[m, n] = float(solve_critical_voltage(tube, alpha, n_layers=n_layers, scheme=scheme,
@@ -248,7 +269,7 @@ def _solve_candidates(tube, candidates, n_layers, scheme):
 def _bound(tube, v_roots, candidates, n_layers, scheme):
     """V̂_first = min over the candidates of V̂_cr(m, n), each root with implicit derivatives
     (g(V̂) = f(Ω = 0; V̂) of order m at α̂_n; order m as a traced value: one program for every
-    candidate set, the longitudinal zeros at m = 0, theory_m.md §3)."""
+    candidate set, the longitudinal zeros at m = 0, docs/theory/order_m.md §3)."""
     def one(v_root, m, n):
         found = jnp.isfinite(v_root)
         alpha = mode_wavenumber(tube, n)
@@ -261,19 +282,27 @@ def _bound(tube, v_roots, candidates, n_layers, scheme):
     return jnp.min(jax.vmap(one)(v_roots, candidates.m, candidates.n))
 
 
-def _objective(x, omega_root, v_roots, candidates, setting, kind, n_layers, scheme):
+def _orders(mode):
+    """Keyword arguments of the solvers for the designed mode's (m, torsional) (none for the
+    axisymmetric longitudinal family: its programs as before order m existed)."""
+    m, torsional = mode
+    return {} if (m, torsional) == (0, False) else dict(m=m, torsional=torsional)
+
+
+def _objective(x, omega_root, v_roots, candidates, setting, kind, n_layers, scheme, mode=(0, False)):
     """(loss, aux) at x, given the roots solved there (values); differentiable through them."""
     tube, alpha, fraction = _point(x, setting, kind)
     v_first = _bound(tube, v_roots, candidates, n_layers, scheme)
     biased = tube.replace(voltage=fraction * setting["margin"] * v_first)
     omega = _with_implicit_derivatives(
-        lambda om: characteristic(biased, om, alpha, n_layers=n_layers, scheme=scheme), omega_root)
+        lambda om: characteristic(biased, om, alpha, n_layers=n_layers, scheme=scheme,
+                                  **_orders(mode)), omega_root)
     if kind == "frequency":  # the tunability is left to _finish: a smaller program to compile
         slope = jnp.full_like(omega, jnp.nan)
         miss = omega / setting["target"] - 1.0
         loss = miss**2 + (fraction - setting["s_op"]) ** 2
     else:
-        slope = tunability(biased, alpha, omega, n_layers=n_layers, scheme=scheme)
+        slope = tunability(biased, alpha, omega, n_layers=n_layers, scheme=scheme, **_orders(mode))
         miss = jnp.zeros_like(omega)
         loss = -jnp.abs(slope)
     aux = dict(loss=loss, omega=omega, alpha=alpha, critical_voltage=v_first, tube=biased,
@@ -281,25 +310,28 @@ def _objective(x, omega_root, v_roots, candidates, setting, kind, n_layers, sche
     return loss, aux
 
 
-@cached_jit(static_argnames=("kind", "n_layers", "scheme"))
-def _loss_and_gradient(x, omega_root, v_roots, candidates, setting, kind, n_layers, scheme):
+@cached_jit(static_argnames=("kind", "n_layers", "scheme", "mode"))
+def _loss_and_gradient(x, omega_root, v_roots, candidates, setting, kind, n_layers, scheme,
+                       mode=(0, False)):
     """(aux, dloss/dx) by forward mode (at most two design variables)."""
     grad, aux = jax.jacfwd(_objective, has_aux=True)(x, omega_root, v_roots, candidates, setting,
-                                                     kind, n_layers, scheme)
+                                                     kind, n_layers, scheme, mode)
     return jax.lax.stop_gradient(aux), grad
 
 
-def _evaluate(x, guess, setting, kind, n_layers, scheme, candidates):
+def _evaluate(x, guess, setting, kind, n_layers, scheme, candidates, mode=(0, False)):
     """Solve the roots at x (values) and return (aux, gradient), or None where a solve failed."""
     tube, alpha, fraction = _point(x, setting, kind)
     v_roots = _solve_candidates(tube, candidates, n_layers, scheme)
     if not bool(jnp.any(jnp.isfinite(v_roots))):
         return None
     biased = tube.replace(voltage=fraction * setting["margin"] * jnp.nanmin(v_roots))
-    omega, status = solve_frequency(biased, alpha, guess, n_layers=n_layers, scheme=scheme)
+    omega, status = solve_frequency(biased, alpha, guess, n_layers=n_layers, scheme=scheme,
+                                    **_orders(mode))
     if int(status) != Status.CONVERGED:
         return None
-    aux, grad = _loss_and_gradient(x, omega, v_roots, candidates, setting, kind, n_layers, scheme)
+    aux, grad = _loss_and_gradient(x, omega, v_roots, candidates, setting, kind, n_layers, scheme,
+                                   **({} if mode == (0, False) else dict(mode=mode)))
     if not (math.isfinite(float(aux["loss"])) and bool(jnp.all(jnp.isfinite(grad)))):
         return None
     return aux, grad
@@ -331,10 +363,9 @@ class _Bound:
 
 
 def _run(x0, guess, bound, setting, kind, n_layers, scheme, learning_rate, max_steps, done,
-         handoff=None):
+         mode=(0, False)):
     """adam with a geometrically decaying rate, each step from the previous root; converged only
-    when the full (m, n) grid confirms the bound (:class:`_Bound`). Stops with status None where
-    ``handoff(aux)`` holds (a local solver takes over)."""
+    when the full (m, n) grid confirms the bound (:class:`_Bound`)."""
     schedule = optax.exponential_decay(learning_rate, transition_steps=1, decay_rate=DECAY,
                                        end_value=FLOOR * learning_rate)
     optimiser = optax.adam(schedule)
@@ -345,7 +376,7 @@ def _run(x0, guess, bound, setting, kind, n_layers, scheme, learning_rate, max_s
         if step and step % REFRESH == 0 and not bound.refresh(x):
             status = DesignStatus.NOT_FINITE
             break
-        out = _evaluate(x, guess, setting, kind, n_layers, scheme, bound.candidates)
+        out = _evaluate(x, guess, setting, kind, n_layers, scheme, bound.candidates, mode)
         if out is None:
             status = DesignStatus.NOT_FINITE
             break
@@ -356,9 +387,6 @@ def _run(x0, guess, bound, setting, kind, n_layers, scheme, learning_rate, max_s
         if done(aux, grad) and bound.confirmed(x, aux):
             status = DesignStatus.CONVERGED
             break
-        if handoff is not None and handoff(aux):
-            status = None
-            break
         updates, state = optimiser.update(grad, state, x)
         x = optax.apply_updates(x, updates)
     if last is None:
@@ -367,58 +395,86 @@ def _run(x0, guess, bound, setting, kind, n_layers, scheme, learning_rate, max_s
     return last, history, status, x
 
 
-def _newton_finish(x, guess, bound, setting, n_layers, scheme, history, done):
-    """Newton on the thickness variable at s = s_op exactly, from adam's iterate.
+def _newton(x_h, guess, bound, setting, n_layers, scheme, history, rtol, max_steps, mode):
+    """Safeguarded Newton on the scalar constraint g(x_H) = Ω(H, s_op m V̂_first(H))/Ω_t − 1 = 0.
 
-    adam's decaying rate freezes the iterate short of a tight tolerance (measured: a miss of
-    1.3e-6 against rtol 1e-6 after 500 steps), and its last few hundred steps buy little. At
-    s = s_op the loss is miss², its gradient 2·miss·∂miss/∂x_H, so the Newton step for miss = 0
-    (Gauss–Newton on the residuals (miss, s − s_op), the second one zero) is −2 miss²/∂L/∂x_H,
-    with the exact (implicit) gradient of the adam steps: quadratic convergence, no new program to
-    compile.
+    At s = s_op the design is a root of one equation in one unknown, the thickness variable x_H
+    (H/R_i = H_lo + (H_hi − H_lo) σ(x_H)), whose exact derivative dg/dx_H comes with the implicit
+    derivatives of Ω and of V̂_first (the forward-mode gradient of the loss L = g² there is
+    2 g dg/dx_H). Each step is a Newton step −g/g', at most ``NEWTON_MAX_STEP`` in x_H; once two
+    iterates have residuals of opposite sign they bracket the root and a Newton step that leaves the
+    bracket is replaced by bisection (convergence guaranteed, quadratic near the root). The candidate
+    modes of the bound are refreshed from the full (m, n) grid after every step longer than
+    ``NEWTON_REFRESH`` and confirmed at convergence. (The earlier design finished adam's iterate
+    by Newton only once adam had come within 1e-3 of the target; adam's geometrically decaying
+    step froze first on a silicone tube in SI: 0.31 % off after 500 steps, issue 43.)
 
-    Returns (aux, status) of a converged finish, or None (then adam's result stands).
+    Returns (aux, status, x) of a converged solve (status CONVERGED), or None where the root is not
+    reached: the thickness runs onto a bound (target unreachable at s_op), a solve fails, or the
+    step limit is used.
     """
-    x = jnp.asarray([x[0], _sigmoid_inverse(float(setting["s_op"]), 0.0, 1.0)], jnp.float64)
-    if not bound.refresh(x):
-        return None
-    for _ in range(NEWTON_STEPS):
-        out = _evaluate(x, guess, setting, "frequency", n_layers, scheme, bound.candidates)
+    s_op = float(setting["s_op"])
+    x = jnp.asarray([x_h, _sigmoid_inverse(s_op, 0.0, 1.0)], jnp.float64)
+    bracket = {}  # sign of g -> (x_H, g) of the latest iterate on that side
+    last = None
+    for _ in range(max_steps):
+        out = _evaluate(x, guess, setting, "frequency", n_layers, scheme, bound.candidates, mode)
         if out is None:
-            return None
+            if last is None:
+                return None
+            x = x.at[0].set(0.5 * (float(x[0]) + last[0]))  # half the step back
+            continue
         aux, grad = out
         history.append(float(aux["loss"]))
-        if done(aux, grad) and bound.confirmed(x, aux):
-            return aux, DesignStatus.CONVERGED
+        miss, xh = float(aux["miss"]), float(x[0])
+        if abs(miss) <= rtol and abs(float(aux["fraction"]) - s_op) <= rtol:
+            if bound.confirmed(x, aux):
+                return aux, DesignStatus.CONVERGED, x
+            continue  # a new first instability: the refreshed candidates, same x
         guess = aux["omega"]
-        slope = float(grad[0])
-        if slope == 0.0:
+        bracket[miss > 0] = (xh, miss)
+        slope = float(grad[0]) / (2.0 * miss)  # dg/dx_H
+        step = -miss / slope if slope != 0.0 and math.isfinite(slope) else math.inf
+        step = max(-NEWTON_MAX_STEP, min(NEWTON_MAX_STEP, step))
+        new = xh + step
+        if len(bracket) == 2:
+            a, b = sorted((bracket[True][0], bracket[False][0]))
+            if not a < new < b:
+                new = 0.5 * (a + b)
+        elif abs(new) > NEWTON_EDGE:  # the thickness runs onto a bound: Ω_t out of reach at s_op
             return None
-        x = x.at[0].add(-2.0 * float(aux["miss"]) ** 2 / slope)
+        last = (xh, miss)
+        x = x.at[0].set(new)
+        if abs(new - xh) > NEWTON_REFRESH and not bound.refresh(x):
+            return None
     return None
 
 
-def _finish(aux, history, status, bound, material, n_layers, scheme):
+def _finish(aux, history, status, bound, material, n_layers, scheme, mode=(0, False)):
     """Verify the tracked root with :func:`jaxdea.frequencies` and build the result."""
     leaves = {k: float(getattr(aux["tube"], k)) for k in ("voltage", "lambda_i", "lambda_z", "eta",
                                                           "gent", "length_ratio")}
     tube = Tube(**leaves, material=material)
     alpha = float(aux["alpha"])
-    lowest = float(frequencies(tube, alpha, n_roots=1, n_layers=n_layers, scheme=scheme)[0])
+    lowest = float(frequencies(tube, alpha, n_roots=1, n_layers=n_layers, scheme=scheme,
+                               **_orders(mode))[0])
     tracked = float(aux["omega"])
     if status == DesignStatus.CONVERGED and not abs(lowest - tracked) <= 1e-9 * abs(tracked):
         status = DesignStatus.WRONG_BRANCH
     v_first = float(aux["critical_voltage"])
     slope = float(aux["tunability"])
     if not math.isfinite(slope):
-        slope = float(jit(tunability, static_argnames=("n_layers", "scheme"))(
-            tube, alpha, lowest, n_layers=n_layers, scheme=scheme))
+        slope = float(_tunability(tube, alpha, lowest, n_layers=n_layers, scheme=scheme,
+                                  **_orders(mode)))
     return DesignResult(
         tube=tube, alpha=alpha, omega=lowest, critical_voltage=v_first, unstable_mode=bound.mode,
         thickness=1.0 / tube.eta - 1.0, voltage=tube.voltage,
         voltage_fraction=float(aux["fraction"]), tunability=slope, loss=float(aux["loss"]),
         history=history, n_steps=len(history), converged=status == DesignStatus.CONVERGED,
         status=status)
+
+
+_tunability = jit(tunability, static_argnames=("n_layers", "scheme", "m", "torsional"))
 
 
 def _check_open(name, value, lo, hi, allowed):
@@ -441,6 +497,16 @@ def _check_bounds(name, bounds, lo, hi, allowed):
     return a, b
 
 
+HOLDS = ("length", "length_ratio")
+
+
+def _check_mode(m, torsional):
+    """(m, torsional) of the designed mode as (int, bool), validated (ValueError naming m or
+    torsional)."""
+    mode_family(m, torsional)  # m an integer >= 0, torsional a bool and only with m = 0
+    return int(m), bool(torsional)
+
+
 def _check_common(tube, n, margin, learning_rate, max_steps, rtol, n_layers, scheme, m_max, n_max):
     require_x64()
     validate_layers(n_layers)
@@ -459,7 +525,7 @@ def _check_common(tube, n, margin, learning_rate, max_steps, rtol, n_layers, sch
             raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
 
 
-def _seed(x0, setting, kind, fraction, n_layers, scheme, m_max, n_max, what):
+def _seed(x0, setting, kind, fraction, n_layers, scheme, m_max, n_max, what, mode=(0, False)):
     """The candidate modes at the start and the lowest root there (the first Newton guess)."""
     bound = _Bound(setting, kind, n_layers, scheme, m_max, n_max)
     if not bound.refresh(x0):
@@ -472,7 +538,8 @@ def _seed(x0, setting, kind, fraction, n_layers, scheme, m_max, n_max, what):
                          "is undefined there")
     tube, alpha, _ = _point(jnp.asarray(x0, jnp.float64), setting, kind)
     biased = tube.replace(voltage=fraction * float(setting["margin"]) * bound.first)
-    guess = float(frequencies(biased, alpha, n_roots=1, n_layers=n_layers, scheme=scheme)[0])
+    guess = float(frequencies(biased, alpha, n_roots=1, n_layers=n_layers, scheme=scheme,
+                              **_orders(mode))[0])
     if not math.isfinite(guess):
         raise ValueError(f"no frequency found at the starting {what}")
     return guess, bound
@@ -484,68 +551,86 @@ def _seed(x0, setting, kind, fraction, n_layers, scheme, m_max, n_max, what):
 def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0.5, thickness=None,
                          voltage_fraction=None, thickness_bounds=(0.05, 1.0), voltage_margin=0.8,
                          m_max: int = 8, n_max: int = 3, learning_rate=0.2, max_steps=500,
-                         rtol=1e-6, n_layers: int | None = None, scheme: str | None = None) -> DesignResult:
-    """Undeformed thickness H/R_i and voltage V̂ that put the lowest frequency of mode n at ``target``.
+                         rtol=1e-6, n_layers: int | None = None, scheme: str | None = None,
+                         hold: str = "length", m: int = 0, torsional: bool = False) -> DesignResult:
+    """Undeformed thickness H/R_i and voltage V̂ that put the lowest frequency of mode (m, n) at ``target``.
 
-    Fluid-free tube; λ_i, λ_z, G, L/R_o are kept. Design variables, mapped onto their ranges:
-    H/R_i = H_lo + (H_hi − H_lo) σ(x_H) (η = 1/(1 + H/R_i), α̂ = 2nπη/(L/R_o · λ_z)) and
+    Fluid-free tube; λ_i, λ_z, G and the undeformed length are kept (``hold``). Design variables,
+    mapped onto their ranges: H/R_i = H_lo + (H_hi − H_lo) σ(x_H) (η = 1/(1 + H/R_i)) and
     V̂ = s · m V̂_first(η) with s = σ(x_s) ∈ (0, 1), so every iterate satisfies V̂ < m V̂_first,
     V̂_first the first instability over the orders m ≤ ``m_max`` and axial modes n ≤ ``n_max``
-    (module docstring). Loss (adam)::
+    (module docstring). The wavenumber of axial mode n is α̂ = 2nπ/(λ_z L/R_i): with
+    ``hold="length"`` the undeformed length L/R_i = length_ratio/η of ``tube`` is held (in SI, L is
+    the tube's length whatever the wall; L/R_o = (L/R_i) η follows the wall), with
+    ``hold="length_ratio"`` L/R_o is held (a thinner wall then shortens the tube, the behaviour
+    before 0.x).
 
-        L = (Ω(H, V̂)/Ω_t − 1)² + (s − s_op)².
+    The target alone leaves a one-parameter family of designs (a curve in the (H/R_i, V̂) plane);
+    the operating fraction picks the member with s = s_op (default 0.5: the target sits mid-way in
+    the admissible voltage range, so the frequency can be tuned both ways from it). The design is
+    then the root of the scalar constraint::
 
-    The target alone leaves a one-parameter family of designs (a curve in the (H/R_i, V̂) plane). The
-    second term picks the member that reaches Ω_t at the operating fraction s_op of the admissible
-    voltage (default 0.5: the target sits mid-way in the voltage range, so the frequency can be tuned
-    both ways from it). Where Ω_t is reachable at s_op within the thickness bounds both terms vanish
-    at the optimum: the target is met exactly (no penalty bias), and the optimum is unique when Ω
-    is monotone in H along s = s_op (as on the paper's tube, where thicker walls are stiffer).
-    Otherwise the loss finds the best compromise (status MAX_STEPS or a loss that stays > 0).
+        g(H) = Ω(H, V̂ = s_op m V̂_first(H))/Ω_t − 1 = 0,
 
-    Convergence: |Ω/Ω_t − 1| ≤ rtol and |s − s_op| ≤ rtol at the tracked root. Once adam has
-    brought both below 1e-3 (or used ``max_steps`` with |Ω/Ω_t − 1| ≤ 1e-3), up to 8 Newton steps
-    on H/R_i at s = s_op finish the solve (they count in ``n_steps``; if they fail, adam goes on
-    with the steps left). The optimum is then
-    verified with :func:`jaxdea.frequencies` (the tracked root must be the lowest; else
+    solved by safeguarded Newton in x_H with the exact derivative dg/dx_H (implicit derivatives of
+    Ω and of V̂_first; bisection once a sign change brackets the root): quadratic convergence, a
+    handful of steps. Where Ω_t is out of reach at s_op within the thickness bounds (Newton runs
+    onto a bound), adam minimises the compromise loss::
+
+        L = (Ω(H, V̂)/Ω_t − 1)² + (s − s_op)²
+
+    from the start (geometrically decaying rate; status MAX_STEPS or a loss that stays > 0).
+
+    Convergence: |Ω/Ω_t − 1| ≤ rtol and |s − s_op| ≤ rtol at the tracked root, with the first
+    instability confirmed on the full (m, n) grid. The optimum is then verified with
+    :func:`jaxdea.frequencies` (the tracked root must be the lowest of order m; else
     WRONG_BRANCH).
 
     Args:
         tube: the :class:`~jaxdea.Tube`; its ``voltage`` is ignored and its ``eta`` is the default
-            start.
+            start (with ``hold="length"`` its ``length_ratio`` and ``eta`` give the held L/R_i).
         target: Ω_t > 0.
         n: axial mode number (>= 1).
         operating_fraction: s_op in (0, 1).
         thickness: starting H/R_i inside the bounds (default 1/η − 1 of ``tube``, moved 5 % inside
             the bounds if outside).
-        voltage_fraction: starting s in (0, 1) (default ``operating_fraction``).
+        voltage_fraction: starting s in (0, 1) of the adam fallback (default
+            ``operating_fraction``; Newton works at s = s_op).
         thickness_bounds: (H_lo, H_hi) with 0 < H_lo < H_hi <= 100.
         voltage_margin: m in (0, 1) of V̂ ≤ m V̂_first.
         m_max: the largest circumferential order of the stability constraint (>= 0; 0: the
             axisymmetric modes only, as in the paper).
         n_max: the largest axial mode number of the stability constraint (>= 1).
-        learning_rate: initial adam rate (decays by 0.97 a step).
-        max_steps: step limit (>= 1).
+        learning_rate: initial adam rate of the fallback (decays by 0.97 a step).
+        max_steps: step limit (>= 1), Newton and adam steps together.
         rtol: tolerance of the convergence test, in (0, 1).
         n_layers: sublayers N (static), or None: the accurate discretisation (:func:`jaxdea.frequencies`).
         scheme: the propagation scheme (:func:`jaxdea.frequencies`) of every solve. The default
             discretisation is resolved once for the run (its N for the thickest wall allowed and
             the orders and modes of the bound): ≤ 1e-8; ``scheme="midpoint", n_layers=30`` is the
             paper's laminate (1e-5).
+        hold: ``"length"`` (L/R_i held: the tube keeps its length in SI; default) or
+            ``"length_ratio"`` (L/R_o held).
+        m: circumferential order of the designed mode (int >= 0; ring modes m >= 1).
+        torsional: design the torsional mode (m = 0 only).
 
     Returns:
-        :class:`DesignResult`.
+        An instance of :class:`DesignResult`.
 
     Raises:
         ValueError: a bad input, naming the parameter and its allowed range.
 
-    Example:
+    Examples:
         >>> res = design_for_frequency(Tube(lambda_i=1.1, lambda_z=1.2), target=0.72)
         >>> res.thickness, res.voltage, res.omega  # Ω = 0.72 at V̂ = 0.4 V̂_first
         >>> res.unstable_mode  # (2, 1): ring buckling bounds the voltage
+        >>> design_for_frequency(Tube(lambda_i=1.1, lambda_z=1.2), 0.4, m=2)  # a ring mode
     """
     _check_common(tube, n, voltage_margin, learning_rate, max_steps, rtol, n_layers, scheme, m_max,
                   n_max)
+    mode = _check_mode(m, torsional)
+    if hold not in HOLDS:
+        raise ValueError(f"hold must be one of {HOLDS}, got {hold!r}")
     target = _check_open("target", target, 0.0, math.inf, "(0, inf)")
     s_op = _check_open("operating_fraction", operating_fraction, 0.0, 1.0, "(0, 1)")
     h_lo, h_hi = _check_bounds("thickness_bounds", thickness_bounds, 0.0, 100.0,
@@ -557,45 +642,42 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
     s0 = _check_open("voltage_fraction", s_op if voltage_fraction is None else voltage_fraction,
                      0.0, 1.0, "(0, 1)")
     setting = dict(tube=canonical(tube.replace(voltage=0.0)), n=float(n), target=target, s_op=s_op,
-                   margin=voltage_margin, h_lo=h_lo, h_hi=h_hi)
+                   margin=voltage_margin, h_lo=h_lo, h_hi=h_hi,
+                   length=float(tube.length_ratio) / float(tube.eta),
+                   hold_length=1.0 if hold == "length" else 0.0)
     setting = jax.tree_util.tree_map(as_float, setting)
     x0 = [_sigmoid_inverse(h0, h_lo, h_hi), _sigmoid_inverse(s0, 0.0, 1.0)]
     # one discretisation for the whole run: the default's N for its thickest wall and the orders
     # and modes of the bound (the run solves and differentiates on this one wall model)
-    thickest = tube.replace(eta=1.0 / (1.0 + h_hi))
+    eta = 1.0 / (1.0 + h_hi)
+    thickest = tube.replace(eta=eta, length_ratio=float(setting["length"]) * eta
+                            if hold == "length" else tube.length_ratio)
     layers = laminate(n_layers, scheme, thickest, mode_wavenumber(thickest, max(int(n), int(n_max))),
-                      m=int(m_max), at_rest=True)  # at rest: the bound is a critical voltage
-    guess, bound = _seed(x0, setting, "frequency", s0, layers, None, int(m_max), int(n_max),
-                         "thickness")
+                      m=max(int(m_max), int(mode[0])), at_rest=True)  # at rest: V̂_cr is searched
+    start = [x0[0], _sigmoid_inverse(s_op, 0.0, 1.0)]  # Newton works at s = s_op
+    guess, bound = _seed(start, setting, "frequency", s_op, layers, None, int(m_max), int(n_max),
+                         "thickness", mode)
 
     def done(aux, grad):
         del grad
         return abs(float(aux["miss"])) <= rtol and abs(float(aux["fraction"]) - s_op) <= rtol
 
-    def near(aux):  # adam has brought the iterate into Newton's basin
-        return abs(float(aux["miss"])) <= NEWTON_START and \
-            abs(float(aux["fraction"]) - s_op) <= NEWTON_START
-
-    steps_left, x, handoff = int(max_steps), x0, near
     history = []
-    while True:
-        aux, more, status, x = _run(x, guess, bound, setting, "frequency", layers, None,
-                                    learning_rate, steps_left, done, handoff=handoff)
+    solved = _newton(x0[0], guess, bound, setting, layers, None, history, rtol,
+                     min(NEWTON_STEPS, int(max_steps)), mode)
+    if solved is not None:
+        aux, status, _ = solved
+    else:  # out of reach at s_op (or Newton failed): adam's compromise from the start
+        steps_left = int(max_steps) - len(history)
+        if steps_left < 1:
+            raise ValueError(f"max_steps = {max_steps} were used by Newton without reaching the "
+                             "target: raise max_steps (>= 1) for the adam fallback")
+        guess, bound = _seed(x0, setting, "frequency", s0, layers, None, int(m_max), int(n_max),
+                             "thickness", mode)
+        aux, more, status, _ = _run(x0, guess, bound, setting, "frequency", layers, None,
+                                    learning_rate, steps_left, done, mode=mode)
         history += more
-        steps_left -= len(more)
-        if status is None or (status == DesignStatus.MAX_STEPS
-                              and abs(float(aux["miss"])) <= NEWTON_START):
-            finished = _newton_finish(x, aux["omega"], bound, setting, layers, None,
-                                      history, done)
-            if finished is not None:
-                aux, status = finished
-                break
-            if status is None and steps_left > 0:  # Newton failed: adam goes on, to the end
-                guess, handoff = aux["omega"], None
-                continue
-            status = DesignStatus.MAX_STEPS if status is None else status
-        break
-    return _finish(aux, np.asarray(history), status, bound, tube.material, layers, None)
+    return _finish(aux, np.asarray(history), status, bound, tube.material, layers, None, mode)
 
 
 # ----------------------------------------------------------------------------- problem 2
@@ -604,8 +686,8 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
 def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage_fraction=0.5,
                         lambda_i=None, voltage_margin=0.8, m_max: int = 8, n_max: int = 3,
                         learning_rate=0.3, max_steps=300, rtol=1e-9, n_layers: int | None = None,
-                        scheme: str | None = None) -> DesignResult:
-    """Voltage (and optionally λ_i) that maximise the tunability |dΩ/dV̂| of the lowest frequency.
+                        scheme: str | None = None, m: int = 0, torsional: bool = False) -> DesignResult:
+    """Voltage (and optionally λ_i) that maximise the tunability |dΩ/dV̂| of the lowest frequency of mode (m, n).
 
     Fixed thickness (η), λ_z, G; fluid-free. Loss −|T| with T = dΩ/dV̂ = −(∂f/∂V̂)/(∂f/∂Ω) at the
     tracked root (:func:`tunability`; its gradient is an exact second derivative). Variables:
@@ -617,8 +699,8 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
     towards it: on the tubes we measured |T| increases monotonically with s (and with λ_i), and the
     optimum lies on the constraint V̂ = m V̂_first (and on a λ_i bound). Where another (m, n)
     buckles first (ring buckling on the paper's tube), V̂_first is far below the mode's own V̂_cr
-    and the attainable |T| is much smaller than the axisymmetric analysis promises. The cosine maps reach a bound at
-    the finite x = π with zero slope, so the active constraint is met to rounding (an x error δ
+    and the attainable |T| is much smaller than the axisymmetric analysis promises. The cosine maps reach a
+    bound at the finite x = π with zero slope, so the active constraint is met to rounding (an x error δ
     moves s by δ²/4), which neither a sigmoid (x → ∞) nor a penalty (a violation ∝ 1/weight) does.
 
     Convergence: the loss changed by at most rtol · |T| over the last ``PLATEAU`` steps (adam's
@@ -634,21 +716,24 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
         voltage_fraction: starting s in (0, 1).
         lambda_i: starting λ_i inside the bounds (default the tube's, moved 5 % inside if outside).
         rtol: tolerance of the plateau test, in (0, 1).
-        voltage_margin, m_max, n_max, learning_rate, max_steps, n_layers, scheme: as in
-            :func:`design_for_frequency`.
+        voltage_margin, m_max, n_max, learning_rate, max_steps, n_layers, scheme, m, torsional:
+            as in :func:`design_for_frequency` (m, torsional: the mode whose tunability is
+            maximised; ring modes m >= 1 are often far more tunable than the axisymmetric one).
 
     Returns:
-        :class:`DesignResult` (``tunability`` is T at the optimum, negative where Ω falls with V̂).
+        An instance of :class:`DesignResult` (``tunability`` is T at the optimum, negative where Ω falls
+        with V̂).
 
     Raises:
         ValueError: a bad input, naming the parameter and its allowed range.
 
-    Example:
+    Examples:
         >>> res = maximise_tunability(Tube(lambda_i=1.1, lambda_z=1.2))
         >>> res.voltage_fraction, res.unstable_mode  # 1.0 (V̂ = 0.8 V̂_first), (2, 1)
     """
     _check_common(tube, n, voltage_margin, learning_rate, max_steps, rtol, n_layers, scheme, m_max,
                   n_max)
+    mode = _check_mode(m, torsional)
     s0 = _check_open("voltage_fraction", voltage_fraction, 0.0, 1.0, "(0, 1)")
     free = lambda_i_bounds is not None
     if free:
@@ -670,8 +755,9 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
     x0 = [_cosine_inverse(s0, 0.0, 1.0)] + ([_cosine_inverse(li0, li_lo, li_hi)] if free else [])
     start = setting["tube"]
     layers = laminate(n_layers, scheme, start, mode_wavenumber(start, max(int(n), int(n_max))),
-                      m=int(m_max), at_rest=True)  # one discretisation for the whole run, the bound's
-    guess, bound = _seed(x0, setting, kind, s0, layers, None, int(m_max), int(n_max), "lambda_i")
+                      m=max(int(m_max), mode[0]), at_rest=True)  # one discretisation for the run
+    guess, bound = _seed(x0, setting, kind, s0, layers, None, int(m_max), int(n_max), "lambda_i",
+                         mode)
 
     recent = []
 
@@ -681,5 +767,5 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
         return len(recent) > PLATEAU and abs(recent[-1] - recent[-1 - PLATEAU]) <= rtol * abs(recent[-1])
 
     aux, history, status, _ = _run(x0, guess, bound, setting, kind, layers, None,
-                                   learning_rate, max_steps, done)
-    return _finish(aux, np.asarray(history), status, bound, tube.material, layers, None)
+                                   learning_rate, max_steps, done, mode=mode)
+    return _finish(aux, np.asarray(history), status, bound, tube.material, layers, None, mode)

@@ -1,10 +1,12 @@
-"""Boundary conditions, fluid couplings and the real, pole-free characteristic function (theory.md §4).
+"""Boundary conditions, fluid couplings and the real, pole-free characteristic function
+(docs/theory/axisymmetric.md §4).
 
 Unknowns at the inner face x = [ū_i, w̄_i, D̄_i]; Y(r̂_i) = S x. The electrodes fix Φ = 0 on both faces
 and the faces carry follower pressures (gauge P̂_o = 0, P̂_i = ΔP̂), so the outer-face rows Φ, T̄, S̄
 (0-based rows 2, 3, 4) of A S must be singular: det C(Ω) = 0 (paper Eq. 45 corrected, E7/E15).
 
-Fluid couplings clear their denominator by acting on the initial basis S (theory.md §4(b), (c)):
+Fluid couplings clear their denominator by acting on the initial basis S (docs/theory/axisymmetric.md §4(b),
+(c)):
 
 * ``acoustic``: column 1 → D_0 S⁰_{·1} − Ω²ρ̂_f N_0 e_T (the dynamic pressure p* = Ω²ρ̂_f B̂_0 ū_i);
 * ``paper``: columns 1, 2 → D_ν S⁰_{·j} + Ω²ρ̂_f N_ν S¹_{·j} (Eq. 45 with ΔP̂ → ΔP̂ + P̂_f, P̂_f = Ω²ρ̂_f B̂_ν).
@@ -13,12 +15,12 @@ The characteristic function is det(B Q_N), with Q_N the orthonormalised propagat
 (:func:`jaxdea.transfer.propagate_basis`): real, finite, entire in Ω, the same zeros and sign as
 det C, and |f| ≤ 1 (well scaled for Newton at any α̂ĥ).
 
-Circumferential order m (theory_m.md §4–§5). A static *family* (:mod:`jaxdea.state_matrix`) picks
+Circumferential order m (docs/theory/order_m.md §4–§5). A static *family* (:mod:`jaxdea.state_matrix`) picks
 the problem: ``"longitudinal"`` (m = 0, the 6×6 system above, its code unchanged), ``"order_m"``
 (the 8×8 system with a traced order m: Y(r̂_i) = S x, x = [U_i, V_i, W_i, D_i], outer rows
 Φ, T, Q, S; the acoustic fluid of order m through the U column only) and ``"torsional"``
 (m = 0, (V, Q) alone, no fluid coupling). Each is a function of w = Ω² of either sign
-(:func:`characteristic_of_w`; w < 0: unstable modes, theory_m.md §6), with real arithmetic.
+(:func:`characteristic_of_w`; w < 0: unstable modes, docs/theory/order_m.md §6), with real arithmetic.
 The root solvers use :func:`problem_function`.
 """
 
@@ -75,7 +77,8 @@ def _unit(i):
 
 
 def initial_basis(wall: Wall, omega, alpha, fluid: Fluid | None = None, order: int = 0):
-    """The 6×3 matrix S(Ω) with Y(r̂_i) = S [ū_i, w̄_i, D̄_i] (theory.md §4), denominators cleared."""
+    """The 6×3 matrix S(Ω) with Y(r̂_i) = S [ū_i, w̄_i, D̄_i] (docs/theory/axisymmetric.md §4), denominators
+    cleared."""
     p, ri = wall.pressure_inner, wall.r_inner
     col_u = _unit(U) - (p / ri) * _unit(T) - alpha * p * _unit(S)
     col_w = _unit(W) - alpha * p * _unit(T)
@@ -86,7 +89,8 @@ def initial_basis(wall: Wall, omega, alpha, fluid: Fluid | None = None, order: i
         if fluid.coupling == "acoustic":
             n, d = coupling_pair(s, 0)
             col_u = d * col_u - omega**2 * rho * ri * n * _unit(T)
-        else:  # "paper": follower pressure P̂_f on the inner face, no Ṗ term (theory.md §4(b))
+        else:  # "paper": follower pressure P̂_f on the inner face, no Ṗ term
+            # (docs/theory/axisymmetric.md §4(b))
             n, d = coupling_pair(s, order)
             load = omega**2 * rho * ri * n
             col_u = d * col_u + load * (-_unit(T) / ri - alpha * _unit(S))
@@ -362,13 +366,16 @@ def resolve_order(tube: Tube, alpha, fluid: Fluid | None) -> int:
 
 
 def check_inputs(tube, alpha, fluid, n_layers, scheme="midpoint"):
-    """Validate the public inputs (concrete values) and return the static Bessel order."""
+    """Validate the public inputs (concrete values) and return the static Bessel order; ``alpha``
+    None where a solver takes no α̂ of its own (the order is then resolved at α̂ = 1)."""
     require_x64()
     validate_tube(tube)
     validate_fluid(fluid)
     validate_layers(n_layers)
     validate_scheme(scheme)
-    validate_alpha(alpha)
+    if alpha is None:
+        return resolve_order(tube, 1.0, fluid)
+    validate_alpha(alpha, tube=tube)
     return resolve_order(tube, alpha, fluid)
 
 
@@ -377,18 +384,20 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
     """The real characteristic function whose zeros in Ω are the frequencies.
 
     f(Ω) = det(B Q_N) (module docstring): finite, pole-free, even in Ω, |f| ≤ 1, with the zeros and
-    the sign of det C(Ω) of theory.md §4 (paper Eq. 45 corrected). NaN if the transfer is not finite.
+    the sign of det C(Ω) of docs/theory/axisymmetric.md §4 (paper Eq. 45 corrected). NaN if the transfer is not
+    finite.
 
     Args:
         tube: the :class:`~jaxdea.Tube`.
         omega: Ω = ω R_i / c_s, a finite real number.
-        alpha: α̂ = α R_i >= ALPHA_MIN = 1e-12 (:data:`jaxdea.params.ALPHA_MIN`).
+        alpha: α̂ = α R_i >= ALPHA_MIN = 1e-12 (:data:`jaxdea.params.ALPHA_MIN`), with α̂ĥ <=
+            ALPHA_THICKNESS_MAX = 150 (ĥ = h/R_i the deformed wall thickness).
         fluid: a :class:`~jaxdea.Fluid`, or None for the empty tube.
         n_layers: number of sublayers N (static), or None: the accurate discretisation
             (:func:`jaxdea.frequencies`).
         scheme: how a sublayer is crossed (static): ``"midpoint"`` (the paper's laminate, error
             O(N⁻²)), ``"magnus4"`` or ``"magnus6"`` (O(N⁻⁴), O(N⁻⁶); :mod:`jaxdea.transfer`).
-        m: circumferential order, an integer ≥ 0 (theory_m.md): 0 is the axisymmetric longitudinal
+        m: circumferential order, an integer ≥ 0 (docs/theory/order_m.md): 0 is the axisymmetric longitudinal
             family (6×6, unchanged), m ≥ 1 the 8×8 system of order m. A traced m (e.g. under
             ``vmap`` over orders) uses the 8×8 system throughout (compiled once); at m = 0 it gives
             the longitudinal family's zeros.
@@ -400,7 +409,7 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
             the ``"paper"`` coupling with m ≥ 1 (naming m), ``torsional=True`` with m ≥ 1 (naming
             torsional). Traced invalid inputs (under ``jit``/``vmap``) give NaN instead.
 
-    Example:
+    Examples:
         >>> f = characteristic(Tube(), 1.0, 0.445)
         >>> g = characteristic(Tube(), 1.0, 0.445, m=2)
     """
@@ -421,12 +430,12 @@ def characteristic_at_omega_squared(tube: Tube, omega_squared, alpha, fluid: Flu
     """The characteristic function of :func:`characteristic` as a function of w = Ω², any sign.
 
     Zeros with w > 0 are the frequencies Ω = sqrt(w); zeros with w < 0 the unstable modes, with
-    growth rate s = sqrt(−w) (theory_m.md §6): f is entire in w and computed in real arithmetic
+    growth rate s = sqrt(−w) (docs/theory/order_m.md §6): f is entire in w and computed in real arithmetic
     (the generator is a polynomial in w, the fluid coupling a function of χ̂² = w/ĉ_f² − α̂²).
     Arguments and errors as :func:`characteristic`; at m = 0 (``torsional=False``) the
     longitudinal family, here formed by the order-m code at m = 0 (same zeros, other scale).
 
-    Example:
+    Examples:
         >>> characteristic_at_omega_squared(Tube(voltage=0.1, lambda_i=0.95, lambda_z=1.2),
         ...                                 -0.5574, 0.445, m=2)  # ≈ 0: an unstable mode
     """
@@ -483,13 +492,14 @@ def _unit8(i):
 
 
 def _basis_order_m(wall: Wall, omega_squared, alpha, fluid, order, m):
-    """The 8×4 S(Ω²) of theory_m.md §4–§5 with Y(r̂_i) = S [U_i, V_i, W_i, D_i], denominators cleared.
+    """The 8×4 S(Ω²) of docs/theory/order_m.md §4–§5 with Y(r̂_i) = S [U_i, V_i, W_i, D_i], denominators
+    cleared.
 
     Follower pressure P̂_i at r̂_i: T = −P̂_i(U + mV)/r̂_i − α̂P̂_iW − Ṗ, Q = −P̂_i(mU + V)/r̂_i,
     S = −α̂P̂_iU, Φ = 0. Acoustic fluid (§5): Ṗ = κU, κ = Ω²ρ̂_f B̂_m, B̂_m = r̂_i N_m/D_m
     (:func:`jaxdea.bessel.coupling_pair` at s = χ̂²r̂_i², χ̂² = Ω²/ĉ_f² − α̂², order m), cleared:
-    column U → D_m S_{·U} − Ω²ρ̂_f r̂_i N_m e_T. The paper's coupling (theory.md §4(b), order ν)
-    exists at m = 0 only (NaN elsewhere).
+    column U → D_m S_{·U} − Ω²ρ̂_f r̂_i N_m e_T. The paper's coupling (docs/theory/axisymmetric.md §4(b), order
+    ν) exists at m = 0 only (NaN elsewhere).
     """
     p, ri = wall.pressure_inner, wall.r_inner
     col_u = _unit8(U8) - (p / ri) * _unit8(T8) - (m * p / ri) * _unit8(Q8) - alpha * p * _unit8(S8)
@@ -514,9 +524,9 @@ def _basis_order_m(wall: Wall, omega_squared, alpha, fluid, order, m):
 
 def initial_basis_of_w(wall: Wall, omega_squared, alpha, fluid: Fluid | None = None, order: int = 0,
                        m=0, family: str = ORDER_M):
-    """S(Ω²) with Y(r̂_i) = S x for a mode family (theory_m.md §4), at w = ``omega_squared``.
+    """S(Ω²) with Y(r̂_i) = S x for a mode family (docs/theory/order_m.md §4), at w = ``omega_squared``.
 
-    ``"order_m"``: 8×4 (:func:`_basis_order_m`); ``"longitudinal"``: the 6×3 of theory.md §4
+    ``"order_m"``: 8×4 (:func:`_basis_order_m`); ``"longitudinal"``: the 6×3 of docs/theory/axisymmetric.md §4
     (the order-m basis at m = 0 restricted to [ū, w̄, Φ, T̄, S̄, D̄] and [ū_i, w̄_i, D̄_i]; equal to
     :func:`initial_basis` at w = Ω² to rounding); ``"torsional"``: 2×1, [V, Q] = [1, −P̂_i/r̂_i]
     (an inviscid fluid exerts no shear: no fluid term).
@@ -530,12 +540,12 @@ def initial_basis_of_w(wall: Wall, omega_squared, alpha, fluid: Fluid | None = N
 
 
 def outer_conditions(wall: Wall, alpha, m=0, family: str = ORDER_M, pressure_outer=0.0):
-    """The rows Out with Out·Y(r̂_o) = 0 (theory_m.md §4), for an outer pressure P̂_o.
+    """The rows Out with Out·Y(r̂_o) = 0 (docs/theory/order_m.md §4), for an outer pressure P̂_o.
 
     ``"order_m"`` (4×8): e_Φ; e_T + P̂_o(e_U/r̂_o + m e_V/r̂_o + α̂ e_W); e_Q + P̂_o(m e_U + e_V)/r̂_o;
     e_S + α̂P̂_o e_U. At m = 0 the row Q is e_V instead: V is constant there (its rows are switched
     off, :func:`jaxdea.state_matrix.torsion_switch`), so the determinant is the longitudinal one
-    times a constant factor. ``"longitudinal"`` (3×6): the rows Φ, T̄, S̄ of theory.md §4;
+    times a constant factor. ``"longitudinal"`` (3×6): the rows Φ, T̄, S̄ of docs/theory/axisymmetric.md §4;
     ``"torsional"`` (1×2): e_Q + P̂_o e_V/r̂_o. The library's gauge is P̂_o = 0 (then the plain rows
     Φ, T, Q, S); a non-zero P̂_o with P̂_i, p̂ shifted alike checks gauge invariance (§7e).
     """
@@ -556,7 +566,7 @@ def outer_conditions(wall: Wall, alpha, m=0, family: str = ORDER_M, pressure_out
 
 def characteristic_and_scale_of_w(wall: Wall, omega_squared, alpha, fluid=None, order=0,
                                   method="taylor", m=0, family: str = ORDER_M, pressure_outer=0.0):
-    """(f, log_scale) with det(Out A S) = f · exp(log_scale) at w = Ω² (theory_m.md §4–§6).
+    """(f, log_scale) with det(Out A S) = f · exp(log_scale) at w = Ω² (docs/theory/order_m.md §4–§6).
 
     S from :func:`initial_basis_of_w`, propagated with re-orthonormalisation
     (:func:`jaxdea.transfer.propagate_basis_of_w`, 8×4 basis for order m), f = det(Out Q_N) ∈ [−1, 1]

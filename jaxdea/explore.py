@@ -3,10 +3,12 @@ phase velocities, the axial modes n, the stability status and the mode shape of 
 
 The computation lives in pure functions (:func:`explorer_data`, :func:`stability_status`,
 :func:`explorer_mode`); :func:`explore` wraps them in an ipywidgets app (``pip install
-jaxdea[explore]``) that redraws matplotlib figures (rendered to PNG, so it works headless and with
-any matplotlib backend) whenever a control changes. Every slider value is a traced leaf of the
-compiled solvers, so moving a slider never recompiles; the empty tube, the filled one, each
-coupling and m = 0 against m ≥ 1 are separate programs, each compiled on first use.
+jaxdea[explore]``) that redraws a matplotlib figure whenever a control changes: an interactive
+ipympl canvas widget where ipympl is installed (clicks on a curve select a mode; in JupyterLab,
+Jupyter Notebook and voila), else a PNG image. The user's matplotlib backend is never changed.
+Every slider value is a traced leaf of the compiled solvers, so moving a slider never recompiles;
+the empty tube, the filled one, each coupling and m = 0 against m ≥ 1 are separate programs, each
+compiled on first use (the app says "compiling (once)…" meanwhile).
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import numpy as np
 from .curves import dispersion_curve
 from .modes import mode_shape
 from .params import Fluid, Tube, axial_wavenumber
-from .roots import first_instability, phase_velocity
+from .roots import first_instability, growth_rates, phase_velocity
 
 ALPHAS = np.linspace(0.05, 3.0, 40)
 """The default α̂ grid of the explorer (the axial modes' α̂_n are added to it)."""
@@ -149,14 +151,14 @@ def explore(tube: Tube | None = None, fluid: Fluid | None = None, *, n_modes: in
     Sliders set V̂, λ_i, λ_z, η, G, ρ̂_f, ĉ_f and the order m; toggles choose the empty or filled
     tube and the coupling (``"paper"`` with its Bessel order ν, valid at m = 0 only). The plots
     show the ``n_modes`` lowest Ω(α̂) (:func:`explorer_data`), the phase velocity Ω/α̂, the axial
-    modes n = 1 … ``n_axial`` marked on both, and the stability status of
-    :func:`stability_status` (shaded when V̂ ≥ V̂_first). Its ``first_instability`` solve depends
-    on λ_i, λ_z, η and G only: after a move of one of them it runs in the background (the curves
-    are drawn at once, the status and shading when it ends; ``app.wait()`` blocks until then), so
-    no update waits for it. A click on a curve (on an interactive matplotlib canvas showing ``app.figure``), the
+    modes n = 1 … ``n_axial`` marked on both, the stability status of :func:`stability_status`
+    (shaded when V̂ ≥ V̂_first) and, shaded red, the α̂ where the lowest root of order m is
+    imaginary (:func:`unstable_alphas`: the curve there is the next root). Both solves run in the
+    background (the curves are drawn at once, the status and marks when they end; ``app.wait()``
+    blocks until then), so no update waits for them. A click on a curve (the ipympl canvas), the
     α̂ and branch controls, or ``app.select(alpha, branch)`` shows that root's mode shape in the
-    side panel. Invalid combinations (e.g. a wall past Gent locking) show the error message
-    instead of raising.
+    side panel. The fluid controls are disabled for the empty tube. Invalid combinations (e.g. a
+    wall past Gent locking) show the error message instead of raising.
 
     Args:
         tube: the initial :class:`~jaxdea.Tube` (default: the paper's, V̂ = 0.1); its
@@ -171,15 +173,15 @@ def explore(tube: Tube | None = None, fluid: Fluid | None = None, *, n_modes: in
 
     Returns:
         The app, an ``ipywidgets.VBox``: ``controls`` (the widgets by parameter name), ``set``
-        (several controls, one redraw), ``select`` and ``on_click``; ``data``
-        (:class:`ExplorerData`), ``status`` (:class:`StabilityStatus`, None while its solve
-        runs: ``wait``), ``mode`` ((α̂, Ω, r,
-        fields)) and ``error`` (the message, or None) hold what is shown.
+        (several controls, one redraw), ``select``, ``on_click`` and ``png`` (the figure as PNG
+        bytes); ``data`` (:class:`ExplorerData`), ``status`` (:class:`StabilityStatus`, None while
+        its solve runs: ``wait``), ``unstable`` (the α̂ flags of :func:`unstable_alphas`),
+        ``mode`` ((α̂, Ω, r, fields)) and ``error`` (the message, or None) hold what is shown.
 
     Raises:
         ImportError: without ipywidgets (``pip install jaxdea[explore]``).
 
-    Example:
+    Examples:
         >>> app = jaxdea.explore(jaxdea.Tube(voltage=0.05, lambda_i=0.9, lambda_z=1.2))
         >>> app.controls["voltage"].value = 0.02   # redraws; app.data holds the curves
         >>> app.set(filled="filled", m=2)          # several controls, one redraw
@@ -195,11 +197,59 @@ def explore(tube: Tube | None = None, fluid: Fluid | None = None, *, n_modes: in
                         n_layers=n_layers, n_max=n_max, m_max=m_max, stability=stability)
 
 
-def _png(figure) -> bytes:
-    """The figure as PNG bytes (Agg, whatever the backend)."""
+def unstable_alphas(tube: Tube, alpha, fluid: Fluid | None = None, m: int = 0,
+                    n_layers: int | None = None) -> np.ndarray:
+    """Where the lowest root of order ``m`` is imaginary (Ω² < 0: the mode grows, at the rate s of
+    :func:`jaxdea.growth_rates`), at each α̂ of ``alpha``: there :func:`jaxdea.dispersion_curve`
+    gives the next, real root, and the plotted branch drops. A bool array like ``alpha``; False where
+    the growth-rate scan fails (e.g. the paper's coupling, which has none)."""
+    out = np.zeros(np.shape(alpha), bool)
+    for k, a in enumerate(np.asarray(alpha, np.float64)):
+        try:
+            s = float(growth_rates(tube, float(a), fluid, n_roots=1, n_layers=n_layers, m=m)[0])
+        except ValueError:
+            return np.zeros(np.shape(alpha), bool)
+        out[k] = np.isfinite(s) and s > 0.0
+    return out
+
+
+def _png(figure, dpi=100) -> bytes:
+    """The figure as PNG bytes (whatever its canvas)."""
     buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=72, pil_kwargs=dict(compress_level=1))  # fast encoding
+    figure.savefig(buffer, format="png", dpi=dpi, pil_kwargs=dict(compress_level=1))  # fast encoding
     return buffer.getvalue()
+
+
+def _interactive_canvas(figure):
+    """An ipympl canvas widget showing ``figure`` (clicks reach its ``mpl_connect`` handlers), or None
+    without ipympl. The user's matplotlib backend is left as it is: importing the ``ipympl``
+    package would switch it (its ``__init__`` calls ``matplotlib.use`` when matplotlib is loaded), so
+    the package is imported with matplotlib hidden for that moment, and only its canvas is used."""
+    import sys
+
+    if "ipympl" not in sys.modules:
+        loaded = sys.modules.pop("matplotlib", None)
+        try:
+            import ipympl  # noqa: F401
+        except ImportError:
+            return None
+        finally:
+            if loaded is not None:
+                sys.modules["matplotlib"] = loaded
+    try:
+        from ipympl.backend_nbagg import Canvas, FigureManager
+    except ImportError:
+        return None
+    import warnings
+
+    with warnings.catch_warnings():  # ipympl's toolbar passes traitlets an argument it deprecates
+        warnings.simplefilter("ignore", DeprecationWarning)
+        canvas = Canvas(figure)
+        FigureManager(canvas, 0)  # the manager wires the canvas to its front end
+    canvas.header_visible = canvas.footer_visible = canvas.resizable = False
+    canvas.toolbar_visible = False
+    canvas.layout.width = "100%"
+    return canvas
 
 
 def _slider(widgets, description, value, low, high, step, log=False):
@@ -215,12 +265,16 @@ def _slider(widgets, description, value, low, high, step, log=False):
                                description=description, continuous_update=False, readout_format=".3f")
 
 
+FLUID_CONTROLS = ("density_ratio", "speed_ratio", "coupling", "bessel_order")
+
+
 @functools.cache
 def _app_class():
     """The app's class (a ``VBox``), defined on first use so that ipywidgets stays optional."""
     import ipywidgets as widgets
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+
+    from .plotstyle import LABELS, SHORT_LABELS, style
 
     class Explorer(widgets.VBox):
         """The explorer app (see :func:`explore`)."""
@@ -231,13 +285,18 @@ def _app_class():
             self.n_axial, self.n_layers, self.n_max, self.m_max = n_axial, n_layers, n_max, m_max
             self.stability = stability
             self.data = self.status = self.mode = self.error = None
+            self.unstable = None  # where the lowest root is imaginary (:func:`unstable_alphas`), or None
             self.selection = None  # (α̂, branch) of the mode shown
             self._first = {}  # (V̂_first, m, n) of the last wall
+            self._growth = {}  # {state key: unstable α̂ flags}
+            self._compiled = set()  # the kinds of problem solved once (their programs compiled)
             self._holding = False  # True while set() changes several controls
             self._pool = concurrent.futures.ThreadPoolExecutor(max_workers=1)
             self._pending = None  # (wall key, future) of the background first-instability solve
+            self._pending_growth = None  # (state key, future) of the background growth-rate scan
             self._lock = threading.RLock()  # one recomputation or redraw at a time
             shown = fluid if fluid is not None else Fluid()
+            wide = dict(description_width="initial")
             c = self.controls = dict(
                 voltage=_slider(widgets, "V̂", tube.voltage, 0.0, 0.3, 0.002),
                 lambda_i=_slider(widgets, "λ_i", tube.lambda_i, 0.7, 1.6, 0.01),
@@ -248,9 +307,10 @@ def _app_class():
                 speed_ratio=_slider(widgets, "ĉ_f", shown.speed_ratio, 0.05, 2.0, 0.01),
                 m=widgets.IntSlider(value=0, min=0, max=8, description="order m",
                                     continuous_update=False),
-                filled=widgets.ToggleButtons(options=["empty", "filled"],
-                                             value="filled" if fluid is not None else "empty"),
-                coupling=widgets.ToggleButtons(options=["acoustic", "paper"], value=shown.coupling),
+                filled=widgets.ToggleButtons(options=["empty", "filled"], description="tube",
+                                             value="filled" if fluid is not None else "empty", style=wide),
+                coupling=widgets.ToggleButtons(options=["acoustic", "paper"], value=shown.coupling,
+                                               description="fluid model", style=wide),
                 bessel_order=widgets.BoundedIntText(value=shown.bessel_order or 1, min=0, max=20,
                                                     description="ν (paper)"),
             )
@@ -264,17 +324,27 @@ def _app_class():
             )
             self.message = widgets.HTML()
             self.status_label = widgets.HTML()
-            self.figure = Figure(figsize=(12.0, 3.6))  # Ω(α̂), Ω/α̂ and the mode-shape side panel
-            FigureCanvasAgg(self.figure)
-            *self.axes, self.mode_axes = self.figure.subplots(1, 3, width_ratios=[1.0, 1.0, 0.8])
-            self._setup_axes()
-            self.image = widgets.Image(format="png")
+            self.busy = widgets.HTML()  # "compiling (once)…" while a new kind of problem compiles
+            self.mode_label = widgets.HTML("mode shape: click a curve, or pick α̂ and branch")
+            with style():
+                self.figure = Figure(figsize=(12.0, 3.8), layout="constrained")
+                *self.axes, self.mode_axes = self.figure.subplots(1, 3, width_ratios=[1.0, 1.0, 0.8])
+            self.canvas = _interactive_canvas(self.figure)
+            if self.canvas is None:  # a PNG image: no clicks, the α̂ and branch controls select
+                from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+                FigureCanvasAgg(self.figure)
+                self.image = widgets.Image(format="png", layout=widgets.Layout(width="100%"))
+                self.plot = self.image
+            else:
+                self.image, self.plot = None, self.canvas
+            self._setup_axes(LABELS, SHORT_LABELS)
             self.figure.canvas.mpl_connect("button_press_event", self.on_click)
             super().__init__([
                 widgets.HBox([widgets.VBox(list(c.values())),
-                              widgets.VBox([self.status_label, self.message,
+                              widgets.VBox([self.status_label, self.busy, self.message, self.mode_label,
                                             widgets.HBox(list(self.pick.values()))])]),
-                self.image,
+                self.plot,
             ])
             for control in c.values():
                 control.observe(self.refresh, names="value")
@@ -296,10 +366,37 @@ def _app_class():
                               bessel_order=int(c["bessel_order"].value) if paper else None)
             return tube, fluid, int(c["m"].value)
 
+        def png(self) -> bytes:
+            """The figure as shown, as PNG bytes."""
+            return _png(self.figure)
+
         @staticmethod
         def _wall_key(tube):
             return (tube.lambda_i, tube.lambda_z, tube.eta, tube.gent, tube.length_ratio,
                     tube.material)
+
+        @staticmethod
+        def _kind(fluid, m):
+            """The kind of problem (one set of compiled programs): the fluid model and m = 0 or m ≥ 1."""
+            return ("empty" if fluid is None else fluid.coupling, m > 0)
+
+        def _compiling(self, what, kind):
+            """Say "compiling (once)…" while a kind of problem is solved for the first time."""
+            if (what, kind) not in self._compiled:
+                self.busy.value = (f"<i>compiling (once)… the first {what} of this kind of problem "
+                                   "(fluid model, m = 0 or m ≥ 1) takes tens of seconds</i>")
+
+        def _compiled_now(self, what, kind):
+            self._compiled.add((what, kind))
+            self.busy.value = ""
+
+        def _sync_controls(self):
+            """The fluid controls act only on a filled tube, ν only with the paper's coupling."""
+            c = self.controls
+            empty = c["filled"].value == "empty"
+            for key in FLUID_CONTROLS:
+                c[key].disabled = empty
+            c["bessel_order"].disabled = empty or c["coupling"].value != "paper"
 
         def _stability(self, tube):
             """:func:`stability_status` when the first instability of this wall is known (it does
@@ -335,12 +432,49 @@ def _app_class():
                     self._show_status()
                     self._draw()
 
+        def _state_key(self, tube, fluid, m):
+            return (tuple(float(getattr(tube, k)) for k in ("voltage", "lambda_i", "lambda_z", "eta", "gent")),
+                    fluid, m)
+
+        def _unstable_alphas(self, tube, fluid, m):
+            """The α̂ flags of :func:`unstable_alphas` when known for this state; else None, and
+            the scan starts in the background (the marks follow when it ends; :meth:`wait`)."""
+            key = self._state_key(tube, fluid, m)
+            if key in self._growth:
+                return self._growth[key]
+            if self._pending_growth is None or self._pending_growth[0] != key:
+                self._pending_growth = (key, self._pool.submit(self._solve_growth, key, tube, fluid, m,
+                                                               self.data.alpha))
+            return None
+
+        def _solve_growth(self, key, tube, fluid, m, alpha):
+            """The background growth-rate scan of a state (skipped if the controls moved on)."""
+            with self._lock:
+                try:
+                    current = self._state_key(*self.parameters())
+                except ValueError:
+                    return
+                if current != key:
+                    return
+                self._compiling("check of unstable α̂", self._kind(fluid, m))
+            flags = unstable_alphas(tube, alpha, fluid, m, self.n_layers)
+            with self._lock:
+                self._compiled_now("check of unstable α̂", self._kind(fluid, m))
+                self._growth = {key: flags}
+                try:
+                    current = self._state_key(*self.parameters())
+                except ValueError:
+                    return
+                if self.data is not None and current == key:
+                    self.unstable = flags
+                    self._draw()
+
         def wait(self):
-            """Block until the background first-instability solve (if any) has ended and its
-            status is shown."""
-            pending = self._pending
-            if pending is not None:
-                pending[1].result()
+            """Block until the background solves (first instability, unstable α̂) have ended and
+            what they give is shown."""
+            for pending in (self._pending, self._pending_growth):
+                if pending is not None:
+                    pending[1].result()
 
         def _show_status(self):
             status = self.status
@@ -375,17 +509,23 @@ def _app_class():
 
         def _refresh(self):
             self.message.value = ""
+            self._sync_controls()
             try:
                 tube, fluid, m = self.parameters()
+                self._compiling("curve", self._kind(fluid, m))
                 data = explorer_data(tube, fluid, m, self.n_modes, self.alphas, self.n_axial,
                                      self.n_layers)
+                self._compiled_now("curve", self._kind(fluid, m))
             except ValueError as exc:
+                self.busy.value = ""
                 self.data, self.status, self.mode, self.error = None, None, None, str(exc)
+                self.unstable = None
                 self._show_error(str(exc))
                 self.status_label.value = ""
             else:
                 self.data, self.error = data, None
                 self.status = self._stability(tube) if self.stability else None
+                self.unstable = self._unstable_alphas(tube, fluid, m) if self.stability else None
                 self._show_status()
                 slider, low, high = self.pick["alpha"], float(data.alpha[0]), float(data.alpha[-1])
                 if low > slider.max:
@@ -399,10 +539,14 @@ def _app_class():
             """:func:`explorer_mode` for the controls' values, or None (the error shown)."""
             tube, fluid, m = self.parameters()
             try:
-                return explorer_mode(tube, self.data, alpha, branch, fluid, m, self.n_layers)
+                self._compiling("mode shape", self._kind(fluid, m))
+                mode = explorer_mode(tube, self.data, alpha, branch, fluid, m, self.n_layers)
             except ValueError as exc:
+                self.busy.value = ""
                 self._show_error(str(exc))
                 return None
+            self._compiled_now("mode shape", self._kind(fluid, m))
+            return mode
 
         def select(self, alpha, branch):
             """Show the mode shape of ``branch`` (0: the lowest) at the grid α̂ nearest to
@@ -411,6 +555,9 @@ def _app_class():
             with self._lock:
                 self.selection = (float(alpha), int(branch))
                 self.mode = self._mode(*self.selection) if self.data is not None else None
+                if self.mode is not None:  # the α̂ and branch controls show what is selected
+                    self.pick["alpha"].value = self.mode[0]
+                    self.pick["branch"].value = int(branch)
                 self._draw()
                 return self.mode
 
@@ -431,32 +578,44 @@ def _app_class():
                 self.select(self.data.alpha[row], branch)
 
         # ------------------------------------------------------------------------ drawing
-        def _setup_axes(self):
+        def _setup_axes(self, labels, short):
             ax, axv = self.axes
-            self.lines = [ax.plot([], [], lw=1.5, label=f"branch {k + 1}")[0]
-                          for k in range(self.n_modes)]
-            self.speed_lines = [axv.plot([], [], lw=1.5, color=line.get_color())[0]
-                                for line in self.lines]
-            self.markers = ax.plot([], [], "o", ms=4, color="k", label="axial modes n")[0]
-            self.speed_markers = axv.plot([], [], "o", ms=4, color="k")[0]
-            self.picked = ax.plot([], [], "*", ms=12, color="crimson")[0]
-            self.mode_lines = [self.mode_axes.plot([], [], label=name)[0] for name in ("ū", "v̄", "w̄")]
-            self.labels = []
-            ax.set(xlabel="axial wavenumber α̂", ylabel="frequency Ω")
-            axv.set(xlabel="axial wavenumber α̂", ylabel="phase velocity Ω/α̂")
-            self.mode_axes.set(xlabel="radius r̂", ylabel="displacement (mode shape)")
-            ax.legend(loc="upper left", fontsize=7)
-            self.mode_axes.legend(loc="upper right", fontsize=7)
-            for axis in (*self.axes, self.mode_axes):  # fewer tick labels: text dominates drawing
-                axis.locator_params(nbins=5)
-            self.figure.subplots_adjust(left=0.05, right=0.99, bottom=0.14, top=0.9, wspace=0.25)
+            with style():
+                self.lines = [ax.plot([], [], lw=1.5, label=f"branch {k + 1}")[0]
+                              for k in range(self.n_modes)]
+                self.speed_lines = [axv.plot([], [], lw=1.5, color=line.get_color())[0]
+                                    for line in self.lines]
+                self.markers = ax.plot([], [], "o", ms=4, color="k", label="axial modes $n$")[0]
+                self.speed_markers = axv.plot([], [], "o", ms=4, color="k")[0]
+                self.picked = ax.plot([], [], "*", ms=12, color="crimson", label="mode shown")[0]
+                self.mode_lines = [self.mode_axes.plot([], [], label=name)[0]
+                                   for name in (r"$\bar u$ (radial)", r"$\bar v$ (hoop)", r"$\bar w$ (axial)")]
+                self.labels, self.spans = [], []
+                ax.set(xlabel=labels["alpha"], ylabel=short["omega"])
+                axv.set(xlabel=labels["alpha"], ylabel=short["phase_velocity"])
+                self.mode_axes.set(xlabel=r"radius $\hat r = r/R_i$", ylabel="displacement (max = 1)")
+                from matplotlib.patches import Patch
+
+                self.unstable_patch = Patch(facecolor="#f4b6b6", alpha=0.6,
+                                            label=r"$\Omega^2 < 0$: lowest root imaginary (unstable)")
+                for axis in (*self.axes, self.mode_axes):  # fewer tick labels: text dominates drawing
+                    axis.locator_params(nbins=5)
 
         def _draw(self):
             """Put the data, the status and the mode shape on the figure and render it."""
+            with style():
+                self._draw_curves()
+                self._draw_mode()
+            if self.canvas is not None:
+                self.canvas.draw_idle()
+            else:
+                self.image.value = _png(self.figure)
+
+        def _draw_curves(self):
             ax, axv = self.axes
-            for label in self.labels:
-                label.remove()
-            self.labels = []
+            for artist in self.labels + self.spans:
+                artist.remove()
+            self.labels, self.spans = [], []
             d = self.data
             unstable = self.status is not None and self.status.unstable
             for axis in self.axes:
@@ -464,48 +623,86 @@ def _app_class():
             if d is None:
                 for line in self.lines + self.speed_lines + [self.markers, self.speed_markers]:
                     line.set_data([], [])
-                ax.set_title("invalid parameters (see the message)", fontsize=9)
+                ax.set_title("invalid parameters (see the message)")
                 axv.set_title("")
-            else:
-                for k in range(self.n_modes):
-                    self.lines[k].set_data(d.alpha, d.omega[:, k])
-                    self.speed_lines[k].set_data(d.alpha, d.phase_velocity[:, k])
-                rows = np.repeat(d.axial_index, self.n_modes)
-                ks = np.tile(np.arange(self.n_modes), len(d.axial_index))
-                self.markers.set_data(d.alpha[rows], d.omega[rows, ks])
-                self.speed_markers.set_data(d.alpha[rows], d.phase_velocity[rows, ks])
-                for n, a in zip(d.axial_n, d.axial_alpha, strict=True):
-                    self.labels.append(ax.annotate(f"n={n}", (a, 1.0), xycoords=("data", "axes fraction"),
-                                                   xytext=(0, 2), textcoords="offset points",
-                                                   ha="center", va="bottom", fontsize=7))
-                tube, fluid, m = self.parameters()
-                filled = "empty" if fluid is None else f"filled ({fluid.coupling})"
-                ax.set_title(f"order m = {m}, {filled}, V̂ = {float(tube.voltage):.3g}", fontsize=9,
-                             pad=12)
-                axv.set_title(self.status.text if self.status is not None else "", fontsize=8,
-                              color="#b00020" if unstable else "black")
-                for axis in self.axes:
-                    axis.relim()
-                    axis.autoscale_view()
-                top = np.nanmax(d.phase_velocity[d.alpha >= 0.2 * d.alpha[-1]], initial=1.0)
-                axv.set_ylim(0.0, 1.1 * top if np.isfinite(top) else 1.0)
-            self._draw_mode()
-            self.image.value = _png(self.figure)
+                if ax.get_legend() is not None:
+                    ax.get_legend().remove()
+                return
+            for k in range(self.n_modes):
+                self.lines[k].set_data(d.alpha, d.omega[:, k])
+                self.speed_lines[k].set_data(d.alpha, d.phase_velocity[:, k])
+            rows = np.repeat(d.axial_index, self.n_modes)
+            ks = np.tile(np.arange(self.n_modes), len(d.axial_index))
+            self.markers.set_data(d.alpha[rows], d.omega[rows, ks])
+            self.speed_markers.set_data(d.alpha[rows], d.phase_velocity[rows, ks])
+            for n, a in zip(d.axial_n, d.axial_alpha, strict=True):
+                self.labels.append(ax.annotate(f"$n$={n}", (a, 1.0), xycoords=("data", "axes fraction"),
+                                               xytext=(0, 2), textcoords="offset points",
+                                               ha="center", va="bottom", fontsize=7))
+            handles = [*self.lines, self.markers]
+            if self.unstable is not None and np.any(self.unstable):
+                edges = np.concatenate([[d.alpha[0]], 0.5 * (d.alpha[1:] + d.alpha[:-1]), [d.alpha[-1]]])
+                for k in np.flatnonzero(self.unstable):
+                    for axis in self.axes:
+                        self.spans.append(axis.axvspan(edges[k], edges[k + 1], facecolor="#f4b6b6",
+                                                       alpha=0.6, lw=0, zorder=0))
+                handles.append(self.unstable_patch)
+            if self.mode is not None:
+                handles.append(self.picked)
+            ax.legend(handles=handles, loc="upper left", fontsize=7)
+            tube, fluid, m = self.parameters()
+            filled = "empty" if fluid is None else f"filled ({fluid.coupling})"
+            ax.set_title(f"order $m$ = {m}, {filled}, $\\hat V$ = {float(tube.voltage):.3g}", pad=12)
+            axv.set_title(self.status.text if self.status is not None else "", fontsize=8,
+                          color="#b00020" if unstable else "black")
+            for axis in self.axes:
+                axis.set_xlim(d.alpha[0], d.alpha[-1])
+            # the default view: every branch unless the highest squeezes the others (a thickness
+            # branch far above them), then the lower ones with room
+            finite = d.omega[np.isfinite(d.omega)]
+            top, shown = (float(np.max(finite)) if finite.size else 1.0), self.n_modes
+            if self.n_modes > 2:
+                lower = d.omega[:, : self.n_modes - 1]
+                lower = lower[np.isfinite(lower)]
+                if lower.size and top > 2.0 * np.max(lower):
+                    top, shown = 1.5 * float(np.max(lower)), self.n_modes - 1
+            ax.set_ylim(0.0, 1.05 * top)
+            speeds = d.phase_velocity[d.alpha >= 0.2 * d.alpha[-1], :shown]
+            speed_top = np.nanmax(speeds, initial=0.0) if speeds.size else 0.0
+            axv.set_ylim(0.0, 1.1 * speed_top if np.isfinite(speed_top) and speed_top > 0 else 1.0)
 
         def _draw_mode(self):
+            axes = self.mode_axes
             if self.mode is None:
                 self.picked.set_data([], [])
                 for line in self.mode_lines:
                     line.set_data([], [])
-                self.mode_axes.set_title("click a curve, or pick α̂ and branch", fontsize=9)
+                axes.set_axis_off()  # no empty frame, ticks or legend
+                if axes.get_legend() is not None:
+                    axes.get_legend().remove()
+                axes.set_title("")
+                if not getattr(self, "_hint", None):
+                    self._hint = axes.text(0.5, 0.5, "mode shape:\nclick a curve,\nor pick α̂ and branch",
+                                           transform=axes.transAxes, ha="center", va="center",
+                                           color="0.4")
+                self._hint.set_visible(True)
+                self.mode_label.value = "mode shape: click a curve, or pick α̂ and branch"
                 return
             a, omega, r, fields = self.mode
+            axes.set_axis_on()
+            if getattr(self, "_hint", None):
+                self._hint.set_visible(False)
             rows = (0, None, 1) if fields.shape[0] == 6 else (0, 1, 2)  # ū, v̄ (order m), w̄
             for line, row in zip(self.mode_lines, rows, strict=True):
                 line.set_data(([], []) if row is None else (r, fields[row]))
-            self.mode_axes.relim()
-            self.mode_axes.autoscale_view()
-            self.mode_axes.set_title(f"α̂ = {a:.3f}, Ω = {omega:.4f}", fontsize=9)
+            axes.relim()
+            axes.autoscale_view()
+            axes.legend(handles=[line for line, row in zip(self.mode_lines, rows, strict=True)
+                                 if row is not None], loc="best", fontsize=7)
+            branch = self.selection[1] + 1 if self.selection is not None else 1
+            axes.set_title(rf"branch {branch}: $\hat\alpha$ = {a:.3f}, $\Omega$ = {omega:.4f}")
             self.picked.set_data([a], [omega])
+            self.mode_label.value = (f"mode shape: branch {branch} at α̂ = {a:.4f}, "
+                                     f"Ω = {omega:.5f}")
 
     return Explorer

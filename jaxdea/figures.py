@@ -9,11 +9,12 @@ likewise along theirs (:func:`critical_curves`). The figures against n follow α
 fractional n (the infinite tube's curve) and mark the tube's modes, the integers; the paper's
 coupling, whose Bessel order is ν = n, exists at integer n only and is drawn there.
 
-Styles are the same in every figure: one colour per axial mode n (:data:`MODE_COLORS`), per order m
-(:data:`ORDER_COLORS`) or, against n, per V̂ (:data:`VOLTAGE_COLORS`); one line style per coupling and
-λ_i (:func:`_style`: the empty tube and the acoustic coupling solid-based, the paper's dashed-based).
-Legends sit below the axes. A curve breaks only where its root changes branch (:func:`solve_curves`),
-the point after the break circled.
+Styles are the same in every figure (:mod:`jaxdea.plotstyle`: mathtext, 300 dpi, one legend below
+the panels): one colour per axial mode n (:data:`MODE_COLORS`), per order m (:data:`ORDER_COLORS`)
+or, against n, per V̂ (:data:`VOLTAGE_COLORS`); one line style per coupling and λ_i (:func:`_style`:
+the empty tube and the acoustic coupling solid-based, the paper's dashed-based). A curve breaks only
+where its root changes branch (:func:`solve_curves`), the point after the break circled. Each
+figure's caption (``figures/README.md``, :func:`write_index`) explains its marks.
 
 Past the critical voltage V̂_cr(n) the lowest frequency is imaginary (the tube buckles
 axisymmetrically): the curves against V̂ run from V̂ = 0 to V̂_cr(n), where they end at Ω = 0 (the
@@ -21,17 +22,18 @@ points crowd there, V̂ = V̂_cr(1 − (1 − t)²) for t uniform: Ω falls like
 points are left blank (NaN, ``status`` = ``"past critical"`` in the CSV). V̂_cr is solved directly
 (:func:`jaxdea.critical_voltage`'s problem), so a blank point never hides a wrong branch.
 
-The tube loses stability earlier in a non-axisymmetric order m (theory_m.md): for λ_i = 0.9 the
+The tube loses stability earlier in a non-axisymmetric order m (docs/theory/order_m.md): for λ_i = 0.9 the
 ring mode (m, n) = (2, 1) at V̂ ≈ 0.029, a tenth of the axisymmetric V̂_cr. The first instability
-(the smallest V̂_cr over m ≤ 4, n ≤ max_mode, as :func:`jaxdea.first_instability`) is shaded on the
-figures against V̂ (Figs. 2, 5) and stated on those against n (Figs. 3, 4, 6, 7; the curves past it
-faded). Three figures of order m follow: the stability map (V̂_cr of m = 0 … 4 against λ_i and n),
+(the smallest V̂_cr over m ≤ 4, n ≤ max_mode, as :func:`jaxdea.first_instability`) marks the states
+past it by one rule, V̂ ≥ V̂_first (:func:`jaxdea.plotstyle.past_first_instability`): faded in every
+figure, shaded on those against V̂ (Figs. 2, 5), and ``past_first_instability`` in every CSV. Three
+figures of order m follow: the stability map (V̂_cr of m = 0 … 4 against λ_i and n),
 the cross-sections of the lowest m = 1, 2, 3 modes, and the dispersion curves Ω(α̂) of m = 0, 1, 2.
 
 Data layout of every CSV: one row per point and coupling, long format (``figure``, the swept
 parameters, ``coupling``, ``alpha_hat``, ``omega``, ``phase_velocity`` = Ω/α̂, ``v_critical``,
-``status``; Figs. 2–7 add ``v_first``, ``m_first``, ``n_first``, the first instability at the row's
-λ_i).
+``status``; every table with a voltage adds ``v_first``, ``m_first``, ``n_first``, the first
+instability at the row's state, and ``past_first_instability``).
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from __future__ import annotations
 import concurrent.futures
 import csv
 import dataclasses
+import functools
 import math
 import threading
 import time
@@ -48,12 +51,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import plotstyle
 from .base_state import _squared_voltage, pull_in
 from .compiled import jit
 from .curves import _solve_critical_path, _solve_path
+from .files import atomic_write, save_figure, write_together
 from .leaves import apply_parameters
 from .modes import mode_shape
 from .params import Fluid, Tube, mode_wavenumber
+from .plotstyle import SHORT_LABELS, line_handle, new_figure, past_first_instability, patch_handle
 from .scalar import Status
 from .state_matrix import ORDER_M
 
@@ -75,7 +81,7 @@ MAP_STRETCH_RANGE = (0.9, 1.4)  # below λ_i ≈ 0.9 the tube is unstable at V̂
 SHAPE_ORDERS = (1, 2, 3)
 CURVE_ORDERS = (0, 1, 2)
 CURVE_ROOTS = 3
-SAVE_DPI = 130  # resolution of the PNGs
+SAVE_DPI = plotstyle.SAVE_DPI  # resolution of the PNGs
 EMPTY_CURVE_ORDERS = tuple(sorted(set(CURVE_ORDERS) | set(SHAPE_ORDERS)))  # the empty tube's curves
 
 
@@ -117,7 +123,7 @@ class Table:
 
     def write(self, path: Path) -> None:
         names = list(dict.fromkeys(k for row in self.rows for k in row))
-        with open(path, "w", newline="") as fh:
+        with atomic_write(path) as tmp, open(tmp, "w", newline="") as fh:
             writer = csv.DictWriter(fh, fieldnames=names)
             writer.writeheader()
             for row in self.rows:
@@ -349,6 +355,8 @@ class Context:
     lock: threading.Lock = dataclasses.field(default_factory=threading.Lock)
     pool: concurrent.futures.Executor | None = None  # :meth:`curves_of`
     since: float = dataclasses.field(default_factory=time.perf_counter)  # when the last figure was saved
+    captions: dict = dataclasses.field(default_factory=dict)  # {figure name: caption} (:meth:`save`)
+    figures: dict = dataclasses.field(default_factory=dict)  # {figure name: the Figure} (:meth:`save`)
 
     def log(self, message: str) -> None:
         if self.progress:
@@ -411,22 +419,18 @@ class Context:
         futures = {c: self.pool.submit(solve_curves, self.n_layers, *job) for c, job in jobs.items()}
         return {c: future.result() for c, future in futures.items()}
 
-    def save(self, name: str, fig, table: Table) -> None:
-        import matplotlib
-        import matplotlib.pyplot as plt
-
+    def save(self, name: str, fig, table: Table, caption: str = "") -> None:
+        """Write the figure (PNG at :data:`SAVE_DPI`, stamped with :func:`figures_stamp`) and its
+        table (CSV); keep its caption for the index (:func:`write_index`)."""
         png, csv_path = self.out / f"{name}.png", self.out / f"{name}.csv"
-        # the tight bounding box (legends outside the axes) taken from the figure as laid out,
-        # padded as bbox_inches="tight" pads it: the same pixels without the extra draw pass that
-        # "tight" makes first (savefig 4.8-5.2 -> 4.2 CPU s over the figures, measured)
-        fig.set_dpi(SAVE_DPI)
-        bbox = fig.get_tightbbox(fig.canvas.get_renderer()).padded(
-            matplotlib.rcParams["savefig.pad_inches"])
-        fig.savefig(png, dpi=SAVE_DPI, bbox_inches=bbox)
-        plt.close(fig)
+        self.captions[name], self.figures[name] = caption, fig
+        # constrained layout keeps the legends and titles inside the canvas: no tight-bbox pass
         for row in table.rows:  # the setting behind every number: the paper's laminate
             row["discretisation"] = f"midpoint, N = {self.n_layers}"
-        table.write(csv_path)
+        metadata = plotstyle.png_metadata(figures_stamp())
+        # the PNG and its CSV together, or neither
+        write_together([(png, lambda tmp: save_figure(fig, tmp, dpi=SAVE_DPI, metadata=metadata)),
+                        (csv_path, table.write)])
         self.written += [png, csv_path]
         now = time.perf_counter()
         self.log(f"  wrote {png} and {csv_path.name} ({now - self.since:.1f} s)")
@@ -452,16 +456,23 @@ def _mask_past(omega, voltage, v_cr):
 # ----------------------------------------------------------------------------- plotting helpers
 
 
-def _figure(ncols=2, title=None):
-    import matplotlib
+def _styled(draw):
+    """Draw a figure in the style of :mod:`jaxdea.plotstyle` (its rc settings, restored after)."""
+    @functools.wraps(draw)
+    def styled(*args, **kwargs):
+        with plotstyle.style():
+            return draw(*args, **kwargs)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    return styled
 
-    fig, axes = plt.subplots(1, ncols, figsize=(5.2 * ncols, 4.0), squeeze=False)
-    if title:
-        fig.suptitle(title)
-    return fig, axes[0]
+
+@functools.cache
+def figures_stamp() -> str:
+    """The stamp of the code that draws the figures (:func:`jaxdea.plotstyle.source_stamp` of this
+    module and the style module), written into every PNG."""
+    import sys
+
+    return plotstyle.source_stamp(sys.modules[__name__], plotstyle)
 
 
 def _style(coupling, lambda_i):
@@ -474,42 +485,53 @@ def _style(coupling, lambda_i):
     return ("-", "-.", (0, (8, 2)))[k]
 
 
-def _plot(ax, x, y, jumps=None, **kw):
+def _stretch_text(lambda_i) -> str:
+    """λ_i in mathtext: λ_z^{-1/2} by name."""
+    if abs(float(lambda_i) - CRITICAL_STRETCH) < 1e-12:
+        return rf"$\lambda_i = \lambda_z^{{-1/2}} \approx {CRITICAL_STRETCH:.3f}$"
+    return rf"$\lambda_i = {float(lambda_i):g}$"
+
+
+def _plot(ax, x, y, jumps=None, past=None, **kw):
     """A curve that breaks where the lowest root changes branch (``jumps``): the segments are drawn
-    apart and the first point after a break is marked with an open circle."""
+    apart and the first point after a break is marked with an open circle; its points ``past`` the
+    first instability are drawn faded (:func:`jaxdea.plotstyle.plot_marked`)."""
     x, y = np.asarray(x, float), np.asarray(y, float)
+    past = np.zeros(x.shape, bool) if past is None else np.broadcast_to(np.asarray(past, bool), x.shape)
     drawn = np.isfinite(y) & np.concatenate([[False], np.isfinite(y[:-1])])  # a start after a gap is none
     breaks = np.flatnonzero(np.asarray(jumps) & drawn) if jumps is not None else np.zeros(0, int)
-    y_line = y.copy()
+    x_line, y_line, past_line = x, y, past
     if breaks.size:
-        x, y_line = np.insert(x, breaks, np.nan), np.insert(y_line, breaks, np.nan)
-    line, = ax.plot(x, y_line, **kw)
-    if breaks.size:
-        ax.plot(np.asarray(x)[breaks + np.arange(breaks.size) + 1], y[breaks], "o", mfc="none",
-                color=line.get_color(), ms=5, alpha=kw.get("alpha", 1.0))
+        x_line, y_line = np.insert(x, breaks, np.nan), np.insert(y, breaks, np.nan)
+        past_line = np.insert(past, breaks, False)
+    line = plotstyle.plot_marked(ax, x_line, y_line, past_line, **kw)
+    for b in breaks:
+        ax.plot([x[b]], [y[b]], "o", mfc="none", color=kw.get("color"), ms=5,
+                alpha=kw.get("alpha", 1.0) * (plotstyle.PAST_ALPHA if past[b] else 1.0))
     return line
 
 
-def _legend_styles(ax, entries):
-    """Legend entries for colours and line styles drawn apart (``entries``: (label, plot kwargs))."""
-    from matplotlib.lines import Line2D
-
-    handles = [Line2D([], [], **kw) for _, kw in entries]
-    ax.legend(handles, [label for label, _ in entries], fontsize=7, loc="upper center",
-              bbox_to_anchor=(0.5, -0.16), ncol=3, frameon=False)
-
-
-def _finish(ax, xlabel, ylabel, legend=True):
+def _axes_labels(ax, xlabel, ylabel):
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    ax.grid(alpha=0.3)
-    if legend:
-        _legend_below(ax)
 
 
-def _legend_below(ax):
-    """The legend under the axes (outside them: it never covers a curve), two columns."""
-    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
+def _style_entries(couplings, stretches):
+    """Legend handles of the line styles of :func:`_style`."""
+    names = {None: "", "acoustic": ", acoustic", "paper": ", paper's coupling"}
+    return [line_handle(_stretch_text(li) + names[c], ls=_style(c, li))
+            for c in couplings for li in stretches]
+
+
+def _common_handles(jumps: bool = True):
+    """Legend handles of the marks every figure shares: faded curves (past the first instability)
+    and the open circle of a branch change."""
+    handles = [line_handle(r"faded: past the first instability ($\hat V \geq \hat V_{first}$)",
+                           alpha=plotstyle.PAST_ALPHA, lw=2)]
+    if jumps:
+        handles.append(line_handle("first point after a branch change", ls="none", marker="o",
+                                   mfc="none", ms=5))
+    return handles
 
 
 def _first_columns(stability: Stability, lambda_i) -> dict:
@@ -518,40 +540,37 @@ def _first_columns(stability: Stability, lambda_i) -> dict:
     return dict(v_first=v, m_first=m, n_first=n)
 
 
-def _shade_unstable(ax, stability: Stability, stretches) -> None:
-    """Shade V̂ ≥ V̂_first of each λ_i (the tube has buckled in the order m, mode n that fails first),
-    labelled "(m, n) unstable"."""
+def _first_text(v, m, n) -> str:
+    return rf"$(m, n) = ({m}, {n})$ at $\hat V_{{first}} = {v:.4f}$" if np.isfinite(v) else "none found"
+
+
+HATCHES = (None, "////", "\\\\\\\\")  # the regions past the first instability, one per λ_i
+
+
+def _shade_unstable(ax, stability: Stability, stretches) -> list:
+    """Shade V̂ ≥ V̂_first of each λ_i (the tube has buckled in the (m, n) that fails first), up to
+    the axes' right end; returns their legend handles."""
     right = ax.get_xlim()[1]
+    handles = []
     for k, li in enumerate(stretches):
         v, m, n = stability.first(li)
         if not np.isfinite(v) or v >= right:
             continue
-        ax.axvspan(v, right, color="0.5", alpha=0.12, lw=0, hatch="///" if k else None)
+        face = dict(facecolor=(0.5, 0.5, 0.5, 0.13), edgecolor=(0.35, 0.35, 0.35, 0.5), hatch=HATCHES[k],
+                    lw=0)
+        ax.axvspan(v, right, **face)
         ax.axvline(v, color="0.3", ls=":", lw=1)
-        ax.annotate(f"λi={li}: ({m}, {n}) unstable", (v, 0.5), xycoords=("data", "axes fraction"),
-                    xytext=(2, 0), textcoords="offset points", rotation=90, va="center", fontsize=7,
-                    color="0.2", bbox=dict(fc="white", ec="none", alpha=0.7, pad=1))
+        handles.append(patch_handle(rf"unstable at {_stretch_text(li)}: " + _first_text(v, m, n), **face))
     ax.set_xlim(right=right)
+    return handles
 
 
-def _note_unstable(ax, stability: Stability, stretches) -> None:
-    """State the first instability of each λ_i under the title of the figure of ``ax`` (the curves
-    at V̂ ≥ V̂_first are faded; the legends are below the axes)."""
-    lines = []
-    for li in stretches:
-        v, m, n = stability.first(li)
-        lines.append(f"λi={li:.3g}: ({m}, {n}) unstable for V̂ ≥ {v:.4f}")
-    ax.figure.text(0.5, 0.935, "first instability (curves past it faded): " + ";  ".join(lines),
-                   ha="center", va="top", fontsize=8, color="0.2")
+def _first_line(stability: Stability, stretches) -> str:
+    """One line naming the first instability of each λ_i."""
+    return ";  ".join(f"{_stretch_text(li)}: " + _first_text(*stability.first(li)) for li in stretches)
 
 
 # ----------------------------------------------------------------------------- Figs. 2 and 5
-
-
-def _style_entries(couplings, stretches):
-    """Legend entries of the line styles of :func:`_style`."""
-    return [(f"λi={li:.3g}" + (f" ({c})" if c else ""), dict(color="0.3", ls=_style(c, li)))
-            for c in couplings for li in stretches]
 
 
 def voltage_path(v_cr: float, v_top: float, points: int):
@@ -564,9 +583,10 @@ def voltage_path(v_cr: float, v_top: float, points: int):
     return v_cr * (1.0 - (1.0 - t) ** 2), t
 
 
-def figure_voltage(ctx: Context, fluid_filled: bool) -> None:
+@_styled
+def figure_voltage(ctx: Context, fluid_filled: bool):
     """Ω and c_p against V̂ for n = 1, 2, 3 at λ_i = 0.9, 1.1 (Fig. 2 fluid-free, Fig. 5 filled):
-    continuation along V̂ up to V̂_cr(n), where the curve ends at Ω = 0."""
+    continuation along V̂ up to V̂_cr(n), where the curve ends at Ω = 0. Returns (figure, axes)."""
     name = "fig5_voltage_fluid" if fluid_filled else "fig2_voltage_empty"
     ctx.log(f"[{name}] Ω and phase velocity against V̂")
     v_cr = ctx.critical_voltages(lambda_i=STRETCHES, n=MODES)
@@ -578,44 +598,97 @@ def figure_voltage(ctx: Context, fluid_filled: bool) -> None:
         (dict(voltage=grids[i, j][0], lambda_i=STRETCHES[i], n=MODES[j]), grids[i, j][1])
         for i, j in keys])
     stability = ctx.stability()
-    fig, (ax_w, ax_c) = _figure(title=("Fluid-filled" if fluid_filled else "Fluid-free")
-                                + " tube: lowest frequency of modes n = 1, 2, 3 (λ_z = 1.2)")
+    fig, (ax_w, ax_c) = new_figure(2, title=("Fluid-filled" if fluid_filled else "Fluid-free")
+                                   + r" tube: lowest frequency of the axial modes $n$ = 1, 2, 3"
+                                   + r" ($\lambda_z = 1.2$)")
     table = Table(name)
+    fluid_branch = []  # phase velocities of the acoustic coupling's lowest (fluid) branch
     for coupling, solved in by_coupling.items():
         for (i, j), sol in zip(keys, solved, strict=True):
             li, n, voltages = STRETCHES[i], MODES[j], grids[i, j][0]
             first = _first_columns(stability, li)
-            for v, w, a, st in zip(voltages, sol.omega, sol.alpha, sol.status, strict=True):
+            past = past_first_instability(voltages, first["v_first"])
+            for v, w, a, st, p in zip(voltages, sol.omega, sol.alpha, sol.status, past, strict=True):
                 table.add(lambda_i=li, n=n, voltage=v, coupling=coupling or "none", alpha_hat=a,
                           omega=w, phase_velocity=w / a, v_critical=v_cr[i, j],
-                          status=_status_name(st, False), **first)
+                          status=_status_name(st, False), **first, past_first_instability=bool(p))
             ends = np.isfinite(v_cr[i, j])
             x = np.append(voltages, v_cr[i, j]) if ends else voltages
             y = np.append(sol.omega, 0.0) if ends else sol.omega
             jumps = np.append(sol.jumps, False) if ends else sol.jumps
-            kw = dict(color=MODE_COLORS[n], ls=_style(coupling, li), lw=1.3)
+            kw = dict(color=MODE_COLORS[n], ls=_style(coupling, li),
+                      past=past_first_instability(x, first["v_first"]))
             _plot(ax_w, x, y, jumps, **kw)
             _plot(ax_c, x, y / sol.alpha[0], jumps, **kw)
+            if coupling == "acoustic":
+                fluid_branch.append(sol.omega / sol.alpha[0])
+    _note_fluid_branch(ax_c, fluid_branch)
+    shades = []
     for ax in (ax_w, ax_c):
-        _shade_unstable(ax, stability, STRETCHES)
-    _finish(ax_w, "voltage V̂", "frequency Ω", legend=False)
-    _legend_styles(ax_w, [(f"n={n}", dict(color=MODE_COLORS[n])) for n in MODES]
-                   + _style_entries(cases, STRETCHES))
-    _finish(ax_c, "voltage V̂", "phase velocity ĉ_p = Ω/α̂", legend=False)
-    ctx.save(name, fig, table)
+        ax.set_xlim(0.0, ax.get_xlim()[1])
+        ax.set_ylim(bottom=0.0)
+        shades = _shade_unstable(ax, stability, STRETCHES)
+    _axes_labels(ax_w, SHORT_LABELS["voltage"], SHORT_LABELS["omega"])
+    _axes_labels(ax_c, SHORT_LABELS["voltage"], SHORT_LABELS["phase_velocity"])
+    ax_w.set_title("(a) frequency")
+    ax_c.set_title("(b) phase velocity")
+    plotstyle.legend_below(fig, [line_handle(f"$n = {n}$", color=MODE_COLORS[n]) for n in MODES]
+                           + _style_entries(cases, STRETCHES) + shades + _common_handles(), ncol=3)
+    caption = (f"{'Fluid-filled' if fluid_filled else 'Fluid-free'} tube (the paper's Fig. "
+               f"{5 if fluid_filled else 2}): the lowest frequency Ω (a) and phase velocity Ω/α̂ (b) "
+               "of the axial modes n = 1, 2, 3 (colours) against the voltage V̂, at λ_i = 0.9 and 1.1 "
+               "(line styles"
+               + ("; solid-based: the consistent acoustic coupling, dashed-based: the paper's coupling"
+                  if fluid_filled else "") + "). Each curve ends at Ω = 0 at the critical voltage "
+               "V̂_cr(n) of the axisymmetric mode. The shaded regions (plain for λ_i = 0.9, hatched for "
+               "1.1) lie past the tube's first instability, the smallest critical voltage over the "
+               "orders m ≤ 4 and modes n searched (" + _plain_first(stability, STRETCHES) + "); the "
+               "curves are faded there. An open circle marks the first point after a branch change."
+               + (" The acoustic coupling's lowest root is the fluid (Korteweg) branch: its phase velocity "
+                  "lies just below ĉ_f for every n and λ_i, so its six curves coincide in (b) (the box "
+                  "gives their range)." if fluid_filled else ""))
+    ctx.save(name, fig, table, caption)
+    return fig, (ax_w, ax_c)
+
+
+def _note_fluid_branch(ax, curves, side: str = "left") -> None:
+    """Say where the acoustic coupling's phase velocities lie: its lowest root is the fluid
+    (Korteweg) branch, just below ĉ_f for every n, λ_i and V̂, so those curves coincide. The note
+    sits just above them, at the ``side`` of the axes that the other curves leave free."""
+    if not curves:
+        return
+    speeds = np.concatenate(curves)
+    speeds = speeds[np.isfinite(speeds) & (speeds > 0.5 * PAPER_FLUID["speed_ratio"])]
+    typical, high = np.median(speeds), np.max(speeds)
+    ax.annotate(rf"acoustic coupling: its {len(curves)} curves coincide near $\hat c_p$ = {typical:.3f}"
+                "\n" rf"(the fluid branch, just below $\hat c_f$ = {PAPER_FLUID['speed_ratio']})",
+                (0.03 if side == "left" else 0.97, high), xycoords=("axes fraction", "data"),
+                xytext=(0, 12), textcoords="offset points", ha=side, va="bottom", fontsize=7.5,
+                bbox=dict(fc="white", ec="0.6", lw=0.5, pad=2))
+
+
+def _plain_first(stability: Stability, stretches) -> str:
+    """The first instability of each λ_i in plain text (captions)."""
+    parts = []
+    for li in stretches:
+        v, m, n = stability.first(li)
+        parts.append(f"λ_i = {float(li):.3g}: (m, n) = ({m}, {n}) at V̂_first = {v:.4f}")
+    return "; ".join(parts)
 
 
 # ----------------------------------------------------------------------------- Figs. 3, 4, 6, 7
 
 
-def figure_modes(ctx: Context, fluid_filled: bool, critical_stretch: bool) -> None:
+@_styled
+def figure_modes(ctx: Context, fluid_filled: bool, critical_stretch: bool):
     """Ω and c_p against the axial mode number n (Figs. 3/6: λ_i = 0.9, 1.1 and V̂ = 0, 0.2;
     Figs. 4/7: λ_i = λ_z^{-1/2} and V̂ = 0, 0.1, 0.15, 0.2): continuation along α̂ = α̂_1 n through
     fractional n (the curve Ω(α̂) of the infinite tube), the tube's modes (integer n) marked. The
     paper's coupling is defined at integer n only (its Bessel order is ν = n): drawn there, without
     jump marks (a grid of whole modes is too coarse to tell a branch change from the root's own
     variation).
-    Past V̂_cr(n) the lowest root is imaginary and the point is blank."""
+    Past V̂_cr(n) the lowest root is imaginary and the point is blank. Returns the table (the
+    rows of the CSV); the figure is ``ctx.figures[name]``."""
     if critical_stretch:
         name = "fig7_modes_critical_fluid" if fluid_filled else "fig4_modes_critical_empty"
         stretches, voltages = (CRITICAL_STRETCH,), (0.0, 0.1, 0.15, 0.2)
@@ -626,41 +699,63 @@ def figure_modes(ctx: Context, fluid_filled: bool, critical_stretch: bool) -> No
     dense = ctx.res.modes()
     whole = np.arange(1.0, ctx.res.max_mode + 1.0)
     cases = _fluids() if fluid_filled else {None: None}
-    title = ("Fluid-filled" if fluid_filled else "Fluid-free") + " tube against the mode number"
+    title = ("Fluid-filled" if fluid_filled else "Fluid-free") + " tube against the axial mode number"
     if critical_stretch:
-        title += f" at λ_i = λ_z^-1/2 ≈ {stretches[0]:.3f}"
+        title += " at " + _stretch_text(stretches[0])
     keys = [(i, j) for i in range(len(stretches)) for j in range(len(voltages))]
     modes_of = {c: whole if c == "paper" else dense for c in cases}
     by_coupling = ctx.curves_of(cases, lambda c: [
         (dict(voltage=voltages[j], lambda_i=stretches[i], n=modes_of[c]), modes_of[c])
         for i, j in keys])
     stability = ctx.stability()
-    fig, (ax_w, ax_c) = _figure(title=title)
+    fig, (ax_w, ax_c) = new_figure(2, height=3.8, title=title + "\nfirst instability: "
+                                   + _first_line(stability, stretches))
     table = Table(name)
+    fluid_branch = []  # phase velocities of the acoustic coupling's lowest (fluid) branch
     for coupling, solved in by_coupling.items():
         modes = modes_of[coupling]
         v_cr = ctx.critical_voltages(lambda_i=stretches, n=modes)
         for (i, j), sol in zip(keys, solved, strict=True):
             li, v = stretches[i], voltages[j]
             first = _first_columns(stability, li)
+            unstable = bool(past_first_instability(v, first["v_first"]))
             omega, past = _mask_past(sol.omega, v, v_cr[i])
             for n, a, w, st, p, vc in zip(modes, sol.alpha, omega, sol.status, past, v_cr[i], strict=True):
                 table.add(lambda_i=li, voltage=v, n=n, coupling=coupling or "none", alpha_hat=a,
                           omega=w, phase_velocity=w / a, v_critical=vc, status=_status_name(st, p),
-                          **first)
-            kw = dict(color=VOLTAGE_COLORS[v], ls=_style(coupling, li), lw=1.3,
-                      alpha=0.45 if v >= first["v_first"] else 1.0)
+                          **first, past_first_instability=unstable)
+            kw = dict(color=VOLTAGE_COLORS[v], ls=_style(coupling, li), past=unstable)
             on_mode = np.isclose(modes, np.round(modes))
             for ax, y in ((ax_w, omega), (ax_c, omega / sol.alpha)):
                 _plot(ax, modes, y, None if coupling == "paper" else sol.jumps, **kw)
-                ax.plot(modes[on_mode], y[on_mode], "o", ms=2.5, color=kw["color"], alpha=kw["alpha"])
-    _note_unstable(ax_c, stability, stretches)
-    _finish(ax_w, "axial mode number n (α̂ = n α̂_1; dots: the tube's modes)", "frequency Ω",
-            legend=False)
-    _legend_styles(ax_w, [(f"V̂={v}", dict(color=VOLTAGE_COLORS[v])) for v in voltages]
-                   + _style_entries(cases, stretches))
-    _finish(ax_c, "axial mode number n", "phase velocity ĉ_p = Ω/α̂", legend=False)
-    ctx.save(name, fig, table)
+                ax.plot(modes[on_mode], y[on_mode], "o", ms=2.5, color=kw["color"],
+                        alpha=plotstyle.PAST_ALPHA if unstable else 1.0)
+            if coupling == "acoustic":
+                fluid_branch.append(omega / sol.alpha)
+    _note_fluid_branch(ax_c, fluid_branch, side="right")
+    for ax in (ax_w, ax_c):
+        ax.set_ylim(bottom=0.0)
+    _axes_labels(ax_w, SHORT_LABELS["n"], SHORT_LABELS["omega"])
+    _axes_labels(ax_c, SHORT_LABELS["n"], SHORT_LABELS["phase_velocity"])
+    ax_w.set_title("(a) frequency (dots: the tube's modes, whole $n$)")
+    ax_c.set_title("(b) phase velocity")
+    plotstyle.legend_below(fig, [line_handle(rf"$\hat V = {v:g}$", color=VOLTAGE_COLORS[v]) for v in voltages]
+                           + _style_entries(cases, stretches)
+                           + _common_handles(jumps=True), ncol=3)
+    figure_number = {"fig3": 3, "fig4": 4, "fig6": 6, "fig7": 7}[name[:4]]
+    caption = (f"{'Fluid-filled' if fluid_filled else 'Fluid-free'} tube (the paper's Fig. {figure_number}):"
+               " the lowest frequency Ω (a) and phase velocity Ω/α̂ (b) against the axial mode number n,"
+               f" at V̂ = {', '.join(f'{v:g}' for v in voltages)} (colours) and "
+               + ("λ_i = λ_z^(-1/2) ≈ 0.913, the homogeneous state" if critical_stretch
+                  else "λ_i = 0.9, 1.1 (line styles)")
+               + ". The curves follow α̂ = n α̂_1 through fractional n (the infinite tube); dots mark "
+               "the tube's own modes, whole n. Blank points: past the critical voltage of that mode "
+               "(its lowest frequency is imaginary). Faded curves: states past the tube's first "
+               "instability (" + _plain_first(stability, stretches) + ")."
+               + (" The paper's coupling (dashed-based) exists at whole n only. The acoustic "
+                  "coupling's lowest root is the fluid (Korteweg) branch: its phase velocity lies just "
+                  "below ĉ_f for every case, so those curves coincide in (b)." if fluid_filled else ""))
+    ctx.save(name, fig, table, caption)
     return table
 
 
@@ -668,10 +763,12 @@ def figure_modes(ctx: Context, fluid_filled: bool, critical_stretch: bool) -> No
 
 
 FLUID_AXES = {
-    "speed_ratio": ("fig8_speed_ratio", "fluid speed ratio ĉ_f = c_f/c_s", (0.05, 1.5), False),
-    "density_ratio": ("fig9_density_ratio", "fluid density ratio ρ̂_f = ρ_f/ρ_s", (0.01, 2.0), True),
-    "thickness_ratio": ("fig10_thickness_ratio", "wall thickness h/R_i", (0.05, 2.0), True),
+    "speed_ratio": ("fig8_speed_ratio", plotstyle.LABELS["speed_ratio"], (0.05, 1.5), False),
+    "density_ratio": ("fig9_density_ratio", plotstyle.LABELS["density_ratio"], (0.01, 2.0), True),
+    "thickness_ratio": ("fig10_thickness_ratio", plotstyle.LABELS["thickness_ratio"], (0.05, 2.0), True),
 }
+FLUID_WORDS = {"speed_ratio": "the fluid's sound speed ratio ĉ_f",
+               "density_ratio": "the fluid's density ratio ρ̂_f", "thickness_ratio": "the wall thickness h/R_i"}
 
 
 FLUID_VOLTAGES = (0.0, 0.15)  # V̂ of the panels (a), (b) of Figs. 8–10
@@ -684,8 +781,12 @@ def _fluid_keys():
 
 
 def fluid_parameter_curves(ctx: Context, axis: str):
-    """(the grid of ``axis``, V̂_cr (λ_i, grid, n), {coupling: the curves of :func:`_fluid_keys`})
-    of :func:`figure_fluid_parameter`, solved once."""
+    """(the grid of ``axis``, V̂_cr (λ_i, grid, n), first instability (V̂, m, n) (λ_i, grid),
+    {coupling: the curves of :func:`_fluid_keys`}) of :func:`figure_fluid_parameter`, solved once.
+
+    The first instability does not depend on the fluid: that of :meth:`Context.stability` at every
+    point of Figs. 8 and 9; along h/R_i (Fig. 10) the smallest V̂_cr over m ≤ 4 and the modes drawn,
+    n ≤ 3, at each thickness."""
     def solve():
         _, _, (lo, hi), log = FLUID_AXES[axis]
         k = ctx.res.fluid_points
@@ -693,60 +794,102 @@ def fluid_parameter_curves(ctx: Context, axis: str):
         abscissa = np.log(grid) if log else grid
         geometry_axes = {"thickness_ratio": grid} if axis == "thickness_ratio" else {}
         v_cr = ctx.critical_voltages(lambda_i=STRETCHES, **geometry_axes, n=MODES)
-        if not geometry_axes:  # V̂_cr does not depend on the fluid: broadcast over the fluid axis
+        if geometry_axes:
+            orders = ctx.critical_voltages(lambda_i=STRETCHES, **geometry_axes, m=ORDERS, n=MODES)
+            first = np.array([[lowest_critical(orders[i, x]) for x in range(k)]
+                              for i in range(len(STRETCHES))])
+        else:  # V̂_cr does not depend on the fluid: broadcast over the fluid axis
             v_cr = np.broadcast_to(v_cr[:, None, :], (len(STRETCHES), k, len(MODES)))
+            stability = ctx.stability()
+            first = np.array([[stability.first(li)] * k for li in STRETCHES])
         curves = ctx.curves_of(_fluids(), lambda _: [
             (dict(voltage=FLUID_VOLTAGES[iv], lambda_i=STRETCHES[i], n=MODES[j], **{axis: grid}),
              abscissa) for i, iv, j in _fluid_keys()])
-        return grid, v_cr, curves
+        return grid, v_cr, first, curves
 
     return ctx.once(("fluid", axis), solve)
 
 
+@_styled
 def figure_fluid_parameter(ctx: Context, axis: str) -> Table:
     """Ω of n = 1, 2, 3 against ĉ_f (Fig. 8), ρ̂_f (Fig. 9) or h/R_i (Fig. 10), (a) V̂ = 0, (b) 0.15:
-    continuation along the parameter (its logarithm on a log axis)."""
+    continuation along the parameter (its logarithm on a log axis). Returns the table."""
     name, xlabel, _, log = FLUID_AXES[axis]
     ctx.log(f"[{name}] Ω against {axis}")
-    grid, v_cr, curves = fluid_parameter_curves(ctx, axis)
+    grid, v_cr, first, curves = fluid_parameter_curves(ctx, axis)
     voltages = FLUID_VOLTAGES
-    fig, panels = _figure(title=f"Fluid-filled tube: lowest frequency of n = 1, 2, 3 against {axis}")
+    fig, panels = new_figure(2, sharex=True, title=r"Fluid-filled tube: lowest frequency of $n$ = 1, 2, 3 "
+                             "against " + FLUID_WORDS[axis].replace("ĉ_f", r"$\hat c_f$")
+                             .replace("ρ̂_f", r"$\hat\rho_f$").replace("h/R_i", "$h/R_i$"))
     table = Table(name)
     for coupling, solved in curves.items():
         for (i, iv, j), sol in zip(_fluid_keys(), solved, strict=True):
             li, v, n = STRETCHES[i], voltages[iv], MODES[j]
             omega, past = _mask_past(sol.omega, v, v_cr[i, :, j])
-            for x, a, w, st, p, vc in zip(grid, sol.alpha, omega, sol.status, past, v_cr[i, :, j],
-                                          strict=True):
+            unstable = past_first_instability(v, first[i, :, 0])
+            for x, a, w, st, p, vc, (vf, mf, nf), u in zip(grid, sol.alpha, omega, sol.status, past,
+                                                           v_cr[i, :, j], first[i], unstable, strict=True):
                 table.add(voltage=v, lambda_i=li, **{axis: x}, n=n, coupling=coupling, alpha_hat=a,
-                          omega=w, phase_velocity=w / a, v_critical=vc, status=_status_name(st, p))
-            _plot(panels[iv], grid, omega, sol.jumps, color=MODE_COLORS[n], ls=_style(coupling, li),
-                  lw=1.3)
+                          omega=w, phase_velocity=w / a, v_critical=vc, status=_status_name(st, p),
+                          v_first=vf, m_first=int(mf), n_first=int(nf), past_first_instability=bool(u))
+            _plot(panels[iv], grid, omega, sol.jumps, past=unstable, color=MODE_COLORS[n],
+                  ls=_style(coupling, li))
     for iv, v in enumerate(voltages):
-        panels[iv].set_title(f"({'ab'[iv]}) V̂ = {v}")
+        all_past = bool(np.all(past_first_instability(v, first[:, :, 0])))
+        panels[iv].set_title(rf"({'ab'[iv]}) $\hat V = {v:g}$"
+                             + (": every state past the first instability" if all_past else ""))
         if log:
             panels[iv].set_xscale("log")
-        _finish(panels[iv], xlabel, "frequency Ω", legend=False)
-    _legend_styles(panels[0], [(f"n={n}", dict(color=MODE_COLORS[n])) for n in MODES]
-                   + _style_entries(COUPLINGS, STRETCHES))
-    ctx.save(name, fig, table)
+            plotstyle.plain_log(panels[iv].xaxis)
+        panels[iv].set_ylim(bottom=0.0)
+        _axes_labels(panels[iv], xlabel, SHORT_LABELS["omega"])
+    panels[0].set_xlim(grid[0], grid[-1])
+    plotstyle.legend_below(fig, [line_handle(f"$n = {n}$", color=MODE_COLORS[n]) for n in MODES]
+                           + _style_entries(COUPLINGS, STRETCHES) + _common_handles(), ncol=3)
+    search = "m ≤ 4, n ≤ 3 at each thickness" if axis == "thickness_ratio" else "m ≤ 4 and the modes n searched"
+    caption = (f"Fluid-filled tube (the paper's Fig. {name[3:name.index('_')]}): the lowest frequency Ω of "
+               f"the axial modes n = 1, 2, 3 (colours) against {FLUID_WORDS[axis]}, at (a) V̂ = 0 and "
+               "(b) V̂ = 0.15, for λ_i = 0.9, 1.1 and both fluid couplings (line styles: solid-based the "
+               "consistent acoustic coupling, dashed-based the paper's). Both panels share the x axis. "
+               "Blank points: past the critical voltage of that mode. Faded curves: states past the "
+               f"tube's first instability (smallest critical voltage over {search}; CSV columns v_first, "
+               "m_first, n_first, past_first_instability). An open circle marks the first point after a "
+               "branch change.")
+    ctx.save(name, fig, table, caption)
     return table
 
 
 # ----------------------------------------------------------------------------- order m
 
 
-def figure_stability_map(ctx: Context) -> None:
+def _envelope_orders(stretches, orders) -> str:
+    """Which m the lower envelope follows, as runs of λ_i (legend)."""
+    runs = []
+    for li, m in zip(stretches, orders, strict=True):
+        if m < 0:
+            continue
+        if runs and runs[-1][0] == m:
+            runs[-1][2] = li
+        else:
+            runs.append([m, li, li])
+    if len(runs) == 1:
+        return f"$m = {runs[0][0]}$ throughout"
+    return ", ".join(rf"$m = {m}$ ($\lambda_i$ {a:.2f}–{b:.2f})" for m, a, b in runs)
+
+
+@_styled
+def figure_stability_map(ctx: Context):
     """V̂_cr of the orders m = 0 … 4 (a) against λ_i at n = 1, the first instability (lower envelope,
-    min over m) drawn bold, and (b) against the axial mode n at λ_i = 0.9 and 1.1.
+    min over m) drawn bold, and (b) against the axial mode n at λ_i = 0.9 and 1.1. Returns
+    (figure, axes).
 
     λ_i starts at 0.9: at λ_i = 0.875 and below the ring mode (2, 1) is unstable at V̂ = 0 already
     (:func:`jaxdea.growth_rates`), and a V̂_cr found above zero there is no loss of stability."""
     name = "stability_map"
     ctx.log(f"[{name}] critical voltages of the orders m = 0 … 4")
     stability = ctx.stability()
-    fig, (ax_l, ax_n) = _figure(title="Paper's tube (η = 0.85, λ_z = 1.2, G = 97.2): critical voltage "
-                                      "V̂_cr of order m")
+    fig, (ax_l, ax_n) = new_figure(2, title=r"Critical voltage $\hat V_{cr}$ of the orders $m$ = 0 … 4 "
+                                   r"(the paper's tube: $\eta = 0.85$, $\lambda_z = 1.2$, $G = 97.2$)")
     table = Table(name)
     envelope = np.array([lowest_critical(row[:, None])[:2] for row in stability.map_voltages])
     for li, row, (v_env, m_env) in zip(stability.map_stretches, stability.map_voltages, envelope,
@@ -754,36 +897,50 @@ def figure_stability_map(ctx: Context) -> None:
         for m, v in zip(ORDERS, row, strict=True):
             table.add(panel="lambda_i", lambda_i=li, m=m, n=1, v_critical=v, v_first=v_env,
                       m_first=int(m_env), n_first=1 if m_env >= 0 else 0)
-    for k, m in enumerate(ORDERS):
-        ax_l.plot(stability.map_stretches, stability.map_voltages[:, k], color=ORDER_COLORS[k], lw=1.3,
-                  label=f"m = {m}")
-    ax_l.plot(stability.map_stretches, envelope[:, 0], color="k", ls="--", lw=2, zorder=5,
-              label="first instability (min over m)")
-    ax_l.fill_between(stability.map_stretches, envelope[:, 0], np.nanmax(stability.map_voltages),
-                      color="0.5", alpha=0.1, lw=0)
-    ax_l.set_title("(a) axial mode n = 1 (shaded: unstable)", fontsize=9)
-    _finish(ax_l, "inner stretch λ_i", "critical voltage V̂_cr", legend=False)
-    _legend_below(ax_l)
+    for k in range(len(ORDERS)):
+        ax_l.plot(stability.map_stretches, stability.map_voltages[:, k], color=ORDER_COLORS[k])
+    top = 1.05 * float(np.nanmax(stability.map_voltages))
+    ax_l.plot(stability.map_stretches, envelope[:, 0], color="k", ls="--", lw=2.2, zorder=5)
+    ax_l.fill_between(stability.map_stretches, envelope[:, 0], 2.0 * top, color="0.5", alpha=0.13, lw=0)
+    ax_l.set_ylim(0.0, top)
+    ax_l.set_xlim(stability.map_stretches[0], stability.map_stretches[-1])
+    ax_l.set_title("(a) axial mode $n = 1$, against the inner stretch")
+    _axes_labels(ax_l, plotstyle.LABELS["lambda_i"], SHORT_LABELS["v_critical"])
     modes = stability.modes
     on_mode = np.isclose(modes, np.round(modes))
+    stars = []
     for li in STRETCHES:
         curve = stability.curves[float(li)]
         first = _first_columns(stability, li)
         for k, m in enumerate(ORDERS):
             for n, v in zip(modes, curve[k], strict=True):
                 table.add(panel="n", lambda_i=li, m=m, n=n, v_critical=v, **first)
-            ax_n.plot(modes, curve[k], color=ORDER_COLORS[k], ls=_style(None, li), lw=1.3)
+            ax_n.plot(modes, curve[k], color=ORDER_COLORS[k], ls=_style(None, li))
             ax_n.plot(modes[on_mode], curve[k][on_mode], "o", color=ORDER_COLORS[k], ms=2.5)
-        ax_n.plot([first["n_first"]], [first["v_first"]], "k*", ms=10)
-        ax_n.annotate(f"λi={li}: ({first['m_first']}, {first['n_first']}) first", (first["n_first"],
-                      first["v_first"]), xytext=(8, -4 if li == STRETCHES[0] else 4),
-                      textcoords="offset points", fontsize=7)
-    ax_n.set_title("(b) against the axial mode (dots: the tube's modes; * first instability)",
-                   fontsize=9)
-    _finish(ax_n, "axial mode number n (α̂ = n α̂_1)", "critical voltage V̂_cr", legend=False)
-    _legend_styles(ax_n, [(f"m = {m}", dict(color=ORDER_COLORS[k])) for k, m in enumerate(ORDERS)]
-                   + _style_entries((None,), STRETCHES))
-    ctx.save(name, fig, table)
+        marker = "*" if li == STRETCHES[0] else "P"
+        ax_n.plot([first["n_first"]], [first["v_first"]], marker, color="k", ms=10, mfc="gold", zorder=6)
+        stars.append(line_handle(f"first instability at {_stretch_text(li)}: "
+                                 + _first_text(first["v_first"], first["m_first"], first["n_first"]),
+                                 ls="none", marker=marker, ms=9, mfc="gold", color="k"))
+    ax_n.set_ylim(bottom=0.0)
+    ax_n.set_title("(b) against the axial mode (dots: the tube's modes)")
+    _axes_labels(ax_n, SHORT_LABELS["n"], SHORT_LABELS["v_critical"])
+    handles = [line_handle(f"$m = {m}$", color=ORDER_COLORS[k]) for k, m in enumerate(ORDERS)]
+    handles += [line_handle("(a) first instability, min over $m$: "
+                            + _envelope_orders(stability.map_stretches, envelope[:, 1].astype(int)),
+                            color="k", ls="--", lw=2.2),
+                patch_handle("(a) unstable: above the first instability", facecolor="0.5", alpha=0.13)]
+    handles += _style_entries((None,), STRETCHES) + stars
+    plotstyle.legend_below(fig, handles, ncol=2)
+    caption = ("Critical voltages V̂_cr of the circumferential orders m = 0 … 4 of the paper's tube: (a) "
+               "against the inner stretch λ_i for the axial mode n = 1, the lower envelope (black, dashed)"
+               " being the first instability and the shaded region above it unstable; (b) against the "
+               "axial mode number n at λ_i = 0.9 (solid) and 1.1 (dash-dot), dots on the tube's modes, "
+               "the marked points the first instability of each λ_i (" + _plain_first(stability, STRETCHES)
+               + "). The map starts at λ_i = 0.9: below about 0.88 the ring mode (m, n) = (2, 1) is "
+               "unstable already at V̂ = 0.")
+    ctx.save(name, fig, table, caption)
+    return fig, (ax_l, ax_n)
 
 
 def dispersion_grid(tube: Tube, max_mode: int, steps: int) -> np.ndarray:
@@ -839,16 +996,22 @@ def solve_beside(ctx: Context) -> None:
         fluid_parameter_curves(ctx, axis)
 
 
-def figure_dispersion_order_m(ctx: Context) -> None:
+@_styled
+def figure_dispersion_order_m(ctx: Context):
     """Ω(α̂) of the lowest roots of m = 0, 1, 2, empty and filled with the acoustic fluid
-    (:func:`order_m_curves`; the paper's coupling exists only at m = 0 and is not drawn)."""
+    (:func:`order_m_curves`; the paper's coupling exists only at m = 0 and is not drawn). Returns
+    (figure, axes)."""
     name = "dispersion_order_m"
     ctx.log(f"[{name}] Ω(α̂) of the orders m = 0, 1, 2")
     alphas = dispersion_grid(SHAPE_TUBE, ctx.res.max_mode, ctx.res.curve_steps)
     alpha_1 = alphas[0]
-    fig, panels = _figure(title=f"Lowest {CURVE_ROOTS} roots of order m (λ_i = {SHAPE_STRETCH}, "
-                                f"V̂ = {SHAPE_VOLTAGE}, η = 0.85, λ_z = 1.2): * the tube's modes α̂_n")
+    fig, panels = new_figure(2, title=rf"Lowest {CURVE_ROOTS} roots of the orders $m$ = 0, 1, 2 "
+                             rf"($\lambda_i = {SHAPE_STRETCH}$, $\hat V = {SHAPE_VOLTAGE}$, $\eta = 0.85$, "
+                             r"$\lambda_z = 1.2$)")
     table = Table(name)
+    v_first, m_first, n_first = ctx.stability().first(SHAPE_STRETCH)
+    stable = not past_first_instability(SHAPE_VOLTAGE, v_first)
+    clipped = []
     for ax, (label, fluid) in zip(panels, (("none", None), ("acoustic", Fluid(**PAPER_FLUID))),
                                   strict=True):
         curves = order_m_curves(ctx, fluid, EMPTY_CURVE_ORDERS if fluid is None else CURVE_ORDERS)
@@ -859,33 +1022,65 @@ def figure_dispersion_order_m(ctx: Context) -> None:
                     table.add(coupling=label, lambda_i=SHAPE_STRETCH, voltage=SHAPE_VOLTAGE, m=m,
                               branch=b + 1, alpha_hat=a, n=a / alpha_1, omega=omega[i, b],
                               phase_velocity=omega[i, b] / a,
-                              status=Status(int(status[i, b])).name.lower())
+                              status=Status(int(status[i, b])).name.lower(), v_first=v_first,
+                              m_first=m_first, n_first=n_first, past_first_instability=not stable)
             for b in range(CURVE_ROOTS):
-                _plot(ax, alphas, omega[:, b], jumps[:, b], color=ORDER_COLORS[m], lw=1.4 - 0.3 * b,
-                      label=f"m = {m}" if b == 0 else None)
+                _plot(ax, alphas, omega[:, b], jumps[:, b], past=not stable, color=ORDER_COLORS[m],
+                      lw=2.0 if b == 0 else 0.9)
             on_mode = np.isclose(alphas / alpha_1, np.round(alphas / alpha_1))
-            ax.plot(alphas[on_mode], omega[on_mode, 0], "*", color=ORDER_COLORS[m], ms=5)
-        ax.set_ylim(0.0, 1.1 * max(np.nanmax(curves[m][0][:, 1]) for m in CURVE_ORDERS))
-        ax.set_title("(a) empty tube" if fluid is None else
-                     f"(b) filled, acoustic fluid ρ̂_f = {PAPER_FLUID['density_ratio']}, "
-                     f"ĉ_f = {PAPER_FLUID['speed_ratio']}", fontsize=9)
-        _finish(ax, "axial wavenumber α̂ = α R_i", "frequency Ω")
-    ctx.save(name, fig, table)
+            ax.plot(alphas[on_mode], omega[on_mode, 0], "*", color=ORDER_COLORS[m], ms=6)
+        second = max(np.nanmax(curves[m][0][:, 1]) for m in CURVE_ORDERS)
+        highest = max(np.nanmax(curves[m][0]) for m in CURVE_ORDERS)
+        top = 1.05 * min(highest, 1.1 * second)  # the third roots (a thickness branch) would squeeze the rest
+        ax.set_ylim(0.0, top)
+        ax.set_xlim(alphas[0], alphas[-1])
+        note = ""
+        if highest > top:
+            clipped.append(label)
+            note = f" (third roots clipped above $\\Omega$ = {top:.2f})"
+        ax.set_title(("(a) empty tube" if fluid is None else
+                      rf"(b) filled, acoustic fluid $\hat\rho_f = {PAPER_FLUID['density_ratio']}$, "
+                      rf"$\hat c_f = {PAPER_FLUID['speed_ratio']}$") + note)
+        _axes_labels(ax, plotstyle.LABELS["alpha"], SHORT_LABELS["omega"])
+    handles = [line_handle(f"$m = {m}$", color=ORDER_COLORS[m]) for m in CURVE_ORDERS]
+    handles += [line_handle("thick: the lowest root of each $m$", lw=2.0),
+                line_handle("thin: the second and third roots", lw=0.9),
+                line_handle(r"the tube's axial modes $\hat\alpha_n$ (lowest root)", ls="none",
+                            marker="*", ms=7),
+                line_handle("first point after a branch change", ls="none", marker="o", mfc="none", ms=5)]
+    plotstyle.legend_below(fig, handles, ncol=3)
+    caption = (f"Dispersion curves Ω(α̂) of the circumferential orders m = 0, 1, 2 (colours): the lowest "
+               f"root of each order thick, the second and third thin, at λ_i = {SHAPE_STRETCH}, "
+               f"V̂ = {SHAPE_VOLTAGE} (a stable state: the first instability is (m, n) = ({m_first}, "
+               f"{n_first}) at V̂_first = {v_first:.4f}); (a) empty, (b) filled with the acoustic fluid. "
+               "Stars mark the tube's axial modes α̂_n on the lowest root. "
+               + ("The third roots of " + " and ".join(clipped) + " leave the axes at the top (noted in "
+                  "the panel); the CSV holds them. " if clipped else "")
+               + "The paper's coupling exists at m = 0 only and is not drawn.")
+    ctx.save(name, fig, table, caption)
+    return fig, panels
 
 
-def figure_cross_sections(ctx: Context) -> None:
+@_styled
+def figure_cross_sections(ctx: Context):
     """Cross-sections of the lowest mode of m = 1, 2, 3 at n = 1, V̂ = 0.01: the base state's inner
     and outer circles r̂_i, r̂_o and the outlines r̂(θ) = r̂ + ε ū(r̂) cos mθ of both faces, to first
-    order in ε (u_r = R_i ū cos mθ, :func:`jaxdea.mode_shape`; ε makes max |ε ū| of the faces 0.15)."""
+    order in ε (u_r = R_i ū cos mθ, :func:`jaxdea.mode_shape`; ε makes max |ε ū| of the faces 0.15).
+    Returns (figure, axes)."""
     name = "cross_sections"
     ctx.log(f"[{name}] cross-sections of the modes m = 1, 2, 3")
     shapes = cross_section_modes(ctx)
     alpha = float(mode_wavenumber(SHAPE_TUBE, 1.0))
     theta = np.linspace(0.0, 2.0 * np.pi, ctx.res.outline_points)
-    fig, panels = _figure(ncols=len(SHAPE_ORDERS),
-                          title=f"Lowest modes of order m at n = 1 (α̂ = {alpha:.4f}), λ_i = "
-                                f"{SHAPE_STRETCH}, V̂ = {SHAPE_VOLTAGE}: cross-section, exaggerated")
+    fig, panels = new_figure(len(SHAPE_ORDERS), width=9.0, height=3.4,
+                             title=rf"Lowest modes of order $m$ at $n = 1$ ($\hat\alpha = {alpha:.4f}$), "
+                             rf"$\lambda_i = {SHAPE_STRETCH}$, $\hat V = {SHAPE_VOLTAGE}$: cross-sections, "
+                             "displacement exaggerated")
     table = Table(name)
+    v_first, m_first, n_first = ctx.stability().first(SHAPE_STRETCH)
+    first = dict(v_first=v_first, m_first=m_first, n_first=n_first,
+                 past_first_instability=bool(past_first_instability(SHAPE_VOLTAGE, v_first)))
+    reach = 1.1 * max(float(shapes[m][1][-1]) * 1.0 + 0.15 for m in SHAPE_ORDERS)  # r̂_o + max |ε ū|
     for ax, m in zip(panels, SHAPE_ORDERS, strict=True):
         omega, r, fields = shapes[m]
         faces, u = r[[0, -1]], fields[0][[0, -1]]
@@ -896,29 +1091,44 @@ def figure_cross_sections(ctx: Context) -> None:
             for t, rd in zip(theta, outline, strict=True):
                 table.add(m=m, n=1, lambda_i=SHAPE_STRETCH, voltage=SHAPE_VOLTAGE, alpha_hat=alpha,
                           omega=omega, face=face, radius=r_face, u_bar=u_face, epsilon=epsilon, theta=t,
-                          radius_deformed=rd)
-            ax.plot(r_face * np.cos(theta), r_face * np.sin(theta), color="0.6", ls="--", lw=1,
-                    label="base state" if face == "inner" else None)
-            ax.plot(outline * np.cos(theta), outline * np.sin(theta), color=color, lw=1.6,
-                    label=f"{face} face, ε ū = {epsilon * u_face:+.3f}")
+                          radius_deformed=rd, **first)
+            ax.plot(r_face * np.cos(theta), r_face * np.sin(theta), color="0.6", ls="--", lw=1)
+            ax.plot(outline * np.cos(theta), outline * np.sin(theta), color=color, lw=1.6)
         ax.set_aspect("equal")
-        ax.set_title(f"m = {m}: Ω = {omega:.4f}", fontsize=9)
-        _finish(ax, "x / R_i", "y / R_i")
-    ctx.save(name, fig, table)
+        ax.set_xlim(-reach, reach)
+        ax.set_ylim(-reach, reach)
+        ax.set_title(rf"$m = {m}$: $\Omega = {omega:.4f}$")
+        _axes_labels(ax, r"$x/R_i$", r"$y/R_i$" if m == SHAPE_ORDERS[0] else "")
+    plotstyle.legend_below(fig, [line_handle("base state (undisturbed faces)", color="0.6", ls="--", lw=1),
+                                 line_handle(r"inner face $\hat r_i + \varepsilon\bar u_i\cos m\theta$",
+                                             color="tab:blue", lw=1.6),
+                                 line_handle(r"outer face $\hat r_o + \varepsilon\bar u_o\cos m\theta$",
+                                             color="tab:red", lw=1.6)], ncol=3)
+    caption = (f"Cross-sections of the lowest modes of the orders m = 1 (bending), 2 (ovalisation) and 3 "
+               f"at the axial mode n = 1, λ_i = {SHAPE_STRETCH}, V̂ = {SHAPE_VOLTAGE} (a stable state): "
+               "the undisturbed inner and outer faces (grey, dashed) and the faces displaced by the mode, "
+               "r̂ + ε ū cos mθ, with ε scaled so that the larger face displacement is 0.15 R_i "
+               "(first order in ε; jaxdea.mode_shape).")
+    ctx.save(name, fig, table, caption)
+    return fig, panels
 
 
 # ----------------------------------------------------------------------------- model comparison
 
 
-def figure_comparison(ctx: Context, tables: dict) -> None:
+@_styled
+def figure_comparison(ctx: Context, tables: dict):
     """Where and by how much the paper's coupling differs from the consistent acoustic one:
-    |Ω_paper − Ω_acoustic|/Ω_acoustic of the lowest root, against n (Fig. 6 data) and ĉ_f (Fig. 8)."""
+    |Ω_paper − Ω_acoustic|/Ω_acoustic of the lowest root, against n (Fig. 6 data) and ĉ_f (Fig. 8).
+    Returns (figure, axes)."""
     name = "comparison_couplings"
     ctx.log(f"[{name}] paper's coupling against the acoustic one")
-    fig, panels = _figure(title="Paper's fluid coupling vs the consistent acoustic coupling (lowest root)")
+    fig, panels = new_figure(2, title="The paper's fluid coupling against the consistent acoustic "
+                             "coupling (lowest root)")
     table = Table(name)
-    for ax, (key, xname, xlabel) in zip(panels, (("modes", "n", "axial mode number n"),
-                                                 ("speed", "speed_ratio", "fluid speed ratio ĉ_f")),
+    stability = ctx.stability()
+    for ax, (key, xname, xlabel) in zip(panels, (("modes", "n", SHORT_LABELS["n"]),
+                                                 ("speed", "speed_ratio", plotstyle.LABELS["speed_ratio"])),
                                         strict=True):
         rows = tables[key].rows
         group = {}
@@ -931,25 +1141,39 @@ def figure_comparison(ctx: Context, tables: dict) -> None:
             w_a = np.array([p[1] for p in pair["acoustic"] if p[0] in paper])
             w_p = np.array([paper[xi] for xi in x])
             rel = np.abs(w_p - w_a) / w_a
+            voltage, li = float(tag[0]), float(tag[1])
+            first = _first_columns(stability, li)
+            unstable = bool(past_first_instability(voltage, first["v_first"]))
             for xi, a, p, r in zip(x, w_a, w_p, rel, strict=True):
                 table.add(panel=xname, voltage=tag[0], lambda_i=tag[1],
                           n=tag[2] if len(tag) > 2 else xi, **({xname: xi} if xname != "n" else {}),
-                          omega_acoustic=a, omega_paper=p, relative_difference=r)
-            voltage, li = float(tag[0]), float(tag[1])
+                          omega_acoustic=a, omega_paper=p, relative_difference=r, **first,
+                          past_first_instability=unstable)
             if len(tag) > 2:  # against ĉ_f: one colour per n, V̂ = 0.15 thin
                 kw = dict(color=MODE_COLORS[int(tag[2])], lw=1.5 if voltage == 0.0 else 0.8)
             else:  # against n: one colour per V̂
-                kw = dict(color=VOLTAGE_COLORS[voltage], lw=1.3, marker="o", ms=2.5)
-            ax.semilogy(x, rel, ls=_style(None, li), **kw)
-        _finish(ax, xlabel, "|Ω_paper − Ω_acoustic| / Ω_acoustic", legend=False)
-        if xname == "n":
-            voltages = sorted({float(t[0]) for t in group})
-            entries = [(f"V̂={v:g}", dict(color=VOLTAGE_COLORS[v])) for v in voltages]
-        else:
-            entries = [(f"n={n}, V̂=0", dict(color=MODE_COLORS[n], lw=1.5)) for n in MODES]
-            entries += [("V̂=0.15 (thin)", dict(color="0.3", lw=0.8))]
-        _legend_styles(ax, entries + _style_entries((None,), STRETCHES))
-    ctx.save(name, fig, table)
+                kw = dict(color=VOLTAGE_COLORS[voltage], marker="o", ms=2.5)
+            plotstyle.plot_marked(ax, x, rel, unstable, ls=_style(None, li), **kw)
+        ax.set_yscale("log")
+        plotstyle.plain_log(ax.yaxis)
+        _axes_labels(ax, xlabel, r"$|\Omega_{paper} - \Omega_{acoustic}|\,/\,\Omega_{acoustic}$")
+        ax.set_title("(a) against the axial mode (Fig. 6 data)" if xname == "n"
+                     else r"(b) against $\hat c_f$ (Fig. 8 data)")
+    voltages = sorted({float(r["voltage"]) for r in tables["modes"].rows})
+    handles = [line_handle(rf"(a) $\hat V = {v:g}$", color=VOLTAGE_COLORS[v], marker="o", ms=2.5)
+               for v in voltages]
+    handles += [line_handle(rf"(b) $n = {n}$, $\hat V = 0$", color=MODE_COLORS[n], lw=1.5) for n in MODES]
+    handles += [line_handle(r"(b) thin: $\hat V = 0.15$", lw=0.8)]
+    handles += _style_entries((None,), STRETCHES) + _common_handles(jumps=False)
+    plotstyle.legend_below(fig, handles, ncol=3)
+    caption = ("Relative difference |Ω_paper − Ω_acoustic|/Ω_acoustic between the lowest roots of the "
+               "paper's fluid coupling and of the consistent acoustic coupling, (a) against the axial mode"
+               " number n (whole n: the paper's coupling exists there only) at the voltages of Fig. 6, (b) "
+               "against ĉ_f for n = 1, 2, 3 at V̂ = 0 (thick) and 0.15 (thin); line styles: λ_i = 0.9 "
+               "solid, 1.1 dash-dot. Faded: states past the tube's first instability ("
+               + _plain_first(stability, STRETCHES) + "): every curve at V̂ = 0.15 and 0.2.")
+    ctx.save(name, fig, table, caption)
+    return fig, panels
 
 
 # ----------------------------------------------------------------------------- static response
@@ -986,50 +1210,132 @@ def static_response(ctx: Context):
     return ctx.once("static", solve)
 
 
-def figure_static_response(ctx: Context) -> None:
-    """V̂ against λ_i at fixed ΔP̂ (theory.md Eq. 1.1 solved for V̂²), pull-in points marked.
+def static_stability(stretches, voltage, map_stretches, v_first) -> tuple[float, float]:
+    """(λ_i, V̂) where a static curve V̂(λ_i) first reaches the first instability V̂_first(λ_i) of the
+    stability map (linear interpolation of both between grid points, within the map's λ_i range):
+    the largest stable V̂ along the curve; (NaN, NaN) where it does not reach it there, or where the
+    curve enters the map's range past it (its stable part lies outside the map)."""
+    inside = (stretches >= map_stretches[0]) & (stretches <= map_stretches[-1]) & np.isfinite(voltage)
+    x, v = stretches[inside], voltage[inside]
+    if x.size == 0:
+        return math.nan, math.nan
+    gap = v - np.interp(x, map_stretches, v_first)
+    reached = np.flatnonzero(gap >= 0.0)
+    if reached.size == 0:
+        return math.nan, math.nan
+    k = int(reached[0])
+    if k == 0:  # already past it where the curve enters the map: unknown unless it starts there
+        return (float(x[0]), float(v[0])) if stretches[np.isfinite(voltage)][0] >= map_stretches[0] else \
+            (math.nan, math.nan)
+    t = gap[k - 1] / (gap[k - 1] - gap[k])
+    return float(x[k - 1] + t * (x[k] - x[k - 1])), float(v[k - 1] + t * (v[k] - v[k - 1]))
+
+
+@_styled
+def figure_static_response(ctx: Context):
+    """V̂ against λ_i at fixed ΔP̂ (docs/theory/axisymmetric.md Eq. 1.1 solved for V̂²), pull-in points
+    marked, with the first instability of the stability map (n = 1, m ≤ 4). Returns (figure, axes).
 
     The pull-in point is the first maximum of V̂(λ_i) (:func:`jaxdea.base_state.pull_in`). For the
     ideal-dielectric tube held at fixed λ_z there is none: V̂ rises monotonically at every ΔP̂ (the
-    neo-Hookean closed form of theory finding 4; with Gent stiffening up to locking), so the stable
+    neo-Hookean closed form of theory finding 4; with Gent stiffening up to locking), so the static
     branch ends at Gent locking, marked with its voltage (the supremum that bounds the critical
     voltage search, :func:`jaxdea.base_state.voltage_limit`). A pull-in maximum, where ``pull_in``
-    finds one, is marked with a star.
+    finds one, is marked with a star. The tube loses stability long before: the largest stable V̂ of
+    each curve is where it meets the first instability V̂_first(λ_i) (:func:`static_stability`).
     """
     name = "static_response"
     ctx.log(f"[{name}] V̂ against λ_i at fixed ΔP̂, pull-in marked")
     lock, stretches, curves = static_response(ctx)
-    fig, (ax,) = _figure(ncols=1)
+    stability = ctx.stability()
+    envelope = np.array([lowest_critical(row[:, None])[0] for row in stability.map_voltages])
+    fig, (ax,) = new_figure(1, width=6.4, height=4.2,
+                            title=r"Static response at fixed $\Delta\hat P$ ($\eta = 0.85$, "
+                            r"$\lambda_z = 1.2$, $G = 97.2$)")
     table = Table(name)
-    found = 0
+    found, limits = 0, {}
     for c, (dp, (volt, (li_pull, v_pull, status))) in enumerate(curves.items()):
-        for li, v in zip(stretches, volt, strict=True):
+        li_stable, v_stable = static_stability(stretches, volt, stability.map_stretches, envelope)
+        limits[dp] = (li_stable, v_stable)
+        first = np.interp(stretches, stability.map_stretches, envelope, left=np.nan, right=np.nan)
+        past = past_first_instability(volt, first)  # the rule; unknown (not marked) outside the map
+        for li, v, vf, p in zip(stretches, volt, first, past, strict=True):
             table.add(delta_p=dp, lambda_i=li, voltage=v, pull_in_lambda_i=li_pull, pull_in_voltage=v_pull,
-                      locking_lambda_i=lock)
-        ax.plot(stretches, volt, color=COLORS[c], label=f"ΔP̂ = {dp:g}")
+                      locking_lambda_i=lock, v_first=vf, past_first_instability=bool(p),
+                      largest_stable_lambda_i=li_stable, largest_stable_voltage=v_stable)
+        plotstyle.plot_marked(ax, stretches, volt, past, color=COLORS[c])
         if int(status) == Status.CONVERGED:
             found += 1
             ax.plot([li_pull], [v_pull], "k*", ms=11)
-            ax.annotate(f"pull-in ({li_pull:.2f}, {v_pull:.3f})", (li_pull, v_pull), fontsize=7,
-                        xytext=(5, -12), textcoords="offset points")
-        ax.plot([stretches[-1]], [volt[-1]], "o", color=COLORS[c], mfc="none", ms=8)
+        if np.isfinite(li_stable):
+            ax.plot([li_stable], [v_stable], "o", color=COLORS[c], mfc="white", ms=7, mew=1.5, zorder=6)
+        ax.plot([stretches[-1]], [volt[-1]], "s", color=COLORS[c], mfc="none", ms=7)
+    ax.plot(stability.map_stretches, envelope, color="k", ls="--", lw=1.8)
+    ax.fill_between(stability.map_stretches, envelope, 10.0, color="0.5", alpha=0.13, lw=0)
     ax.axvline(lock, color="gray", ls=":", lw=1)
-    ax.annotate(f"Gent locking λ_i = {lock:.2f} (o: largest stable V̂)", (lock, 0.0), fontsize=7,
-                xytext=(-190, 8), textcoords="offset points")
-    ax.set_title("Static response at fixed ΔP̂ (η = 0.85, λ_z = 1.2, G = 97.2): "
-                 + ("pull-in marked *" if found else "no pull-in maximum, V̂ rises to locking"),
-                 fontsize=9)
+    from matplotlib.ticker import FixedLocator, FormatStrFormatter, NullLocator
+
     ax.set_xscale("log")
-    _finish(ax, "inner stretch λ_i", "voltage V̂")
-    ctx.save(name, fig, table)
+    ax.set_yscale("log")
+    ax.set_ylim(0.01, 3.0)
+    ax.set_xlim(stretches[0], 1.15 * lock)
+    for axis, ticks in ((ax.xaxis, (0.6, 0.8, 1.0, 1.5, 2.0, 3.0, 5.0, 10.0)),
+                        (ax.yaxis, (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0))):
+        axis.set_major_locator(FixedLocator(ticks))
+        axis.set_major_formatter(FormatStrFormatter("%g"))
+        axis.set_minor_locator(NullLocator())
+    _axes_labels(ax, plotstyle.LABELS["lambda_i"], SHORT_LABELS["voltage"])
+    handles = [line_handle(rf"$\Delta\hat P = {dp:g}$", color=COLORS[c]) for c, dp in enumerate(curves)]
+    handles += [line_handle(r"first instability $\hat V_{first}(\lambda_i)$ ($n = 1$, $m \leq 4$; "
+                            "shaded above: unstable)", color="k", ls="--", lw=1.8),
+                line_handle("largest stable $\\hat V$ of a curve (where it meets the dashed line)", ls="none",
+                            marker="o", mfc="white", ms=7),
+                line_handle(rf"Gent locking, $\lambda_i = {lock:.2f}$ (dotted): the static supremum "
+                            r"of $\hat V$", ls="none", marker="s", mfc="none", ms=7)]
+    if found:
+        handles.append(line_handle("pull-in (a maximum of $\\hat V$)", ls="none", marker="*", ms=9,
+                                   color="k"))
+    plotstyle.legend_below(fig, handles, ncol=2)
+    stable = "; ".join(f"ΔP̂ = {dp:g}: V̂ = {v:.4f} at λ_i = {li:.3f}" if np.isfinite(v) else
+                       f"ΔP̂ = {dp:g}: not reached for λ_i ≤ {stability.map_stretches[-1]:g}"
+                       for dp, (li, v) in limits.items())
+    caption = ("Static response of the paper's tube: the voltage V̂ that holds the inner stretch λ_i at "
+               "fixed pressure difference ΔP̂ (both axes logarithmic). "
+               + ("Pull-in maxima are starred. " if found else
+                  "No curve has a pull-in maximum: at fixed λ_z, V̂ rises to Gent locking "
+                  f"(λ_i = {lock:.2f}, squares), its static supremum. ")
+               + "The dashed line is the tube's first instability V̂_first(λ_i) over m ≤ 4 at n = 1 (the "
+               f"stability map, λ_i from {stability.map_stretches[0]:g} to {stability.map_stretches[-1]:g}"
+               "), the shaded region above it unstable: a curve is faded where it lies there, and the voltage "
+               "at which it first meets the line, its largest stable voltage, is circled (" + stable
+               + "). Outside that λ_i range the first instability was not computed and nothing is marked.")
+    ctx.save(name, fig, table, caption)
+    return fig, (ax,)
 
 
 # ----------------------------------------------------------------------------- main job
 
 
+def write_index(out: Path, captions: dict) -> Path:
+    """``out/README.md``: one section per figure, its image, its caption and its CSV."""
+    lines = ["# Figures", "",
+             "Written by `jaxdea figures` (the analogues of Figs. 2–10 of the seed paper, J. Appl. Mech., "
+             "DOI 10.1115/1.4065794, the stability of order m and the static response). Each PNG has the "
+             "CSV of its numbers beside it. States past the tube's first instability (V̂ ≥ V̂_first, the "
+             "smallest critical voltage over the orders m and axial modes n searched) are drawn faded "
+             "in every figure, and the CSVs say so in `v_first` and `past_first_instability`.", ""]
+    for name, caption in captions.items():
+        lines += [f"## {name}", "", f"![{name}]({name}.png)", "", caption, "",
+                  f"Data: [{name}.csv]({name}.csv)", ""]
+    path = out / "README.md"
+    path.write_text("\n".join(lines), encoding="utf-8")
+    return path
+
+
 def make_figures(out="figures", *, quick: bool = False, progress: bool = True,
                  n_layers: int = 30) -> list[Path]:
-    """Regenerate every figure (module docstring) into ``out``; returns the paths written.
+    """Regenerate every figure (module docstring) into ``out``, with ``README.md``, one caption per
+    figure (:func:`write_index`); returns the paths written.
 
     Args:
         out: output folder (created).
@@ -1037,19 +1343,34 @@ def make_figures(out="figures", *, quick: bool = False, progress: bool = True,
         progress: print a line per figure and progress bars.
         n_layers: sublayers N of the laminate (laminate error ~1e-5 relative at 30).
     """
+    return run_figures(out, quick=quick, progress=progress, n_layers=n_layers).written
+
+
+def run_figures(out="figures", *, quick: bool = False, progress: bool = True, n_layers: int = 30) -> Context:
+    """:func:`make_figures`, returning its :class:`Context`: ``written`` (the paths), ``figures``
+    and ``captions`` (by figure name) and the solved data."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     with (concurrent.futures.ThreadPoolExecutor(2) as leaves,
           concurrent.futures.ThreadPoolExecutor(2) as pool):
         ctx = Context(out, Resolution.pick(quick), int(n_layers), progress, [], pool=leaves)
+        ctx.log("compiling the solvers (once; later runs load them from the cache)…")
         # the stability map's critical voltages and :func:`solve_beside`, beside Figs. 2–10
         started = [pool.submit(ctx.stability), pool.submit(solve_beside, ctx)]
         _paper_figures(ctx)
         for future in started:
             future.result()
+    order = {name: k for k, name in enumerate(FIGURE_ORDER)}
+    ctx.written.append(write_index(out, dict(sorted(ctx.captions.items(), key=lambda c: order[c[0]]))))
     ctx.log(f"{len(ctx.written)} files in {out} ({time.perf_counter() - start:.0f} s)")
-    return ctx.written
+    return ctx
+
+
+FIGURE_ORDER = ("fig2_voltage_empty", "fig3_modes_empty", "fig4_modes_critical_empty", "fig5_voltage_fluid",
+                "fig6_modes_fluid", "fig7_modes_critical_fluid", "fig8_speed_ratio", "fig9_density_ratio",
+                "fig10_thickness_ratio", "comparison_couplings", "stability_map", "dispersion_order_m",
+                "cross_sections", "static_response")  # the order of the index
 
 
 def _paper_figures(ctx: Context) -> None:

@@ -5,8 +5,8 @@ The model of a measured peak at voltage V of order m, axial mode n and branch k 
     f_model = Ω_k(m; V̂, α̂_n) c_s/(2π R_i),   c_s = sqrt(μ/ρ_s),   V̂ = V sqrt(ε/μ)/R_i,
     α̂_n = 2nπ R_i/(λ_z L)   (= 2nπη/(length_ratio λ_z) with length_ratio = L/R_o = Lη/R_i),
 
-with Ω_k the k-th lowest positive root of order m (:func:`jaxdea.frequencies`, theory.md and
-theory_m.md), refined by :func:`jaxdea.frequency` from the current root and converted to Hz
+with Ω_k the k-th lowest positive root of order m (:func:`jaxdea.frequencies`, docs/theory/axisymmetric.md and
+docs/theory/order_m.md), refined by :func:`jaxdea.frequency` from the current root and converted to Hz
 (:mod:`jaxdea.units`). :func:`fit` minimises ½ Σ r_j², r_j = (f_model − f_data)_j/σ_j, over the free
 parameters θ mapped onto their bounds, θ = lo + (hi − lo)·sigmoid(u).
 
@@ -116,7 +116,7 @@ def dimensionless(values, voltage_V, n, coupling=None, bessel_order=None):
     """(Tube, α̂_n, Fluid or None, Hz per unit Ω) of a parameter vector in ``NAMES`` order.
 
     V̂ = V sqrt(ε/μ)/R_i, length_ratio = L/R_o = Lη/R_i, α̂_n = 2nπ R_i/(λ_z L),
-    ρ̂_f = ρ_f/ρ_s, ĉ_f = c_f/c_s, f = Ω c_s/(2π R_i) (theory.md §0).
+    ρ̂_f = ρ_f/ρ_s, ĉ_f = c_f/c_s, f = Ω c_s/(2π R_i) (docs/theory/axisymmetric.md §0).
     """
     mu, rho, eps, ri, length, eta, li, lz, gent, rho_f, c_f = (values[i] for i in range(11))
     tube = Tube(voltage=voltage_V * jnp.sqrt(eps / mu) / ri, lambda_i=li, lambda_z=lz, eta=eta,
@@ -574,7 +574,7 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
         max_reassignments: outer assign–fit rounds for unlabelled peaks.
 
     Returns:
-        :class:`FitResult`.
+        An instance of :class:`FitResult`.
 
     Raises:
         ValueError: naming the parameter or column: unknown names, a name both free and fixed or
@@ -585,7 +585,7 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
     Warns:
         IdentifiabilityWarning: when the Jacobian is rank-deficient, naming the combination.
 
-    Example:
+    Examples:
         >>> result = fit({"voltage_V": v, "frequency_Hz": f, "m": m, "n": n},
         ...              free={"shear_modulus": (5e4, 2e5), "lambda_i": (0.8, 1.2)},
         ...              fixed={"density": 1000.0, "permittivity": 4.16e-11, "gent": 97.2,
@@ -726,7 +726,7 @@ def fitted_frequencies(result: FitResult, voltage_V, m, n, branch=0) -> np.ndarr
     Ω_k is the k-th lowest positive root (k = ``branch``) of the global root scan (the definition
     of a branch in :func:`fit`); NaN where that root does not exist. The arguments broadcast.
 
-    Example:
+    Examples:
         >>> voltage = np.linspace(0.0, 5e3, 21)
         >>> f_01 = fitted_frequencies(result, voltage, m=0, n=1)        # (21,) Hz
         >>> f_11 = fitted_frequencies(result, voltage, m=1, n=1, branch=1)

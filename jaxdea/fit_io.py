@@ -19,18 +19,25 @@ import csv
 import dataclasses
 import json
 import math
-import tomllib
+import re
 import warnings
 from pathlib import Path
 
 import numpy as np
 
+from .files import atomic_write, load_document, read_text, save_figure, write_text, write_together
 from .fit import NAMES, UNITS, FitResult, IdentifiabilityWarning, fit, fitted_frequencies
 
 COLUMNS = ("voltage_V", "frequency_Hz", "sigma_Hz", "m", "n", "branch")
 """The columns of a peak table, in the order :func:`write_peaks` writes them."""
 LABELS = ("m", "n", "branch")
 LABEL_LOW = dict(m=0, n=1, branch=0)
+LABEL_MAX = 2**31 - 1
+"""Largest label (m, n or branch) accepted: the range of a 32-bit integer."""
+NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|[+-]?(?:nan|inf|infinity)",
+                    re.IGNORECASE)
+"""A number in a peak table: plain decimal or scientific notation (nan and inf are read, then
+refused as not finite)."""
 TOP_KEYS = ("free", "fixed", "fluid", "options")
 FREE_KEYS = ("lower", "upper", "initial")
 FLUID_KEYS = ("coupling", "bessel_order")
@@ -61,28 +68,35 @@ def read_peaks(path) -> dict:
 
     Columns (header row, any order): ``voltage_V``, ``frequency_Hz`` (> 0), optional ``sigma_Hz``
     (> 0) and the optional labels ``m`` (≥ 0), ``n`` (≥ 1), ``branch`` (≥ 0); lines starting with
-    ``#`` and blank lines are skipped. Labels are integer arrays, the rest float64.
+    ``#`` and blank lines are skipped; a UTF-8 byte-order mark (Excel's "CSV UTF-8") is accepted.
+    Labels are integer arrays, the rest float64.
 
     Raises:
         ValueError: naming the file, column and line: an unreadable file, an unknown, repeated or
-            missing column, a cell that is not a number, NaN or ±inf, a frequency or σ ≤ 0, a label
-            that is not an integer in range, no data rows.
+            missing column, a cell that is not a number in plain decimal or scientific notation
+            (``2_86.62`` is refused), NaN or ±inf, a frequency or σ ≤ 0, a label that is not an
+            integer in [low, LABEL_MAX], a field past ``csv.field_size_limit()``, no data rows.
 
-    Example:
+    Examples:
         >>> peaks = read_peaks("peaks.csv")   # voltage_V,frequency_Hz,sigma_Hz / 2000,41.3,0.2 / …
         >>> peaks["frequency_Hz"], peaks["sigma_Hz"]
         >>> result = jd.fit(peaks, free, fixed)
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_text(path)
     except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
     lines = [(k + 1, line) for k, line in enumerate(text.splitlines())
              if line.strip() and not line.lstrip().startswith("#")]
     if not lines:
         raise ValueError(f"{path}: no header row (expected the columns voltage_V, frequency_Hz)")
-    rows = list(csv.reader([line for _, line in lines]))
+    rows = []
+    for number, line in lines:
+        try:
+            rows.append(next(csv.reader([line]), []))
+        except csv.Error as exc:  # e.g. a field longer than csv.field_size_limit()
+            raise ValueError(f"{path}, line {number}: {exc}") from None
     header = [name.strip() for name in rows[0]]
     for name in header:
         if name not in COLUMNS:
@@ -109,17 +123,18 @@ def read_peaks(path) -> dict:
 
 def _cell(path, number, name, cell):
     where = f"{path}, line {number}, column {name!r}"
-    try:
-        value = float(cell)
-    except ValueError:
-        raise ValueError(f"{where}: {cell!r} is not a number") from None
+    if not NUMBER.fullmatch(cell):  # float() would also take 2_86.62, as 286.62
+        raise ValueError(f"{where}: {cell[:40]!r}{'...' if len(cell) > 40 else ''} is not a "
+                         "number (plain decimal or scientific notation, e.g. 286.62 or 2.8662e2)")
+    value = float(cell)
     if not math.isfinite(value):
         raise ValueError(f"{where}: {cell!r} is not a finite number")
     if name in ("frequency_Hz", "sigma_Hz") and value <= 0:
         raise ValueError(f"{where}: {cell} Hz, must be > 0")
     if name in LABELS:
-        if value != round(value) or value < LABEL_LOW[name]:
-            raise ValueError(f"{where}: {cell}, must be an integer >= {LABEL_LOW[name]}")
+        if value != round(value) or not LABEL_LOW[name] <= value <= LABEL_MAX:
+            raise ValueError(f"{where}: {cell}, must be an integer >= {LABEL_LOW[name]} and "
+                             f"<= {LABEL_MAX}")
         return int(value)
     return value
 
@@ -128,7 +143,7 @@ def write_peaks(path, data) -> Path:
     """Write peaks (a mapping with the columns of :func:`read_peaks`) as CSV; floats are written
     with their shortest exact representation, so :func:`read_peaks` gives them back bit for bit.
 
-    Example:
+    Examples:
         >>> write_peaks("peaks.csv", {"voltage_V": [2e3, 5e3], "frequency_Hz": [41.3, 40.2]})
         >>> read_peaks("peaks.csv")["frequency_Hz"]     # array([41.3, 40.2])
     """
@@ -140,7 +155,7 @@ def write_peaks(path, data) -> Path:
     if any(column.size != columns[0].size for column in columns):
         raise ValueError("data columns must have the same length")
     path = Path(path)
-    with path.open("w", newline="", encoding="utf-8") as handle:
+    with atomic_write(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as handle:
         writer = csv.writer(handle)
         writer.writerow(names)
         for row in zip(*columns, strict=True):
@@ -178,7 +193,7 @@ def write_fit(result: FitResult, data, path, warnings_=()) -> Path:
     peak (voltage_V, frequency_Hz, sigma_Hz, model_Hz, residual, m, n, branch; m = n = branch = −1
     for an unmatched peak, whose model_Hz and residual are null). NaN and ±inf are written as null.
 
-    Example:
+    Examples:
         >>> result = jd.fit(peaks, free, fixed)
         >>> write_fit(result, peaks, "peaks_fit.json")
         >>> estimate = json.load(open("peaks_fit.json"))["estimate"]
@@ -201,7 +216,7 @@ def write_fit(result: FitResult, data, path, warnings_=()) -> Path:
         unmatched=[int(i) for i in np.flatnonzero(result.assignment[:, 0] < 0)],
         warnings=list(warnings_), points=points)
     path = Path(path)
-    path.write_text(json.dumps(_plain(document), indent=1) + "\n", encoding="utf-8")
+    write_text(path, json.dumps(_plain(document), indent=1) + "\n")
     return path
 
 
@@ -222,7 +237,7 @@ def plot_fit(result: FitResult, data, path=None, points: int = 41):
         Its first axes hold one line per mode, labelled "(m, n, branch) = (…)", whose data are the
         voltages and the model frequencies.
 
-    Example:
+    Examples:
         >>> fig = plot_fit(result, peaks, "peaks_fit.png")
         >>> fig.axes[0].lines[0].get_xydata()           # (V, f_model in Hz) of the first mode
     """
@@ -269,7 +284,7 @@ def plot_fit(result: FitResult, data, path=None, points: int = 41):
     for ax in (top, bottom):
         ax.grid(alpha=0.3)
     if path is not None:
-        fig.savefig(path, dpi=120)
+        save_figure(fig, path, dpi=120)
     return fig
 
 
@@ -371,14 +386,7 @@ def parse_fit_config(data) -> FitConfig:
 def load_fit_config(path) -> FitConfig:
     """Read and check a ``jaxdea fit`` configuration from a TOML file (:func:`parse_fit_config`)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: invalid TOML: {exc}") from None
+    data = load_document(path, "toml")
     try:
         return parse_fit_config(data)
     except ValueError as exc:
@@ -418,8 +426,8 @@ def summary(result: FitResult, data, source="data", caught=()) -> str:
 
 def run_fit(data_path, config_path, out=None):
     """``jaxdea fit``: read the peaks and the configuration, fit, write DATA_fit.json
-    (:func:`write_fit`) and DATA_fit.png (:func:`plot_fit`) into ``out`` (default: the folder of
-    DATA).
+    (:func:`write_fit`) and DATA_fit.png (:func:`plot_fit`) into ``out`` (default: the current
+    folder), both or neither (:func:`jaxdea.files.write_together`).
 
     Returns:
         (result, summary text, written paths).
@@ -430,7 +438,7 @@ def run_fit(data_path, config_path, out=None):
     config = load_fit_config(config_path)
     data = read_peaks(data_path)
     data_path = Path(data_path)
-    folder = Path(out) if out is not None else data_path.parent
+    folder = Path(out) if out is not None else Path()
     paths = [folder / f"{data_path.stem}_fit.json", folder / f"{data_path.stem}_fit.png"]
     try:  # before the fit: a bad folder fails at once
         folder.mkdir(parents=True, exist_ok=True)
@@ -441,9 +449,9 @@ def run_fit(data_path, config_path, out=None):
         result = fit(data, config.free, config.fixed, config.fluid, initial=config.initial,
                      **config.options)
     messages = [str(w.message) for w in caught if issubclass(w.category, IdentifiabilityWarning)]
-    try:
-        write_fit(result, data, paths[0], messages)
-        plot_fit(result, data, paths[1])
+    try:  # both or neither
+        write_together([(paths[0], lambda tmp: write_fit(result, data, tmp, messages)),
+                        (paths[1], lambda tmp: plot_fit(result, data, tmp))])
     except OSError as exc:
         raise ValueError(f"cannot write into {folder}: {exc.strerror or exc}") from None
     return result, summary(result, data, data_path.name, messages), paths

@@ -1,5 +1,5 @@
 """Mode shapes: the state fields across the wall and the acoustic pressure in the cavity for a root Ω
-(theory.md §3–4).
+(docs/theory/axisymmetric.md §3–4).
 
 One solve serves both public functions (:func:`mode_shape`, :func:`fluid_pressure`):
 
@@ -12,7 +12,7 @@ One solve serves both public functions (:func:`mode_shape`, :func:`fluid_pressur
 3. inside sublayer k the fields are exp[(r̂ − r̂_{k−1}) M(r̂_k)] Y_{k−1}; all of them are divided by
    the displacement entry of largest modulus (so max(|ū|, |w̄|) = 1 and that entry is +1).
 
-The consistent acoustic coupling (theory.md §4(c)) writes the ū column of S as
+The consistent acoustic coupling (docs/theory/axisymmetric.md §4(c)) writes the ū column of S as
 D_0 S⁰_{·1} − Ω²ρ̂_f r̂_i N_0 e_T̄, so with c_u = x_0:
 
     ū_i = D_0 c_u,   p̂*(r̂_i) = Ω²ρ̂_f B̂_0 ū_i = Ω²ρ̂_f r̂_i N_0 c_u,
@@ -20,6 +20,8 @@ D_0 S⁰_{·1} − Ω²ρ̂_f r̂_i N_0 e_T̄, so with c_u = x_0:
 and no division by D_0 (zero at the rigid-wall cavity resonances) or by N_0 is ever needed.
 """
 
+
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -70,7 +72,7 @@ def _interface_solution(wall: Wall, omega, alpha, fluid, order, m=0.0, family=LO
     x (k,) of the initial basis, Y_0 = S x (module docstring, steps 1–2). Unnormalised.
 
     ``family`` (static) and ``m`` (traced, ``"order_m"``): the basis, propagation and outer rows of
-    that family (theory_m.md §4), n × k = 6 × 3, 8 × 4 or 2 × 1."""
+    that family (docs/theory/order_m.md §4), n × k = 6 × 3, 8 × 4 or 2 × 1."""
     if family == LONGITUDINAL:
         basis = initial_basis(wall, omega, alpha, fluid, order)
         qs, rs = propagate_basis_history(wall, omega, alpha, basis)
@@ -147,12 +149,12 @@ def _cavity_pressure(wall: Wall, omega, alpha, fluid: Fluid, c_u, n_points: int,
     """Radii (n_points,) from 0 to r̂_i and p̂*(r̂) = Ω²ρ̂_f r̂_i c_u · N_0(χ̂²r̂²) e^{g(χ̂²r̂_i²) − g(χ̂²r̂²)}.
 
     With an order ``m`` (None: the axisymmetric code, order 0): the same with N_m, times
-    (r̂/r̂_i)^m, i.e. p̂*(r̂_i) J_m(χ̂r̂)/J_m(χ̂r̂_i) (N_m ∝ J_m(x)/x^m, theory_m.md §5).
+    (r̂/r̂_i)^m, i.e. p̂*(r̂_i) J_m(χ̂r̂)/J_m(χ̂r̂_i) (N_m ∝ J_m(x)/x^m, docs/theory/order_m.md §5).
 
     N_0(s) e^{−g(s)} is J_0(sqrt(s)) (s ≥ 0) or I_0(sqrt(−s)) (s < 0) (:func:`coupling_log_factor`),
     and the basis column carries N_0(χ̂²r̂_i²) with its own factor e^{g(χ̂²r̂_i²)}, so this is
-    p̂*(r̂_i) J_0(χ̂r̂)/J_0(χ̂r̂_i) with p̂*(r̂_i) = Ω²ρ̂_f r̂_i N_0 c_u (theory.md §4(c)), computed without
-    dividing by J_0(χ̂r̂_i); g(χ̂²r̂_i²) − g(χ̂²r̂²) ≤ 0 for r̂ ≤ r̂_i, so nothing overflows.
+    p̂*(r̂_i) J_0(χ̂r̂)/J_0(χ̂r̂_i) with p̂*(r̂_i) = Ω²ρ̂_f r̂_i N_0 c_u (docs/theory/axisymmetric.md §4(c)),
+    computed without dividing by J_0(χ̂r̂_i); g(χ̂²r̂_i²) − g(χ̂²r̂²) ≤ 0 for r̂ ≤ r̂_i, so nothing overflows.
     """
     rho, c_f = as_float(fluid.density_ratio), as_float(fluid.speed_ratio)
     ri = wall.r_inner
@@ -174,9 +176,9 @@ def _solve_mode(tube, alpha, omega, fluid, n_points, n_layers, order, m=0.0, fam
     are the cavity radii and acoustic pressure for the ``acoustic`` coupling, None otherwise; NaN
     where ``omega`` is farther than ROOT_RTOL from a root (``distance``: :func:`root_distance`).
 
-    ``family`` (static) ``"longitudinal"``: the 6 fields of theory.md §3 (the axisymmetric code);
-    ``"order_m"`` (traced ``m``) and ``"torsional"``: the 8 fields [ū, v̄, w̄, Φ, T̄, Q̄, S̄, D̄] of
-    theory_m.md §1 (torsional: v̄, Q̄ only, the others 0)."""
+    ``family`` (static) ``"longitudinal"``: the 6 fields of docs/theory/axisymmetric.md §3 (the axisymmetric
+    code); ``"order_m"`` (traced ``m``) and ``"torsional"``: the 8 fields [ū, v̄, w̄, Φ, T̄, Q̄, S̄, D̄] of
+    docs/theory/order_m.md §1 (torsional: v̄, Q̄ only, the others 0)."""
     alpha, omega = as_float(alpha), as_float(omega)
     wall = discretize(tube, n_layers)
     if family == LONGITUDINAL:
@@ -240,14 +242,49 @@ def _solve(tube, alpha, omega, fluid, n_points, n_layers, scheme, m, torsional):
     return out[:-1]
 
 
+ROWS_6 = {"u": 0, "v": None, "w": 1, "phi": 2, "T": 3, "Q": None, "S": 4, "D": 5}
+ROWS_8 = {"u": 0, "v": 1, "w": 2, "phi": 3, "T": 4, "Q": 5, "S": 6, "D": 7}
+"""Rows of the fields: the longitudinal state [ū, w̄, Φ, T̄, S̄, D̄] (docs/theory/axisymmetric.md §3)
+and the order-m state [ū, v̄, w̄, Φ, T̄, Q̄, S̄, D̄] (docs/theory/order_m.md §1)."""
+
+
+class ModeShape(NamedTuple):
+    """What :func:`mode_shape` returns: ``(r, fields)``, with the fields by name as well.
+
+    ``fields`` has the rows of the family's state (API.md): 6 for the longitudinal family at a
+    concrete m = 0, 8 otherwise. The names are the same for every family, concrete or traced m:
+    ``u, v, w`` (ū, v̄, w̄), ``phi`` (Φ), ``T, Q, S, D`` (T̄, Q̄, S̄, D̄); v̄ and Q̄ are zero where the
+    state has no such row (a longitudinal mode has no u_θ)."""
+
+    r: jax.Array
+    fields: jax.Array
+
+    def field(self, name: str) -> jax.Array:
+        """The named field (shape of ``r``, batch axes included)."""
+        rows = ROWS_6 if self.fields.shape[-2] == 6 else ROWS_8
+        if name not in rows:
+            raise ValueError(f"name must be one of {', '.join(rows)}, got {name!r}")
+        row = rows[name]
+        return jnp.zeros_like(self.fields[..., 0, :]) if row is None else self.fields[..., row, :]
+
+    u = property(lambda self: self.field("u"))
+    v = property(lambda self: self.field("v"))
+    w = property(lambda self: self.field("w"))
+    phi = property(lambda self: self.field("phi"))
+    T = property(lambda self: self.field("T"))
+    Q = property(lambda self: self.field("Q"))
+    S = property(lambda self: self.field("S"))
+    D = property(lambda self: self.field("D"))
+
+
 def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: int = 64,
                n_layers: int | None = None, m=0, torsional: bool = False, scheme: str | None = None):
     """The state fields [ū, w̄, Φ, T̄, S̄, D̄] across the wall for the root ``omega``
     ([ū, v̄, w̄, Φ, T̄, Q̄, S̄, D̄] for order m ≥ 1, a traced m or ``torsional=True``).
 
-    Y = [ū, w̄, Φ, T̄, S̄, D̄] is the state of theory.md §3 (u_r = R_i ū cos αz, u_z = R_i w̄ sin αz,
-    Ṫ_rr = μ T̄ cos αz, …). The null vector of the outer-face conditions (theory.md §4) is carried
-    back through the orthonormalised propagation (stable for any α̂ĥ) and the fields inside each
+    Y = [ū, w̄, Φ, T̄, S̄, D̄] is the state of docs/theory/axisymmetric.md §3 (u_r = R_i ū cos αz, u_z = R_i w̄
+    sin αz, Ṫ_rr = μ T̄ cos αz, …). The null vector of the outer-face conditions (docs/theory/axisymmetric.md
+    §4) is carried back through the orthonormalised propagation (stable for any α̂ĥ) and the fields inside each
     sublayer follow from its exponential (module docstring). Scaled so that max(|ū|, |w̄|) = 1 over
     the ``n_points`` samples, the displacement entry of largest modulus being +1; the acoustic
     pressure of :func:`fluid_pressure` with the same ``n_points`` uses the same scale.
@@ -258,7 +295,7 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
     fields. A mode without displacement (at V̂ = 0 the electrical problem decouples) is scaled so
     that its entry of largest modulus is +1.
 
-    Circumferential order m (theory_m.md §1): u_r = R_i ū cos mθ cos αz, u_θ = R_i v̄ sin mθ cos αz,
+    Circumferential order m (docs/theory/order_m.md §1): u_r = R_i ū cos mθ cos αz, u_θ = R_i v̄ sin mθ cos αz,
     u_z = R_i w̄ cos mθ sin αz, Ṫ_rθ = μ Q̄ sin mθ cos αz, the others as for m = 0; the 8 fields
     are scaled so that max(|ū|, |v̄|, |w̄|) = 1. ``torsional=True`` (m = 0): the torsional mode
     (u_θ alone), as 8 fields with only v̄ and Q̄ non-zero. A traced m (e.g. under ``vmap``) gives
@@ -278,29 +315,32 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
         torsional: with m = 0, the torsional family (static).
 
     Returns:
-        (r, fields): radii r̂ (n_points,) from r̂_i to r̂_o and fields (6, n_points) for m = 0
-        (longitudinal), (8, n_points) otherwise.
+        A :class:`ModeShape` ``(r, fields)``: radii r̂ (n_points,) from r̂_i to r̂_o and fields
+        (6, n_points) for m = 0 (longitudinal), (8, n_points) otherwise; the same named fields
+        (``.u``, ``.v``, ``.w``, ``.phi``, ``.T``, ``.Q``, ``.S``, ``.D``) for every family.
 
     Raises:
         ValueError: for invalid concrete inputs, naming the parameter (m not an integer ≥ 0,
             ``torsional=True`` with m ≥ 1, the ``"paper"`` coupling with m ≥ 1, an ``omega`` that
             is not a root).
 
-    Example:
+    Examples:
         >>> import jaxdea as jd
         >>> tube = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
         >>> omega = jd.frequencies(tube, 0.445)[0]
         >>> r, (u, w, phi, t, s, d) = jd.mode_shape(tube, 0.445, omega)
         >>> omega2 = jd.frequencies(tube, 0.445, m=2)[0]
         >>> r, (u, v, w, phi, t, q, s, d) = jd.mode_shape(tube, 0.445, omega2, m=2)
+        >>> jd.mode_shape(tube, 0.445, omega).w  # by name: the same for every family
     """
     r, fields, _, _ = _solve(tube, alpha, omega, fluid, n_points, n_layers, scheme, m, torsional)
-    return r, fields
+    return ModeShape(r, fields)
 
 
 def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64,
                    n_layers: int | None = None, m=0, scheme: str | None = None):
-    """The acoustic excess pressure p̂*(r̂) in the cavity for the root ``omega`` (theory.md §4(c)).
+    """The acoustic excess pressure p̂*(r̂) in the cavity for the root ``omega`` (docs/theory/axisymmetric.md
+    §4(c)).
 
     The fluid field of the consistent acoustic coupling, p* = μ p̂*(r̂) cos αz with
 
@@ -317,7 +357,7 @@ def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64,
     In SI units the pressure is μ p̂* per unit of the displacement scale R_i (see
     :mod:`jaxdea.units`): a mode with largest displacement δ has pressure μ (δ/R_i) p̂*.
 
-    Order m (theory_m.md §5): p* = μ p̂*(r̂) cos mθ cos αz with p̂*(r̂) = A J_m(χ̂ r̂) (A I_m(χ̃ r̂)
+    Order m (docs/theory/order_m.md §5): p* = μ p̂*(r̂) cos mθ cos αz with p̂*(r̂) = A J_m(χ̂ r̂) (A I_m(χ̃ r̂)
     when χ̂² < 0), p̂*(r̂_i) = Ω²ρ̂_f B̂_m ū_i, in the normalisation of ``mode_shape(..., m=m)``;
     computed as p̂*(r̂_i) J_m(χ̂r̂)/J_m(χ̂r̂_i) without that division (0 on the axis for m ≥ 1).
 
@@ -335,10 +375,10 @@ def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64,
 
     Raises:
         ValueError: if ``fluid`` is None or uses the ``"paper"`` coupling (the paper's model has no
-            pressure field: the fluid acts only as a follower pressure on the inner face, theory.md
-            §4(b)), or for invalid concrete inputs, naming the parameter.
+            pressure field: the fluid acts only as a follower pressure on the inner face,
+            docs/theory/axisymmetric.md §4(b)), or for invalid concrete inputs, naming the parameter.
 
-    Example:
+    Examples:
         >>> import jaxdea as jd
         >>> from jaxdea.modes import fluid_pressure
         >>> tube, fluid = jd.Tube(lambda_i=0.9, lambda_z=1.2), jd.Fluid()
@@ -349,8 +389,9 @@ def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64,
         raise ValueError("fluid must be a jaxdea.Fluid: the empty tube (fluid=None) has no fluid pressure")
     if isinstance(fluid, Fluid) and isinstance(fluid.coupling, str) and fluid.coupling == "paper":
         raise ValueError(
-            "coupling='paper' has no fluid pressure field: the paper's model (theory.md §4(b)) loads the "
-            "inner face with an Ω-dependent follower pressure P̂_f only; use coupling='acoustic'"
+            "coupling='paper' has no fluid pressure field: the paper's model (docs/theory/axisymmetric.md "
+            "§4(b)) loads the inner face with an Ω-dependent follower pressure P̂_f only; use "
+            "coupling='acoustic'"
         )
     _, _, r, p = _solve(tube, alpha, omega, fluid, n_points, n_layers, scheme, m, False)
     return r, p

@@ -1,4 +1,5 @@
-"""Incremental electro-elastic moduli from the energy by automatic differentiation (theory.md §2–3).
+"""Incremental electro-elastic moduli from the energy by automatic differentiation (docs/theory/axisymmetric.md
+§2–3).
 
 The total energy per unit reference volume is Ω(F, D_L) = W(I_1) + I_5/2 with I_1 = tr(FᵀF) and
 I_5 = D_L·(FᵀF D_L) (dimensionless, μ = ε = 1). Its second derivatives pushed forward give
@@ -7,8 +8,8 @@ I_5 = D_L·(FᵀF D_L) (dimensionless, μ = ε = 1). Its second derivatives push
     K0_ij = F⁻¹_αi F⁻¹_βj ∂²Ω/∂D_Lα∂D_Lβ                         (paper Eqs. 20–22, 31),
 
 evaluated at F = diag(λ_r, λ, λ_z) (order r, θ, z) and D = (D_r, 0, 0). Their combinations a, b, c,
-d, g, q (theory.md §3, corrected Eqs. 32–33) feed the state matrix; e = A_θrθr = 2W_1λ²
-(theory_m.md §2) enters only the matrices of circumferential order m and of torsion.
+d, g, q (docs/theory/axisymmetric.md §3, corrected Eqs. 32–33) feed the state matrix; e = A_θrθr = 2W_1λ²
+(docs/theory/order_m.md §2) enters only the matrices of circumferential order m and of torsion.
 """
 
 from typing import NamedTuple
@@ -30,11 +31,11 @@ class Moduli(NamedTuple):
 
 
 class Coefficients(NamedTuple):
-    """State-matrix coefficients at one radius (theory.md §3); each a scalar (or batch) array.
+    """State-matrix coefficients at one radius (docs/theory/axisymmetric.md §3); each a scalar (or batch) array.
 
     a = A_zrzr, b = (A_rrrr + A_zzzz − 2A_rrzz)/2, c = A_rzrz, d = Γ_rzz = D_r/ε,
     g = 2A_rrzz − 2A_θθzz + A_θθθθ − A_rrrr, q = A_rrrr − A_rrzz + A_θθzz − A_rrθθ, eps = 1/K_rr,
-    p = Lagrange multiplier of the base state, e = A_θrθr = 2W_1λ² (theory_m.md §2: enters only
+    p = Lagrange multiplier of the base state, e = A_θrθr = 2W_1λ² (docs/theory/order_m.md §2: enters only
     the order-m and torsional state matrices; the axisymmetric 6×6 matrix does not read it).
     """
 
@@ -64,7 +65,8 @@ def electroelastic_energy(F, DL, gent_constant, material="gent"):
 
 
 def push_forward_moduli(lam_r, lam, lam_z, D_r, gent_constant, material="gent") -> Moduli:
-    """A0, Γ0, K0 at F = diag(λ_r, λ, λ_z), D = D_r e_r, from the energy by autodiff (theory.md §2)."""
+    """A0, Γ0, K0 at F = diag(λ_r, λ, λ_z), D = D_r e_r, from the energy by autodiff
+    (docs/theory/axisymmetric.md §2)."""
     F = jnp.diag(jnp.stack([lam_r, lam, lam_z]))
     Finv = jnp.diag(1.0 / jnp.stack([lam_r, lam, lam_z]))
     DL = Finv @ jnp.stack([D_r, jnp.zeros_like(D_r), jnp.zeros_like(D_r)])
@@ -78,8 +80,8 @@ def push_forward_moduli(lam_r, lam, lam_z, D_r, gent_constant, material="gent") 
 
 
 def coefficients(moduli: Moduli, p) -> Coefficients:
-    """a, b, c, d, g, q, ε of theory.md §3 (corrected paper Eq. 32) and e = A_θrθr
-    (theory_m.md §2) from the tensor moduli."""
+    """a, b, c, d, g, q, ε of docs/theory/axisymmetric.md §3 (corrected paper Eq. 32) and e = A_θrθr
+    (docs/theory/order_m.md §2) from the tensor moduli."""
     A, Gamma, K = moduli
     return Coefficients(
         a=A[Z, R, Z, R],
@@ -95,9 +97,9 @@ def coefficients(moduli: Moduli, p) -> Coefficients:
 
 
 def closed_form_coefficients(lam, lam_z, D_r, p, gent_constant, material="gent") -> Coefficients:
-    """The closed forms of theory.md §3 (corrected Eq. 33) and e = 2W_1λ² (theory_m.md §2) for
-    Ω = W(I_1) + I_5/2, with W_1, W_11 from the energy by autodiff; equal to :func:`coefficients`
-    of the tensor moduli (tests)."""
+    """The closed forms of docs/theory/axisymmetric.md §3 (corrected Eq. 33) and e = 2W_1λ²
+    (docs/theory/order_m.md §2) for Ω = W(I_1) + I_5/2, with W_1, W_11 from the energy by autodiff; equal to
+    :func:`coefficients` of the tensor moduli (tests)."""
     lam_r = 1.0 / (lam * lam_z)
     i1 = lam_r**2 + lam**2 + lam_z**2
     w1, w11 = jnp.vectorize(lambda i: energy_derivatives(i, gent_constant, material))(i1)

@@ -35,6 +35,19 @@ wall depends on u = λ_z (r̂² − r̂_i²), whose rounding in float64 is about
 the results carry that relative error (measured on the lowest roots at α̂ = 0.445, η = 0.85: 2e-11
 at λ_i = 1e3, 9e-8 at 1e4, and ΔP̂ off by 0.4 % at 1e7). Below the limit it stays under 2.2e-10
 (λ_i up to 1000 at λ_z = 1; finite Gent constants bound λ_i far more tightly)."""
+ALPHA_THICKNESS_MAX = 150.0
+"""Largest α̂ĥ accepted for concrete inputs (ĥ = h/R_i, the deformed wall thickness): the range where
+the characteristic function stays finite and its roots are found. Measured with the default
+discretisation (N = 384 there): at α̂ĥ = 150 the two lowest roots converge for η = 0.3, 0.85 and
+0.95; at α̂ĥ = 300 a thin wall (η = 0.95, α̂ = 8.1e3) gives NaN (its sublayer exponentials pass
+‖h M‖∞ = 1.1e4, at N = 512, the most the default takes), at 600 a thick one (η = 0.3) a root with
+status SUSPECT."""
+MAX_LAYERS = 4096
+"""Most sublayers N accepted: the midpoint laminate's error ∝ N⁻² (1.4e-5 at N = 30) is below 1e-9
+here and the higher-order schemes reach rounding far earlier; the memory of a solve grows ∝ N."""
+MAX_ROOTS = 1000
+"""Most roots K per point (``n_roots``): the search range and the memory of the root lanes grow
+∝ K."""
 TINY = float(np.finfo(np.float64).tiny)
 """Smallest normal float64. XLA on CPU flushes subnormal numbers to zero, so concrete values are
 validated as XLA will see them (a subnormal α̂ or λ is 0 inside the solvers)."""
@@ -44,7 +57,7 @@ validated as XLA will see them (a subnormal α̂ or λ is 0 inside the solvers).
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class Tube:
-    """A pre-stretched dielectric elastomer tube (all quantities dimensionless, theory.md §0).
+    """A pre-stretched dielectric elastomer tube (all quantities dimensionless, docs/theory/axisymmetric.md §0).
 
     Attributes:
         voltage: V̂ = sqrt(ε/μ) V / R_i.
@@ -78,8 +91,8 @@ class Fluid:
     Attributes:
         density_ratio: ρ̂_f = ρ_f / ρ_s > 0.
         speed_ratio: ĉ_f = c_f / c_s > 0.
-        coupling: static, ``"acoustic"`` (consistent, theory.md §4(c)) or ``"paper"`` (the paper's
-            Eq. 45 follower-pressure model, theory.md §4(b)).
+        coupling: static, ``"acoustic"`` (consistent, docs/theory/axisymmetric.md §4(c)) or
+            ``"paper"`` (the paper's Eq. 45 follower-pressure model, docs/theory/axisymmetric.md §4(b)).
         bessel_order: static int ν ≥ 0 of the paper's coupling function (``"paper"`` only);
             ``None`` means ν = n, the axial mode number, inferred from a concrete α̂.
     """
@@ -153,9 +166,16 @@ def _concrete(x, name: str = "value"):
     if x is None or isinstance(x, (str, bytes)) or np.iscomplexobj(x):
         raise ValueError(f"{name} must be a real number, got {x!r}")
     try:
-        return np.asarray(x, dtype=np.float64)
+        raw = np.asarray(x)
     except (TypeError, ValueError, OverflowError) as exc:
         raise ValueError(f"{name} must be a real number, got {x!r}") from exc
+    if raw.dtype == np.bool_:  # True would pass as 1.0
+        raise ValueError(f"{name} must be a real number, got the boolean {x!r}")
+    try:
+        value = raw.astype(np.float64, copy=False)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise ValueError(f"{name} must be a real number, got {x!r}") from exc
+    return value
 
 
 def _check(name, x, allowed, ok, allow_inf=False, scalar=True):
@@ -190,7 +210,7 @@ def validate_broadcast(kind, values: dict) -> None:
 
 
 def gent_limit_excess(lambda_i, lambda_z, eta):
-    """max over the wall of I_1 − 3 (attained at a face; I_1 is convex in λ², theory.md §1);
+    """max over the wall of I_1 − 3 (attained at a face; I_1 is convex in λ², docs/theory/axisymmetric.md §1);
     inf where extreme inputs overflow (such a wall is past any locking limit)."""
     with np.errstate(all="ignore"):
         excess = _face_excess(lambda_i, lambda_z, eta, np)
@@ -337,10 +357,30 @@ def validate_fluid(fluid: Fluid | None, scalar: bool = True) -> None:
         validate_broadcast("Fluid", checks)
 
 
-def validate_alpha(alpha, name: str = "alpha") -> None:
-    """Validate a concrete axial wavenumber: a finite real scalar α̂ >= ALPHA_MIN."""
-    _check(name, alpha, f">= {ALPHA_MIN!r} and finite (the axial wavenumber α̂ = α R_i)",
-           lambda v: v >= ALPHA_MIN)
+def validate_alpha(alpha, name: str = "alpha", tube: Tube | None = None, scalar: bool = True):
+    """Validate a concrete axial wavenumber: a finite real α̂ >= ALPHA_MIN (a scalar, or with
+    ``scalar=False`` an array) and, with a validated concrete ``tube``, α̂ĥ <= ALPHA_THICKNESS_MAX
+    (ĥ = c/(r̂_o + r̂_i) its deformed thickness, c = (η⁻² − 1)/λ_z). Returns α̂ as a numpy array, or
+    None when traced."""
+    value = _check(name, alpha, f">= {ALPHA_MIN!r} and finite (the axial wavenumber α̂ = α R_i)",
+                   lambda v: v >= ALPHA_MIN, scalar=scalar)
+    leaves = [] if tube is None else [tube.lambda_i, tube.lambda_z, tube.eta]
+    if value is None or value.size == 0 or any(isinstance(x, jax.core.Tracer) for x in leaves):
+        return value
+    if tube is not None:
+        li, lz, eta = (np.asarray(x, dtype=np.float64) for x in leaves)
+        c = wall_constant(lz, eta)
+        thickness = float(np.max(c / (np.sqrt(li**2 + c) + li)))
+        largest = float(np.max(value))
+        # 1e-9: the rounding of an α̂ computed as ALPHA_THICKNESS_MAX/ĥ by the solvers' geometry
+        if largest * thickness > ALPHA_THICKNESS_MAX * (1.0 + 1e-9):
+            raise ValueError(
+                f"{name} must be <= {ALPHA_THICKNESS_MAX:g}/ĥ = {ALPHA_THICKNESS_MAX / thickness:.6g} "
+                f"for this tube (α̂ĥ <= {ALPHA_THICKNESS_MAX:g}, ĥ = {thickness:.6g} the deformed "
+                f"wall thickness over R_i: the range where the characteristic function stays finite and "
+                f"its roots are found), got "
+                f"{largest!r}")
+    return value
 
 
 def mode_wavenumber(tube: Tube, n):
@@ -432,6 +472,17 @@ def validate_layers(n_layers) -> None:
         n_layers = n_layers.count  # a resolved discretisation (jaxdea.transfer.Layers)
     if not isinstance(n_layers, (int, np.integer)) or isinstance(n_layers, bool) or n_layers < 1:
         raise ValueError(f"n_layers must be None or an integer >= 1, got {n_layers!r}")
+    if n_layers > MAX_LAYERS:
+        raise ValueError(f"n_layers must be <= MAX_LAYERS = {MAX_LAYERS} (more sublayers add only "
+                         f"rounding and memory), got {n_layers!r}")
+
+
+def validate_roots(n_roots) -> int:
+    """The static number of roots K: an integer in [1, MAX_ROOTS]."""
+    count = validate_count("n_roots", n_roots)
+    if count > MAX_ROOTS:
+        raise ValueError(f"n_roots must be <= MAX_ROOTS = {MAX_ROOTS}, got {n_roots!r}")
+    return count
 
 
 def mode_number(tube: Tube, alpha) -> int:

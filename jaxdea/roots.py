@@ -69,9 +69,9 @@ from .params import (
     require_x64,
     traced,
     validate_broadcast,
-    validate_count,
     validate_positive,
     validate_range,
+    validate_roots,
 )
 from .scalar import (
     ROOT_RTOL,
@@ -89,6 +89,7 @@ from .scalar import (
 from .state_matrix import LONGITUDINAL, ORDER_M
 from .transfer import (
     Wall,
+    checked_laminate,
     discretize,
     laminate,
     split_layers,
@@ -119,7 +120,7 @@ class Roots(NamedTuple):
 
 def _slowest_shear(coef, family):
     """c_min² over the wall: the shear moduli c − εd² and a, and e = 2W_1λ² off the axisymmetric
-    family (θ-shear, theory_m.md §2)."""
+    family (θ-shear, docs/theory/order_m.md §2)."""
     shear = jnp.minimum(coef.c - coef.eps * coef.d**2, coef.a)
     return jnp.min(shear if family == LONGITUDINAL else jnp.minimum(shear, coef.e))
 
@@ -249,7 +250,7 @@ def coupling_poles(wall: Wall, alpha, fluid: Fluid, order):
 def pole_steps(next_point, poles, widths):
     """next(x) of ``next_point``, also uniform in the coupling's phase θ near every pole Ω_k.
 
-    Columns 1 and 2 of the paper's basis are D_ν c_j + L v_j (theory.md §4(b)), so its
+    Columns 1 and 2 of the paper's basis are D_ν c_j + L v_j (docs/theory/axisymmetric.md §4(b)), so its
     characteristic function is a quadratic form in (D_ν, L), f = aD_ν² + bD_νL + cL², with a, b, c
     minors of the wall's transfer (varying on the scale of the step Δ). Near Ω_k the direction θ
     of (D_ν, L) turns by π within a few widths w_k (D_ν ≈ D'_ν(Ω − Ω_k), L nearly constant):
@@ -586,7 +587,7 @@ def _residual(x, tube, alpha, fluid, m, n_layers, order, unknown, family=LONGITU
               method="taylor"):
     """The characteristic function as a function of the unknown x and of every parameter:
     unknown = "omega": f(Ω = x); "voltage": f(Ω = 0; V̂ = x), fluid-free off the axisymmetric
-    family (κ ∝ Ω² vanishes there, theory_m.md §6). ``family`` static, the order ``m`` a parameter.
+    family (κ ∝ Ω² vanishes there, docs/theory/order_m.md §6). ``family`` static, the order ``m`` a parameter.
     ``method="adaptive"`` for the solvers (same values, forward mode only), the default for
     derivatives of any order."""
     if unknown == "voltage":
@@ -716,6 +717,18 @@ def invalid_where(ok, roots: Roots) -> Roots:
                  jnp.where(ok, roots.status, Status.INVALID).astype(jnp.int32))
 
 
+def inaccurate_where(short, roots: Roots) -> Roots:
+    """INACCURATE where ``short`` (:func:`jaxdea.transfer.checked_laminate`: the default
+    discretisation has fewer sublayers than its rule asks for at the point) and the root converged;
+    the values are kept. ``short`` None: ``roots`` as they are."""
+    if short is None:
+        return roots
+    status = jnp.asarray(roots.status)
+    short = jnp.reshape(short, jnp.shape(short) + (1,) * (status.ndim - jnp.ndim(short)))
+    return Roots(roots.omega, jnp.where(short & (status == Status.CONVERGED), Status.INACCURATE,
+                                        status).astype(jnp.int32))
+
+
 def scan_roots(wall: Wall, fun, alpha, fluid, omega_max, n_roots: int, m=0.0,
                family=LONGITUDINAL, order=None) -> Roots:
     """The ``n_roots`` lowest roots of ``fun`` in (0, omega_max] (None: :func:`default_omega_max`)
@@ -758,7 +771,7 @@ def growth_rates_unchecked(tube, alpha, fluid, s_max, n_roots, n_layers, order, 
                            family=ORDER_M) -> Roots:
     """The growth rates s = √(−Ω²) > 0 of one case, largest first (traceable): the roots of
     f(Ω² = −s²) in (0, s_max] by the same guaranteed scan as the frequencies (f is entire in Ω²,
-    theory_m.md §6), reversed; NaN-padded at the end. ``family``: ``ORDER_M`` (at m = 0 the
+    docs/theory/order_m.md §6), reversed; NaN-padded at the end. ``family``: ``ORDER_M`` (at m = 0 the
     longitudinal modes) or ``TORSIONAL`` (:func:`_growth_family`)."""
     ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
     wall = discretize(tube, n_layers)
@@ -789,7 +802,7 @@ def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3
     """Growth rates s = √(−Ω²) of the unstable modes of order m at α̂, largest first, NaN-padded.
 
     An unstable state has modes with Ω² < 0 (e^{st} growth, s > 0): zeros of the characteristic
-    function continued to Ω² = −s² (entire in Ω², theory_m.md §6), found by the guaranteed scan of
+    function continued to Ω² = −s² (entire in Ω², docs/theory/order_m.md §6), found by the guaranteed scan of
     :func:`frequencies` in s ∈ (0, s_max] (None: the frequencies' automatic limit). All NaN for a
     state that is stable at (m, α̂). :func:`frequencies` keeps returning the positive real roots
     only: past an instability its lowest root is the second branch, so check ``growth_rates`` (or
@@ -802,12 +815,12 @@ def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3
         m: circumferential order (int >= 0). torsional: the torsional family at m = 0.
         s_max: upper end of the search in s (None: automatic).
 
-    Example:
+    Examples:
         >>> growth_rates(Tube(voltage=0.1, lambda_i=0.95, lambda_z=1.2), 0.445, m=2)  # ≈ [0.7466, nan, nan]
     """
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     family = _growth_family(family)
-    n_roots = validate_count("n_roots", n_roots)
+    n_roots = validate_roots(n_roots)
     if s_max is not None:
         validate_positive("s_max", s_max)
     tube, alpha, fluid, s_max, m = canonical(tube, alpha, fluid, s_max, m)
@@ -831,15 +844,18 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
     """The ``n_roots`` lowest roots in (0, omega_max] with a status per root (module docstring).
 
     Returns:
-        :class:`Roots` (omega ascending, NaN-padded; status CONVERGED, NO_ROOT, NOT_FINITE, or
-        SUSPECT where a root's slope sign says that a root below it was not found).
+        An instance of :class:`Roots` (omega ascending, NaN-padded; status CONVERGED, NO_ROOT,
+        NOT_FINITE, SUSPECT where a root's slope sign says that a root below it was not found, or
+        INACCURATE: a root of the default discretisation at a point for which its rule asks more
+        sublayers than it has, the value kept; :func:`jaxdea.transfer.checked_laminate`: where the
+        geometry, α̂ or m are traced, N = 16 serves every point).
     """
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
-    n_roots = validate_count("n_roots", n_roots)
+    n_roots = validate_roots(n_roots)
     if omega_max is not None:
         validate_positive("omega_max", omega_max)
     tube, alpha, fluid, omega_max, m = canonical(tube, alpha, fluid, omega_max, m)
-    layers = laminate(n_layers, scheme, tube, alpha, n_roots, m)
+    layers, short = checked_laminate(n_layers, scheme, tube, alpha, n_roots, m)
     values = detached((tube, alpha, fluid, omega_max))
     along = None  # a batch over α̂ alone: continued along α̂ (jaxdea.curves), not the paper's coupling
     if fluid is None or fluid.coupling == "acoustic":
@@ -854,7 +870,8 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
                                       family)
 
         roots = one_point_at_a_time(solve, *values, detached(m), along=along)
-    return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "omega", family)
+    return inaccurate_where(short, _with_derivatives(roots, (tube, alpha, fluid, m), layers, order,
+                                                     "omega", family))
 
 
 def _decoupled(tube, family):
@@ -879,7 +896,8 @@ def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
 
     Args:
         tube: the :class:`~jaxdea.Tube`.
-        alpha: α̂ = α R_i > 0 (see :func:`jaxdea.axial_wavenumber`).
+        alpha: α̂ = α R_i >= 1e-12 with α̂ĥ <= 150 (ĥ = h/R_i, :data:`jaxdea.params.ALPHA_THICKNESS_MAX`;
+            see :func:`jaxdea.axial_wavenumber`).
         fluid: a :class:`~jaxdea.Fluid` or None (empty tube).
         n_roots: number of roots (static).
         omega_max: upper end of the search (None: automatic).
@@ -893,7 +911,7 @@ def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
             ``scheme="midpoint", n_layers=30`` reproduces the paper), ``"magnus4"`` or
             ``"magnus6"`` (equal sublayers, errors O(N⁻⁴), O(N⁻⁶); static, see
             :mod:`jaxdea.transfer`).
-        m: circumferential order (int >= 0; theory_m.md): 0 the axisymmetric longitudinal modes,
+        m: circumferential order (int >= 0; docs/theory/order_m.md): 0 the axisymmetric longitudinal modes,
             1 bending, 2, 3, … ovalisation and higher ring modes. May be traced (one program
             for every m >= 1 or a traced m).
         torsional: at m = 0, the torsional family (u_θ alone) instead of the longitudinal one.
@@ -902,7 +920,7 @@ def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
     buckling under voltage) has its lowest mode in :func:`growth_rates` instead, and ``[0]`` is
     then the second branch. :func:`first_instability` gives the voltage where that begins.
 
-    Example:
+    Examples:
         >>> frequencies(Tube(eta=0.85), 0.445, n_roots=3)  # ≈ [0.745, 1.910, 17.844]
         >>> frequencies(Tube(eta=0.85), 0.445, n_layers=6, scheme="magnus6")  # the wall to ≈ 1e-9
         >>> frequencies(Tube(eta=0.85), 0.445, m=2)  # ovalisation modes
@@ -936,17 +954,19 @@ def _solve_frequency(tube, alpha, guess, fluid, n_layers, order, m=0.0, family=L
 def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
                     n_layers: int | None = None, scheme: str | None = None, m=0,
                     torsional: bool = False) -> Roots:
-    """The root reached by safeguarded Newton from ``guess``, with its status (scalar Roots)."""
+    """The root reached by safeguarded Newton from ``guess``, with its status (scalar Roots;
+    INACCURATE as in :func:`solve_frequencies`)."""
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_positive("guess", guess)
     tube, alpha, guess, fluid, m = canonical(tube, alpha, guess, fluid, m)
-    layers = laminate(n_layers, scheme, tube, alpha, m=m)
+    layers, short = checked_laminate(n_layers, scheme, tube, alpha, m=m)
     values = detached((tube, alpha, guess, fluid))
     if family == LONGITUDINAL:
         roots = _solve_frequency(*values, layers, order)
     else:
         roots = _solve_frequency(*values, layers, order, detached(m), family)
-    return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "omega", family)
+    return inaccurate_where(short, _with_derivatives(roots, (tube, alpha, fluid, m), layers, order,
+                                                     "omega", family))
 
 
 def frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, n_layers: int | None = None,
@@ -958,7 +978,7 @@ def frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, n_layers: in
     NaN if Newton fails (see :func:`solve_frequency` for the status). ``scheme`` as in
     :func:`frequencies`.
 
-    Example:
+    Examples:
         >>> jax.grad(lambda v: frequency(Tube(voltage=v), 0.445, 0.7))(0.1)
     """
     return solve_frequency(tube, alpha, guess, fluid, n_layers, scheme, m, torsional).omega
@@ -992,7 +1012,7 @@ def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layer
             that is not a root (farther than ``ROOT_RTOL`` by one Newton step). Traced invalid
             inputs and traced non-roots give NaN.
 
-    Example:
+    Examples:
         >>> t = Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
         >>> group_velocity(t, 0.445, frequencies(t, 0.445)[0])  # ≈ 1.661
         >>> group_velocity(t, 0.445, 0.7)  # ValueError: omega = 0.7 is not a root (0.1 away)
@@ -1034,10 +1054,11 @@ def _group_velocity(tube, alpha, omega, fluid, n_layers, order, m=0.0, family=LO
 def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
                            n_layers: int | None = None, scheme: str | None = None, m=0,
                            torsional: bool = False):
-    """(V̂_cr, status): the smallest V̂ > 0 with f(Ω = 0; V̂) = 0 (see :func:`critical_voltage`)."""
+    """(V̂_cr, status): the smallest V̂ > 0 with f(Ω = 0; V̂) = 0 (see :func:`critical_voltage`;
+    INACCURATE as in :func:`solve_frequencies`)."""
     order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
-    layers = laminate(n_layers, scheme, tube, alpha, m=m, at_rest=True)
+    layers, short = checked_laminate(n_layers, scheme, tube, alpha, m=m, at_rest=True)
     values = detached((tube, alpha, fluid))
     # a batch over α̂ alone: continued along α̂ (jaxdea.curves); fluids (which do not change V̂_cr) mapped
     along = along_alpha("critical_voltage", n_layers=layers, family=family) if fluid is None else None
@@ -1049,7 +1070,8 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
             return _solve_critical_voltage(tube, alpha, fluid, layers, order, m=m, family=family)
 
         roots = Roots(*one_point_at_a_time(solve, *values, detached(m), along=along))
-    return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "voltage", family)
+    return inaccurate_where(short, _with_derivatives(roots, (tube, alpha, fluid, m), layers, order,
+                                                     "voltage", family))
 
 
 def critical_function(tube, alpha, fluid, n_layers, order, v_end=None, m=0.0, family=LONGITUDINAL,
@@ -1081,7 +1103,7 @@ def critical_function(tube, alpha, fluid, n_layers, order, v_end=None, m=0.0, fa
         wall = wall_at_voltage(expansion, v)
         if family == LONGITUDINAL:
             return characteristic_on_wall(wall, jnp.zeros_like(v), alpha, fluid, order, "at_rest")
-        # fluid-free: κ ∝ Ω² vanishes at Ω = 0 (theory_m.md §6)
+        # fluid-free: κ ∝ Ω² vanishes at Ω = 0 (docs/theory/order_m.md §6)
         return characteristic_of_w(wall, jnp.zeros_like(v), alpha, None, order, "at_rest", m_safe,
                                    family)
 
@@ -1145,16 +1167,18 @@ def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
     vanish like Ω²), so ``fluid`` is validated and otherwise not used.
 
     Returns:
-        :class:`Roots` whose ``omega`` field holds V̂_cr, shape (n_max,).
+        An instance of :class:`Roots` whose ``omega`` field holds V̂_cr, shape (n_max,).
     """
-    check_inputs(tube, 1.0, fluid, n_layers, scheme)
+    check_inputs(tube, None, fluid, n_layers, scheme)
     family = mode_family(m, False, fluid)
     n_max = _validate_max("n_max", n_max, 1)
-    layers = laminate(n_layers, scheme, tube, mode_wavenumber(canonical(tube), n_max), m=m,
-                      at_rest=True)
+    layers, short = checked_laminate(n_layers, scheme, canonical(tube),
+                                     mode_wavenumber(canonical(tube), n_max), m=canonical(m),
+                                     at_rest=True)
     if family == LONGITUDINAL:
-        return _critical_voltages(canonical(tube), n_max, layers)
-    return _critical_voltages(canonical(tube), n_max, layers, as_float(m), family)
+        return inaccurate_where(short, _critical_voltages(canonical(tube), n_max, layers))
+    return inaccurate_where(short, _critical_voltages(canonical(tube), n_max, layers, as_float(m),
+                                                      family))
 
 
 def _validate_max(name, value, low):
@@ -1191,7 +1215,9 @@ class Instability(NamedTuple):
             (NaN where none of them has one below the pull-in limit), with implicit derivatives.
         m: its circumferential order (−1 where none).
         n: its axial mode number (0 where none).
-        status: CONVERGED, or NO_ROOT where no (m, n) loses stability below the pull-in limit.
+        status: CONVERGED, NO_ROOT where no (m, n) loses stability below the pull-in limit, or
+            INACCURATE where the default discretisation is coarser than its rule asks for
+            (traced geometry: :func:`solve_frequencies`).
         critical: V̂_cr of every (m, n), shape (m_max + 1, n_max) (values only; NaN: none below
             pull-in; 0: unstable already at V̂ = 0).
     """
@@ -1214,7 +1240,7 @@ def map_orders_and_modes(tube, n_max: int, m_max: int, one):
 @cached_jit(static_argnames=("n_max", "m_max", "n_layers"))
 def _instability_grid(tube, n_max, m_max, n_layers):
     """(V̂_cr, status, s₀) of every (m, n), m = 0 … m_max, n = 1 … n_max, shape (m_max + 1, n_max):
-    one compiled search over the traced m (the 8×8 path, longitudinal at m = 0, theory_m.md §3),
+    one compiled search over the traced m (the 8×8 path, longitudinal at m = 0, docs/theory/order_m.md §3),
     the pull-in limit formed once. The growth rate s₀ at V̂ = 0 (the guaranteed scan of
     :func:`growth_rates`) marks a mode unstable already at V̂ = 0: its V̂_cr is 0 (a root of
     f(Ω = 0; V̂) above 0 is then where it re-stabilises or another branch crosses)."""
@@ -1262,17 +1288,18 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
         n_layers, scheme: the discretisation (:func:`frequencies`).
 
     Returns:
-        :class:`Instability` (voltage, m, n, status, critical).
+        An instance of :class:`Instability` (voltage, m, n, status, critical).
 
-    Example:
+    Examples:
         >>> first = first_instability(Tube(lambda_i=0.9, lambda_z=1.2, eta=0.85), n_max=1)
         >>> float(first.voltage), int(first.m), int(first.n)  # ≈ (0.0293, 2, 1)
     """
-    check_inputs(tube, 1.0, fluid, n_layers, scheme)
+    check_inputs(tube, None, fluid, n_layers, scheme)
     n_max = _validate_max("n_max", n_max, 1)
     m_max = _validate_max("m_max", m_max, 0)
     tube = canonical(tube)
-    layers = laminate(n_layers, scheme, tube, mode_wavenumber(tube, n_max), m=m_max, at_rest=True)
+    layers, short = checked_laminate(n_layers, scheme, tube, mode_wavenumber(tube, n_max), m=m_max,
+                                     at_rest=True)
     voltage, status, growth = _instability_grid(jax.lax.stop_gradient(tube), n_max, m_max, layers)
     # the order: the modes unstable at V̂ = 0, fastest first (key −s₀ < 0), then the critical voltages
     key = jnp.where(voltage == 0.0, -growth, jnp.where(jnp.isnan(voltage), jnp.inf, voltage)).ravel()
@@ -1286,6 +1313,7 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
                  jnp.where(found, Status.CONVERGED, Status.NO_ROOT).astype(jnp.int32))
     root = _with_derivatives(root, (tube, alpha, None, jnp.maximum(m, 0).astype(jnp.float64)),
                              layers, 0, "voltage", ORDER_M)  # NaN (at V̂ = 0): a zero tangent
+    root = inaccurate_where(short, root)  # N from the worst (m_max, n_max)
     return Instability(jnp.where(at_zero, 0.0, root.omega), m, n, root.status, voltage)
 
 

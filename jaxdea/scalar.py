@@ -53,9 +53,12 @@ class Status(enum.IntEnum):
     NOT_FINITE = 2  # a non-finite function value (overflow, expm failure, locking) stopped the search
     MAX_ITER = 3  # the iteration limit was reached before convergence
     INVALID = 4  # inputs outside their allowed range (what validation rejects, met under jit/vmap)
-    INACCURATE = 5  # a requested tolerance was not reached (accuracy.frequencies_with_error)
+    INACCURATE = 5  # a root, but not to the accuracy asked for (its value kept): a tolerance of
+    # accuracy.frequencies_with_error, or the default discretisation's 1e-8 at a point for which its
+    # rule asks more sublayers than it has (traced inputs fix N = 16; transfer.checked_laminate)
     SUSPECT = 6  # a root whose slope sign repeats that of the root below it: a root is missing
     # between them (or one of them is not the root its interval held), so its index is unknown
+    NOT_SOLVED = 7  # not computed: the run was interrupted before this point (jaxdea.sweep)
 
 
 def value_and_slope(fun, x):

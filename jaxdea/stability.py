@@ -1,5 +1,5 @@
 """Stability of a given state: is the tube at its voltage stable in every order m and axial mode n,
-and if not, which (m, n) grows fastest (theory_m.md §6)?
+and if not, which (m, n) grows fastest (docs/theory/order_m.md §6)?
 
 A state is unstable in (m, n) where the characteristic function of order m at α̂_n has a zero at
 Ω² = −s² < 0: the mode grows like e^{st}. :func:`stability` scans every (m, n) of the grid for its
@@ -58,7 +58,7 @@ class Stability(NamedTuple):
 def _growth_grid(tube, fluid, n_max, m_max, n_layers, order):
     """(largest s, status) of every (m, n), m = 0 … m_max, n = 1 … n_max, shape (m_max + 1, n_max):
     ``lax.map`` over (m, α̂_n) of the growth-rate scan of order m (traced; at m = 0 the longitudinal
-    modes through the 8×8 system, theory_m.md §3)."""
+    modes through the 8×8 system, docs/theory/order_m.md §3)."""
     def one(order_m, alpha):
         roots = growth_rates_unchecked(tube, alpha, fluid, None, 1, n_layers, order, order_m,
                                        ORDER_M)
@@ -87,17 +87,17 @@ def stability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = 
         n_layers, scheme: the discretisation (:func:`jaxdea.frequencies`).
 
     Returns:
-        :class:`Stability` (stable, m, n, growth_rate, status, growth).
+        An instance of :class:`Stability` (stable, m, n, growth_rate, status, growth).
 
     Raises:
         ValueError: invalid concrete inputs, naming the parameter; the ``"paper"`` coupling with
             m_max >= 1 (naming m_max: that model is axisymmetric).
 
-    Example:
+    Examples:
         >>> s = stability(Tube(voltage=0.05, lambda_i=0.9, lambda_z=1.2, eta=0.85), n_max=1)
         >>> bool(s.stable), int(s.m), int(s.n)  # (False, 2, 1): ovalisation grows fastest
     """
-    order = check_inputs(tube, 1.0, fluid, n_layers, scheme)
+    order = check_inputs(tube, None, fluid, n_layers, scheme)
     n_max = _validate_max("n_max", n_max, 1)
     m_max = _validate_max("m_max", m_max, 0)
     if fluid is not None and fluid.coupling == "paper" and m_max > 0:

@@ -1,11 +1,11 @@
 """State matrices M(r̂; Ω, α̂) of the incremental motion, one per mode family.
 
 * ``"longitudinal"`` (circumferential order m = 0, axisymmetric, u_θ = 0): the 6×6 matrix of
-  theory.md §3, Y = [ū, w̄, Φ, T̄, S̄, D̄] (paper Eq. 40 with errata E11–E14 corrected).
-* ``"order_m"`` (order m ≥ 1, with m a traced value): the 8×8 matrix M_m of theory_m.md §3,
+  docs/theory/axisymmetric.md §3, Y = [ū, w̄, Φ, T̄, S̄, D̄] (paper Eq. 40 with errata E11–E14 corrected).
+* ``"order_m"`` (order m ≥ 1, with m a traced value): the 8×8 matrix M_m of docs/theory/order_m.md §3,
   Y = [U, V, W, Φ, T, Q, S, D]; at m = 0 its (V, Q) rows are switched off (:func:`order_m_matrix`),
   so that it carries the longitudinal family alone.
-* ``"torsional"`` (m = 0, u_θ alone): the decoupled (V, Q) block of M_0 (theory_m.md §3,
+* ``"torsional"`` (m = 0, u_θ alone): the decoupled (V, Q) block of M_0 (docs/theory/order_m.md §3,
   Structure), Y = [V, Q].
 
 dY/dr̂ = M Y; Ω enters only through −Ω² in the inertia entries (:func:`family_inertia`).
@@ -25,7 +25,7 @@ FAMILY_SIZE = {LONGITUDINAL: 6, ORDER_M: 8, TORSIONAL: 2}
 
 
 def state_matrix(coef: Coefficients, r, omega, alpha):
-    """M(r̂) of theory.md §3 for one radius (coefficients evaluated there).
+    """M(r̂) of docs/theory/axisymmetric.md §3 for one radius (coefficients evaluated there).
 
     δ1 = (p − εd²)/(c − εd²), δ2 = εd/(c − εd²), δ3 = 1/(c − εd²), δ4 = 2d, δ5 = εc/(c − εd²),
     β1 = g + 2q + 2p, β2 = a − εd² − (p − εd²)²/(c − εd²), β3 = q + p, β4 = p − c, β5 = 2b + 2p.
@@ -55,7 +55,8 @@ def state_matrix(coef: Coefficients, r, omega, alpha):
 
 
 def _combinations(coef: Coefficients):
-    """(δ1 … δ5, β1 … β6) of theory_m.md §3 (β1 … β5 as theory.md §3; β6 = e − εd² − (p − εd²)²/(c − εd²))."""
+    """(δ1 … δ5, β1 … β6) of docs/theory/order_m.md §3 (β1 … β5 as docs/theory/axisymmetric.md §3; β6 = e − εd²
+    − (p − εd²)²/(c − εd²))."""
     a, b, c, d, g, q, eps, p, e = coef
     shear = c - eps * d * d  # = 2 W_1 λ_r² > 0
     d1 = (p - eps * d * d) / shear
@@ -67,7 +68,8 @@ def _combinations(coef: Coefficients):
 
 
 def state_matrix_m(coef: Coefficients, r, omega_squared, alpha, m):
-    """M_m(r̂) of theory_m.md §3, the 8×8 matrix of order m, entry by entry; Y = [U, V, W, Φ, T, Q, S, D].
+    """M_m(r̂) of docs/theory/order_m.md §3, the 8×8 matrix of order m, entry by entry; Y = [U, V, W, Φ, T, Q,
+    S, D].
 
     U' = −(U + mV)/r̂ − α̂W;  V' = mδ1U/r̂ + δ1V/r̂ − mδ2Φ/r̂ + δ3Q;  W' = α̂δ1U − α̂δ2Φ + δ3S;
     Φ' = δ4(U + mV)/r̂ + α̂δ4W − D/ε;
@@ -77,7 +79,7 @@ def state_matrix_m(coef: Coefficients, r, omega_squared, alpha, m):
     S' = α̂β3U/r̂ + mα̂(β3 + p)V/r̂ + (α̂²β5 + m²e/r̂² − Ω²)W + α̂T − S/r̂ − α̂δ4D;
     D' = k²δ2β4U + mδ2β4V/r̂² − k²δ5Φ + mδ2Q/r̂ + α̂δ2S − D/r̂,   k² = α̂² + m²/r̂².
 
-    ``omega_squared`` is w = Ω², of either sign (w < 0: unstable states, theory_m.md §6); ``m`` may
+    ``omega_squared`` is w = Ω², of either sign (w < 0: unstable states, docs/theory/order_m.md §6); ``m`` may
     be traced. At m = 0 the (V, Q) rows and columns decouple (torsion) and the other 6×6 block is
     :func:`state_matrix` (tests).
     """
@@ -104,7 +106,7 @@ def state_matrix_m(coef: Coefficients, r, omega_squared, alpha, m):
 
 
 def torsion_matrix(coef: Coefficients, r, omega_squared, alpha):
-    """The torsional 2×2 block of M_0 (theory_m.md §3, Structure), Y = [V, Q]:
+    """The torsional 2×2 block of M_0 (docs/theory/order_m.md §3, Structure), Y = [V, Q]:
 
     V' = δ1V/r̂ + δ3Q,  Q' = (β6/r̂² + α̂²a − Ω²)V − (1 + δ1)Q/r̂.
     """
@@ -122,7 +124,7 @@ def torsion_switch(m):
     """(8,) row mask of the order-m family: 1, except 0 on the rows V', Q' where m = 0.
 
     At m = 0 every entry of those rows outside the (V, Q) block vanishes and so does every (V, Q)
-    column entry outside them (theory_m.md §3), so zeroing the rows leaves V and Q constant across
+    column entry outside them (docs/theory/order_m.md §3), so zeroing the rows leaves V and Q constant across
     the wall and the longitudinal 6×6 block untouched: the order-m family at m = 0 is the
     longitudinal family (times a constant factor, :func:`jaxdea.dispersion.outer_conditions`).
     """

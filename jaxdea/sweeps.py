@@ -30,6 +30,7 @@ import dataclasses
 import importlib.util
 import json
 import math
+import os
 
 import jax
 import jax.numpy as jnp
@@ -37,10 +38,13 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
+from .base_state import _inner_stretch
 from .compiled import cached_jit
 from .dispersion import characteristic_on_wall, mode_family
+from .files import atomic_write
 from .leaves import FLUID_LEAVES, TUBE_LEAVES, apply_parameters, check_names, get_parameter
 from .params import (
+    MAX_ROOTS,
     Fluid,
     Tube,
     as_float,
@@ -49,6 +53,7 @@ from .params import (
     validate_fluid,
     validate_layers,
     validate_positive,
+    validate_roots,
 )
 from .roots import _growth_family, frequencies_unchecked, growth_rates_unchecked, guard
 from .scalar import Status
@@ -75,6 +80,10 @@ SI_QUANTITIES = {
 """The parameters with an SI counterpart: ``{name: (SI name, unit, to_si(scales, x), from_si(scales, x))}``
 (α̂ ↔ the axial wavelength 2π R_i/α̂). The SI name is the config key and the output column."""
 SCALE_FIELDS = ("shear_modulus", "density", "permittivity", "inner_radius")
+MAX_POINTS = 10**8
+"""Most grid points of one sweep (at a few ms a point on a CPU, days of computing)."""
+MEMORY_SHARE = 0.5
+"""The share of the machine's physical memory a sweep's arrays may take (:func:`check_size`)."""
 XARRAY_EXTRA = "pip install 'jaxdea[xarray]'"
 
 
@@ -94,6 +103,8 @@ class SweepResult:
             NaN-padded (all NaN: stable at that point), shape (*grid_shape, n_growth), or None
             (``n_growth=0``).
         settings: the fixed parameters and solver settings (JSON-serialisable dict).
+        lambda_i: with ``delta_p`` (a pressure-held tube) the inner stretch λ_i solved at every
+            point from ΔP̂ (:func:`jaxdea.inner_stretch`), shape grid_shape; else None.
     """
 
     axes: dict
@@ -105,6 +116,7 @@ class SweepResult:
     group_velocity: np.ndarray | None = None
     growth_rate: np.ndarray | None = None
     settings: dict = dataclasses.field(default_factory=dict)
+    lambda_i: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple:
@@ -142,6 +154,8 @@ class SweepResult:
                 if name in si_axes:
                     cols[si_axes[name][0]] = g.ravel()
         cols["alpha_hat"] = self.alpha.ravel()
+        if self.lambda_i is not None:
+            cols["lambda_i"] = self.lambda_i.ravel()
         if self.scales is not None:
             cols["wavelength_m"] = self.wavelength_m.ravel()
         k = self.omega.shape[-1]
@@ -225,14 +239,16 @@ class SweepResult:
 
     def to_csv(self, path) -> None:
         """Write one row per grid point (axes, α̂, Ω_k, status_k, derivatives, growth rates); header
-        line first."""
+        line first. The file is replaced whole or not at all (:mod:`jaxdea.files`)."""
         cols = self.columns()
         table = np.column_stack(list(cols.values()))
         fmt = ["%d" if name.startswith("status") else "%.17g" for name in cols]
-        np.savetxt(path, table, delimiter=",", header=",".join(cols), comments="", fmt=fmt)
+        with atomic_write(path) as tmp:
+            np.savetxt(tmp, table, delimiter=",", header=",".join(cols), comments="", fmt=fmt)
 
     def to_npz(self, path) -> None:
-        """Save everything (read back with :meth:`from_npz`)."""
+        """Save everything (read back with :meth:`from_npz`); ``.npz`` is appended to a path
+        without it, as :func:`numpy.savez` does. Replaced whole or not at all."""
         arrays = {f"axis:{name}": np.asarray(v) for name, v in self.axes.items()}
         arrays.update(omega=self.omega, status=self.status, alpha=self.alpha,
                       settings=np.array(json.dumps(self.settings)),
@@ -242,12 +258,17 @@ class SweepResult:
             arrays.update(jacobian=self.jacobian, group_velocity=self.group_velocity)
         if self.growth_rate is not None:
             arrays.update(growth_rate=self.growth_rate)
+        if self.lambda_i is not None:
+            arrays.update(lambda_i=self.lambda_i)
         if self.scales is not None:  # SI values beside (recomputed by from_npz's result)
             arrays.update(frequency_Hz=self.frequency_hz, wavelength_m=self.wavelength_m)
             arrays.update({si_name: values for si_name, values, _ in self._si_axes().values()})
             if self.growth_rate is not None:
                 arrays.update(growth_rate_per_s=self.growth_rate_per_s)
-        np.savez(path, **arrays)
+        if not hasattr(path, "write") and not str(path).endswith(".npz"):
+            path = f"{path}.npz"
+        with atomic_write(path) as tmp:
+            np.savez(tmp, **arrays)
 
     def to_xarray(self):
         """The result as an :class:`xarray.Dataset` (extra ``jaxdea[xarray]``).
@@ -284,6 +305,9 @@ class SweepResult:
                 "flag_meanings": " ".join(s.name.lower() for s in Status)}),
             "alpha_hat": (dims, self.alpha, {"long_name": "axial wavenumber alpha R_i", **dimensionless}),
         }
+        if self.lambda_i is not None:
+            data["lambda_i"] = (dims, self.lambda_i, {
+                "long_name": "inner stretch held by the pressure difference delta_p", **dimensionless})
         if self.group_velocity is not None:
             data["group_velocity"] = (roots, self.group_velocity,
                                       {"long_name": "dOmega/dalpha_hat", **dimensionless})
@@ -308,14 +332,16 @@ class SweepResult:
 
     def to_netcdf(self, path) -> None:
         """Write :meth:`to_xarray` as a netCDF-4 file (extra ``jaxdea[xarray]``; read it back with
-        ``xarray.open_dataset``).
+        ``xarray.open_dataset``), whole or not at all.
 
         Raises:
             ImportError: xarray or netCDF4 is not installed (naming the extra).
         """
         if importlib.util.find_spec("netCDF4") is None:
             raise ImportError(f"SweepResult.to_netcdf needs netCDF4: {XARRAY_EXTRA}")
-        self.to_xarray().to_netcdf(path, engine="netcdf4")
+        dataset = self.to_xarray()
+        with atomic_write(path) as tmp:
+            dataset.to_netcdf(tmp, engine="netcdf4")
 
     def _attributes(self) -> dict:
         """The settings as netCDF attributes (numbers and strings; None left out, booleans as
@@ -345,6 +371,7 @@ class SweepResult:
                 group_velocity=data["group_velocity"] if "group_velocity" in data else None,
                 growth_rate=data["growth_rate"] if "growth_rate" in data else None,
                 settings=json.loads(str(data["settings"])),
+                lambda_i=data["lambda_i"] if "lambda_i" in data else None,
             )
 
     def __repr__(self) -> str:
@@ -368,7 +395,7 @@ def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_
         roots = frequencies_unchecked(*point, omega_max, n_roots, n_layers, nu, m, family)
     alpha_point = as_float(point[1])
     growth = ()
-    if n_growth:  # the scan in Ω² = −s² (the 8×8 path at m = 0: theory_m.md §6)
+    if n_growth:  # the scan in Ω² = −s² (the 8×8 path at m = 0: docs/theory/order_m.md §6)
         growth = (growth_rates_unchecked(*point, None, n_growth, n_layers, nu, as_float(m),
                                          _growth_family(family)).omega,)
     if jac_names is None:
@@ -490,6 +517,61 @@ def _axis(name, values):
     return np.atleast_1d(arr)
 
 
+def sweep_bytes(shape, n_roots: int, n_jacobian: int | None = None, n_growth: int = 0) -> int:
+    """Estimated peak memory in bytes of a sweep over a grid of ``shape`` and of writing it: the
+    grid's columns, the result arrays (Ω, status, α̂, growth rates, dΩ/dα̂ and ``n_jacobian``
+    derivatives per root), and the CSV table of :meth:`SweepResult.to_csv` (its columns and the
+    stacked table, float64)."""
+    points, axes, k = math.prod(shape), len(shape), int(n_roots)
+    derivatives = 0 if n_jacobian is None else k * (1 + n_jacobian)
+    result = 8 + 12 * k + 8 * n_growth + 8 * derivatives  # the status once more as int32
+    columns = axes + 1 + 2 * k + n_growth + derivatives
+    return points * (8 * axes + result + 16 * columns)
+
+
+def physical_memory() -> int | None:
+    """The machine's physical memory in bytes, or None where the OS does not say."""
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def check_size(shape, n_roots: int, n_jacobian: int | None = None, n_growth: int = 0) -> None:
+    """Refuse a grid of more than :data:`MAX_POINTS` points, or one whose arrays
+    (:func:`sweep_bytes`) would take more than :data:`MEMORY_SHARE` of the physical memory, before
+    anything is allocated.
+
+    Raises:
+        ValueError: naming the grid size or the memory and the limit.
+    """
+    points = math.prod(int(n) for n in shape)
+    grid = " x ".join(str(int(n)) for n in shape)
+    if points > MAX_POINTS:
+        raise ValueError(f"the grid has {points:,} points ({grid}); a sweep takes at most "
+                         f"MAX_POINTS = {MAX_POINTS:,}: split it into several sweeps")
+    need, memory = sweep_bytes(shape, n_roots, n_jacobian, n_growth), physical_memory()
+    if memory is not None and need > MEMORY_SHARE * memory:
+        raise ValueError(f"the grid of {points:,} points ({grid}) needs about {need / 2**30:.1f} GiB, "
+                         f"more than MEMORY_SHARE = {MEMORY_SHARE:g} of this machine's "
+                         f"{memory / 2**30:.1f} GiB of memory: split it into several sweeps")
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C (KeyboardInterrupt) stopped :func:`sweep`.
+
+    Attributes:
+        result: the :class:`SweepResult` of the points solved before it (the others NaN with status
+            NOT_SOLVED, ``settings["incomplete"]`` True), or None if none was.
+        solved: how many grid points were solved.
+        total: the grid points.
+    """
+
+    def __init__(self, result, solved: int, total: int):
+        super().__init__(f"sweep interrupted after {solved} of {total} points")
+        self.result, self.solved, self.total = result, solved, total
+
+
 def _grid_layers(n_layers, scheme, tube, fluid, grids, n_roots, m):
     """The static discretisation of a sweep: with ``n_layers=None`` the accurate discretisation's N
     (:func:`jaxdea.transfer.laminate`) for the worst point of the grid (largest α̂ĥ, ĥ/r̂_i, m and
@@ -506,7 +588,7 @@ def _grid_layers(n_layers, scheme, tube, fluid, grids, n_roots, m):
 def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max=None,
           n_layers: int | None = None, scheme: str | None = None, jacobian=None, chunk_size: int = CHUNK_SIZE,
           batch_size=None, progress=None, devices=None, client=None, m=0, torsional: bool = False,
-          n_growth: int = 0, **axes) -> SweepResult:
+          n_growth: int = 0, delta_p=None, **axes) -> SweepResult:
     """The ``n_roots`` lowest frequencies over the grid spanned by ``axes``.
 
     Args:
@@ -534,7 +616,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         client: a Dask ``distributed.Client`` (extra ``jaxdea[dask]``): the chunks are sent as
             tasks to its workers, each solving on all its own devices (``devices`` must then be
             None), and gathered in grid order. None: solve in this process.
-        m: the circumferential order (theory_m.md): an integer >= 0 (a fixed order, not an axis;
+        m: the circumferential order (docs/theory/order_m.md): an integer >= 0 (a fixed order, not an axis;
             0 the axisymmetric longitudinal family, as :func:`jaxdea.frequencies`), or a 1-D array
             of integers >= 0: a grid axis ``m`` (one compiled program for every order; at m = 0 the
             longitudinal family's roots through the order-m system).
@@ -544,22 +626,37 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
             automatic limit); ``SweepResult.growth_rate`` and ``.unstable``. ``frequencies`` lists
             only the positive real roots: past an instability its first column is the second
             branch, and ``unstable`` says so.
+        delta_p: None (the tube held by its stretch: λ_i of ``tube`` or of an axis, at every
+            voltage), or ΔP̂ = (P_i − P_o)/μ, a finite number: the tube held by this pressure
+            difference, as in a lab. At every point λ_i is then the stable static state of
+            ΔP̂_el(λ_i) − V̂² E(λ_i) = ΔP̂ (docs/theory/axisymmetric.md Eq. 1.1;
+            :func:`jaxdea.inner_stretch`), so λ_i follows the voltage; ``SweepResult.lambda_i``
+            holds it. ``jaxdea.pressure_difference(tube.replace(voltage=0))`` is the pressure that
+            holds the tube's λ_i at V̂ = 0; ``Scales.pressure_from_si`` converts Pa. Past pull-in
+            (no static state) a point is NaN, status INVALID. Not with an axis ``lambda_i`` or
+            ``thickness_ratio`` (the deformed wall depends on λ_i: give ``eta``) or ``jacobian``.
         **axes: ``name=values`` grid axes (1-D arrays, or scalars for a fixed value) over the names
             of :mod:`jaxdea.leaves`; exactly one of ``alpha`` / ``n`` is required.
 
     Returns:
-        :class:`SweepResult` with Ω of shape (*grid_shape, n_roots) in the order of ``axes``.
+        An instance of :class:`SweepResult` with Ω of shape (*grid_shape, n_roots) in the order of ``axes``.
 
     Raises:
         ValueError: an unknown or repeated axis, a missing ``alpha``/``n``, bad settings, an
             order m that is not an integer >= 0 (or with ``torsional=True`` or the paper coupling
-            not 0), naming m. Values of the other axes are not validated point by point: an invalid
-            point gives NaN, status INVALID.
+            not 0), naming m; a grid past :data:`MAX_POINTS` or the memory limit of
+            :func:`check_size` (before anything is allocated). Values of the other axes are not
+            validated point by point: an invalid point gives NaN, status INVALID.
+        SweepInterrupted: Ctrl-C (a KeyboardInterrupt) during the solve; its ``result`` holds
+            the points solved before it, the others NaN with status NOT_SOLVED and
+            ``settings["incomplete"]`` True.
 
-    Example:
+    Examples:
         >>> res = sweep(Tube(lambda_z=1.2), voltage=np.linspace(0, 0.2, 5), n=np.arange(1, 11))
         >>> res.omega.shape  # (5, 10, 3)
         >>> sweep(Tube(lambda_z=1.2), m=np.arange(4), alpha=0.445).omega.shape  # (4, 1, 3)
+        >>> held = jd.pressure_difference(Tube(lambda_i=1.1, lambda_z=1.2))  # ΔP̂ at V̂ = 0
+        >>> sweep(Tube(lambda_z=1.2), delta_p=held, voltage=[0, 0.2], n=1).lambda_i  # λ_i grows
     """
     require_x64()
     if not isinstance(tube, Tube):
@@ -591,6 +688,9 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
                              ("batch_size", batch_size, 1), ("n_growth", n_growth, 0)):
         if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < low:
             raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    validate_roots(n_roots)
+    if n_growth > MAX_ROOTS:
+        raise ValueError(f"n_growth must be <= MAX_ROOTS = {MAX_ROOTS}, got {n_growth!r}")
     m_axis, family = _orders(m, torsional, fluid)
     check_names(list(axes), fluid)
     if m_axis is not None:
@@ -599,6 +699,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         raise ValueError("give the wavenumber axis: alpha=... (α̂) or n=... (axial mode numbers)")
     axes = {name: v if name == "m" else _axis(name, v) for name, v in axes.items()}
     jac_names = _jacobian_names(jacobian, fluid)
+    delta_p = _check_pressure(delta_p, axes, jac_names)
     if omega_max is not None:
         validate_positive("omega_max", omega_max, "a finite number > 0")
         omega_max = float(omega_max)
@@ -614,12 +715,20 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
 
     shape = tuple(len(v) for v in axes.values())
     total = math.prod(shape)
+    check_size(shape, n_roots, len(jac_names) if jac_names is not None else None, n_growth)
     per_device = -(-total // max(len(devices), 1))
     size = min(int(chunk_size), 1 << (per_device - 1).bit_length())  # power of two ≤ chunk_size
     size *= max(len(devices), 1)  # points per chunk, a multiple of the device count
     grids = [g.ravel() for g in np.meshgrid(*axes.values(), indexing="ij")]
-    layers = _grid_layers(n_layers, scheme, tube, fluid, dict(zip(axes, grids, strict=True)), n_roots, m)
-    static = dict(names=tuple(axes), n_roots=int(n_roots), n_layers=layers, order=order,
+    names = tuple(axes)
+    held = None
+    if delta_p is not None:  # a column λ_i(point) beside the axes, solved from ΔP̂
+        held = _held_stretch(tube, fluid, names, grids, delta_p)
+        names, grids = (*names, "lambda_i"), [*grids, held]
+        tube = tube.replace(lambda_i=1.0)  # replaced at every point
+    layers = _grid_layers(n_layers, scheme, tube, fluid, dict(zip(names, grids, strict=True)),
+                          n_roots, m)
+    static = dict(names=names, n_roots=int(n_roots), n_layers=layers, order=order,
                   jac_names=jac_names, batch_size=min(int(batch_size), size))
     if family != LONGITUDINAL or n_growth:  # the longitudinal program is called as before order m
         static.update(m=float(0 if m_axis is not None else m), family=family, n_growth=int(n_growth))
@@ -631,6 +740,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
                      for g in grids)
 
     outputs = None
+    solved = np.zeros(total, dtype=bool)
     bar = _progress_bar(total, progress)
     if client is None:
         base = jax.tree_util.tree_map(as_float, (tube, 1.0, fluid))
@@ -640,21 +750,38 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         base = jax.tree_util.tree_map(np.asarray, (tube, 1.0, fluid))
         static = dict(static, batch_size=None) if auto_batch else static
         results = _on_dask(client, [chunk(start) for start in starts], starts, base, omega_max, static)
-    for start, out in results:
-        stop = min(start + size, total)
-        if outputs is None:
-            outputs = [np.empty((total, *o.shape[1:]), o.dtype) for o in out]
-        for buf, o in zip(outputs, out, strict=True):
-            buf[start:stop] = o[: stop - start]
-        bar.update(stop - start)
-    bar.close()
+    interrupted = False
+    try:
+        for start, out in results:
+            stop = min(start + size, total)
+            if outputs is None:
+                outputs = [np.empty((total, *o.shape[1:]), o.dtype) for o in out]
+            for buf, o in zip(outputs, out, strict=True):
+                buf[start:stop] = o[: stop - start]
+            solved[start:stop] = True
+            bar.update(stop - start)
+    except KeyboardInterrupt:
+        interrupted = True
+        results.close()  # a Dask run cancels its remaining tasks
+    finally:
+        bar.close()
+    if interrupted and outputs is None:
+        raise SweepInterrupted(None, 0, total)
+    if interrupted:  # the points not reached: NaN, status NOT_SOLVED
+        for buf in outputs:
+            buf[~solved] = Status.NOT_SOLVED if np.issubdtype(buf.dtype, np.integer) else np.nan
     omega, status, alpha = outputs[:3]
     k = 4 if n_growth else 3  # the first output after the growth rates
     reshape = lambda a: a.reshape(*shape, *a.shape[1:])  # noqa: E731
     settings = _settings(tube, fluid, n_roots, omega_max, layers, m_axis, m, torsional)
+    if delta_p is not None:
+        settings["delta_p"] = delta_p
+        settings["tube"]["lambda_i"] = None  # not fixed: solved from ΔP̂ at every point
     if n_growth:
         settings["n_growth"] = int(n_growth)
-    return SweepResult(
+    if interrupted:
+        settings["incomplete"] = True
+    result = SweepResult(
         axes=axes, omega=reshape(omega), status=reshape(status).astype(np.int32),
         alpha=reshape(alpha),
         jacobian=None if jac_names is None else (
@@ -663,7 +790,48 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         group_velocity=None if jac_names is None else reshape(outputs[k]),
         growth_rate=reshape(outputs[3]) if n_growth else None,
         settings=settings,
+        lambda_i=None if held is None else held.reshape(shape),
     )
+    if interrupted:
+        raise SweepInterrupted(result, int(solved.sum()), total)
+    return result
+
+
+def _check_pressure(delta_p, axes, jac_names):
+    """ΔP̂ as a float, or None; ValueError naming ``delta_p`` (or the clashing option)."""
+    if delta_p is None:
+        return None
+    value = real_value("delta_p", delta_p)
+    if value is None or not math.isfinite(value):
+        raise ValueError("delta_p must be None (held by stretch) or a finite real number (ΔP̂ = "
+                         f"ΔP/μ, the pressure difference that holds the tube), got {delta_p!r}")
+    for name in ("lambda_i", "thickness_ratio"):
+        if name in axes:
+            raise ValueError(f"axis {name!r} with delta_p: λ_i follows from the pressure difference "
+                             "at every point (give the wall as eta, the undeformed R_i/R_o)")
+    if jac_names is not None:
+        raise ValueError("jacobian with delta_p is not supported: the derivatives would be at "
+                         "fixed λ_i, not at fixed pressure (sweep with jacobian=None)")
+    return float(value)
+
+
+@cached_jit(static_argnames=("names",))
+def _held_stretch_points(tube, names, columns, delta_p):
+    """λ_i of every point (vmapped :func:`jaxdea.base_state.inner_stretch`; NaN past pull-in)."""
+    def one(vals):
+        point = apply_parameters(tube, 1.0, None, dict(zip(names, vals, strict=True)))[0]
+        return _inner_stretch(point.replace(lambda_i=1.0), delta_p)[0]
+
+    return jax.vmap(one)(columns)
+
+
+def _held_stretch(tube, fluid, names, grids, delta_p):
+    """The column λ_i (NumPy, one per point) of a pressure-held sweep."""
+    columns = tuple(np.asarray(g, np.float64) for g in grids)
+    keep = tuple(k for k in names if k not in ("alpha", "n", "m") and k not in FLUID_LEAVES)
+    cols = tuple(c for k, c in zip(names, columns, strict=True) if k in keep)
+    base = jax.tree_util.tree_map(as_float, tube)
+    return np.asarray(_held_stretch_points(base, keep, cols, as_float(delta_p)))
 
 
 def _orders(m, torsional, fluid):

@@ -238,7 +238,7 @@ def continue_branch(fun, s0, omega0, stop, max_points: int, max_step=DEFAULT_MAX
             overshooting into another root when the guess is rough).
 
     Returns:
-        :class:`Branch`.
+        An instance of :class:`Branch`.
     """
     s0, omega0, stop, max_step, max_omega_step = map(as_float, (s0, omega0, stop, max_step,
                                                                 max_omega_step))
@@ -454,15 +454,15 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
             the torsional family (:func:`jaxdea.frequencies`): the branch of that order.
 
     Returns:
-        :class:`Branch`: ``parameter``, ``omega``, ``slope`` (dΩ/ds), NaN-padded to ``max_points``;
-        ``n_points``; ``status`` (:class:`BranchEnd`); ``event_parameter``, ``event_omega``.
+        An instance of :class:`Branch`: ``parameter``, ``omega``, ``slope`` (dΩ/ds), NaN-padded to
+        ``max_points``; ``n_points``; ``status`` (:class:`BranchEnd`); ``event_parameter``, ``event_omega``.
 
     Raises:
         ValueError: naming the parameter, for concrete bad inputs (``along``, ``stop`` not finite or
             outside the valid range of ``along``, ``omega`` ≤ 0, ``max_points`` < 2, ``max_step`` ≤ 0,
             and every check of :func:`jaxdea.characteristic`).
 
-    Example:
+    Examples:
         >>> tube = Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
         >>> branch = trace_branch(tube, 0.445, frequencies(tube, 0.445)[1], along="alpha", stop=2.0)
         >>> k = int(branch.n_points)  # 24 points, status REACHED_STOP, last Ω(2.0) ≈ 3.8956

@@ -1,4 +1,5 @@
-"""Laminate discretisation of the wall and propagation across it (theory.md §3, paper Eqs. 42–44).
+"""Laminate discretisation of the wall and propagation across it (docs/theory/axisymmetric.md §3, paper Eqs.
+42–44).
 
 The wall is cut into N equal sublayers of thickness h = ĥ/N, and sublayer k is crossed by
 T_k = exp(G_k), either ``jax.scipy.linalg.expm`` (the reference) or the equal-to-rounding
@@ -31,9 +32,9 @@ Two propagators:
 
 Mode families (static ``family``, :mod:`jaxdea.state_matrix`): ``"longitudinal"`` (the 6×6 matrix
 above, the default: its code path and values are those of the axisymmetric library), ``"order_m"``
-(the 8×8 M_m of theory_m.md §3 with a traced order ``m``, 8×4 basis) and ``"torsional"`` (2×2, 2×1
+(the 8×8 M_m of docs/theory/order_m.md §3 with a traced order ``m``, 8×4 basis) and ``"torsional"`` (2×2, 2×1
 basis). Everything here is written for any matrix size. Every propagator also exists as a function
-of w = Ω² (``…_of_w``), which may be negative (unstable states, theory_m.md §6): the generator is a
+of w = Ω² (``…_of_w``), which may be negative (unstable states, docs/theory/order_m.md §6): the generator is a
 polynomial in w with real coefficients, so no complex arithmetic is needed there.
 
 The order-m family propagates the balanced state D⁻¹Y, D = diag(I, cI) on [displacements |
@@ -88,40 +89,66 @@ class Layers(NamedTuple):
 
 AUTO_SCHEME = "magnus6"
 """The scheme of the default, accurate discretisation (``n_layers=None``): sixth-order Magnus, graded."""
-LAYER_COUNTS = (16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512)
+LAYER_COUNTS = (16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024)
 """The sublayer counts the accurate discretisation chooses from (few programs to compile)."""
 TRACED_LAYERS = LAYER_COUNTS[0]
-"""The accurate discretisation's N where the tube's geometry or α̂ are traced (inside a caller's
+"""The accurate discretisation's N where the tube's geometry, α̂ or m are traced (inside a caller's
 jit, vmap or grad of them), and its least N everywhere, so that a batch and its points alone use
-the same N in the usual regime: ≤ 1e-8 for α̂ĥ ≤ 2 away from locking (tests/test_accuracy_default.py)."""
+the same N in the usual regime: ≤ 1e-8
+(tests/test_accuracy_default.py): wherever :func:`required_layers` ≤ 16 (the paper's tube:
+α̂ĥ ≤ 2 and m ≤ 13). A root at a point for which it asks more is INACCURATE
+(:func:`checked_laminate`)."""
+ORDER_FACTOR = 5.0
+"""c of the order-m term of :func:`required_layers`, N ≥ c m ln(1 + ĥ/r̂_i)^p."""
+ORDER_POWER = 0.8
+"""p of the order-m term of :func:`required_layers`."""
 PAPER_LAYERS = 30
 """N of the paper's laminate, taken by ``"midpoint"`` and ``"magnus4"`` given without
 ``n_layers``."""
 
 
-def auto_layer_count(thickness, r_inner, locking, alpha, n_roots: int = 3, m=0,
-                     at_rest: bool = False) -> int:
-    """N of the accurate discretisation (graded sixth-order Magnus) for roots to ≤ 1e-8 relative.
+def required_layers(thickness, r_inner, locking, alpha, n_roots: int = 3, m=0,
+                    at_rest: bool = False, xp=np):
+    """The N that graded sixth-order Magnus sublayers need for roots to ≤ 1e-8 relative (before
+    rounding up to :data:`LAYER_COUNTS`): elementwise over arrays, ``xp`` NumPy for concrete values
+    or ``jax.numpy`` inside a trace (:func:`checked_laminate`).
 
-    N ≥ 4 + 1.5 max(K, 3) + 2 α̂ĥ + 2 m ĥ/r̂_i + 4 ln(1 + ĥ/r̂_i) + 9 ln(1 + ĥ/ℓ), rounded up to
-    :data:`LAYER_COUNTS` (16 at least): the K lowest roots reach the thickness mode ≈ K/2 (phase
-    Ωĥ/c ≲ (K + 1)π),
-    the axial and circumferential wavenumbers α̂, m/r̂ add phase across ĥ, a thick wall adds the
-    variation of 1/r̂ and a face near Gent locking (length ℓ, :func:`grading_length`) that of
-    W_1. Calibrated on the measured errors (paper's tube, unstretched, η = 0.3 up to α̂ĥ = 86, 99 %
-    of locking at G = 2 and 4) with a margin of about 10 (tests/test_accuracy_default.py).
+    N ≥ 4 + 1.5 max(K, 3) + 2 α̂ĥ + 2 m ĥ/r̂_i + 4 ln(1 + ĥ/r̂_i) + 9 ln(1 + ĥ/ℓ): the K lowest
+    roots reach the thickness mode ≈ K/2 (phase Ωĥ/c ≲ (K + 1)π), the axial and circumferential
+    wavenumbers α̂, m/r̂ add phase across ĥ, a thick wall adds the variation of 1/r̂ and a face
+    near Gent locking (length ℓ, :func:`grading_length`) that of W_1. Calibrated on the measured
+    errors (paper's tube, unstretched, η = 0.3 up to α̂ĥ = 86, 99 % of locking at G = 2 and 4) with
+    a margin of about 10 (tests/test_accuracy_default.py).
+
+    High orders: also N ≥ 5 m L^0.8 with L = ln(1 + ĥ/r̂_i) (:data:`ORDER_FACTOR`,
+    :data:`ORDER_POWER`): the fields of order m vary like r̂^{±m}, an exponent m L across the wall,
+    and the modes of large m crowd into a face. Measured over m ≤ 100 on eleven walls and states
+    (η = 0.3 … 0.95, V̂ ≤ 0.2, λ_i = 0.8 … 1.3; docs/howto/accuracy.md): the error at this N is
+    ≤ 3.1e-9 (without the term: 5.4e-8 for the paper's tube at m = 100, 4.7e-7 at V̂ = 0.2, 1.6e-8
+    for η = 0.5, λ_i = 0.8 at m = 8); below the first sum for m ≤ 4 on every wall, so it leaves
+    their N alone.
 
     ``at_rest``: for the critical voltage, a root in V̂ of f(Ω = 0; V̂) (:func:`jaxdea.critical_voltage`,
-    :func:`jaxdea.first_instability`), also N ≥ 18 m L^1.25 with L = ln(1 + ĥ/r̂_i) = ln(r̂_o/r̂_i):
-    the static fields of order m vary like r̂^{±m} across the wall, and V̂_cr is less sensitive than
-    Ω to the wall, so it needs more sublayers than the roots in Ω there. Measured: V̂_cr of m = 8 at
-    η = 0.6 was 8.4e-7 off at N = 16 and of m = 6 at η = 0.3 1.1e-7 at N = 48 (the rule above);
-    the error is (q/N)⁶ with q/(m L^1.25) ≤ 0.54 over the paper's tube, η = 0.3 … 0.6 and 99 % of
-    locking (m ≤ 8), so the term leaves ≤ 7e-10."""
+    :func:`jaxdea.first_instability`), also N ≥ 18 m L^1.25: the static fields of order m vary like
+    r̂^{±m} across the wall, and V̂_cr is less sensitive than Ω to the wall, so it needs more
+    sublayers than the roots in Ω there. Measured: V̂_cr of m = 8 at η = 0.6 was 8.4e-7 off at
+    N = 16 and of m = 6 at η = 0.3 1.1e-7 at N = 48 (the first sum); the error is (q/N)⁶ with
+    q/(m L^1.25) ≤ 0.54 over the paper's tube, η = 0.3 … 0.6 and 99 % of locking (m ≤ 8), so the
+    term leaves ≤ 7e-10."""
+    wall = xp.log1p(thickness / r_inner)
     need = (4.0 + 1.5 * max(n_roots, 3) + 2.0 * alpha * thickness + 2.0 * m * thickness / r_inner
-            + 4.0 * math.log1p(thickness / r_inner) + 9.0 * math.log1p(thickness / locking))
+            + 4.0 * wall + 9.0 * xp.log1p(thickness / locking))
+    need = xp.maximum(need, ORDER_FACTOR * m * wall ** ORDER_POWER)
     if at_rest:
-        need = max(need, 18.0 * m * math.log1p(thickness / r_inner) ** 1.25)
+        need = xp.maximum(need, 18.0 * m * wall ** 1.25)
+    return need
+
+
+def auto_layer_count(thickness, r_inner, locking, alpha, n_roots: int = 3, m=0,
+                     at_rest: bool = False) -> int:
+    """N of the accurate discretisation (graded sixth-order Magnus) for roots to ≤ 1e-8 relative:
+    :func:`required_layers` rounded up to :data:`LAYER_COUNTS` (16 at least, 1024 at most)."""
+    need = float(required_layers(thickness, r_inner, locking, alpha, n_roots, m, at_rest))
     return next((c for c in LAYER_COUNTS if c >= need), LAYER_COUNTS[-1])
 
 
@@ -149,18 +176,28 @@ _wall_lengths = jit(jax.vmap(_wall_lengths_of, (0, 0, 0, 0, None)), static_argnu
 (0.19–0.21 s against 0.27–0.29 s with XLA's defaults, measured)."""
 
 
-def wall_lengths(tube: Tube):
-    """(ĥ, r̂_i, ℓ) of a concrete tube, the largest ĥ/r̂_i and ĥ/ℓ over batched leaves
-    (ℓ = ∞ where the locking layer is longer than r̂_i); None if a geometric leaf is traced."""
+def point_lengths(tube: Tube):
+    """(ĥ, r̂_i, ℓ) at every point of a concrete tube (NumPy arrays of the leaves' broadcast shape;
+    ℓ = ∞ where the locking layer is longer than r̂_i, NaN at invalid points); None if a geometric
+    leaf is traced."""
     leaves = [tube.lambda_i, tube.lambda_z, tube.eta, tube.gent]
     if any(_concrete_max(x) is None for x in leaves):
         return None
     arrays = np.broadcast_arrays(*[np.asarray(x, dtype=np.float64) for x in leaves])
     try:  # inside a caller's trace the lengths are staged too: then unknown
-        h, r, ell = (np.asarray(a) for a in _wall_lengths(*[a.ravel() for a in arrays],
-                                                          tube.material))
+        lengths = _wall_lengths(*[a.ravel() for a in arrays], tube.material)
+        return tuple(np.asarray(x).reshape(arrays[0].shape) for x in lengths)
     except (jax.errors.TracerArrayConversionError, jax.errors.ConcretizationTypeError):
         return None
+
+
+def wall_lengths(tube: Tube):
+    """(ĥ, r̂_i, ℓ) of a concrete tube, the largest ĥ/r̂_i and ĥ/ℓ over batched leaves
+    (:func:`point_lengths`); None if a geometric leaf is traced."""
+    lengths = point_lengths(tube)
+    if lengths is None:
+        return None
+    h, r, ell = (np.ravel(x) for x in lengths)
     ok = np.isfinite(h) & np.isfinite(r) & (h > 0) & (r > 0) & ~np.isnan(ell)
     if not ok.any():
         return None
@@ -194,11 +231,44 @@ def laminate(n_layers=None, scheme=None, tube: Tube | None = None, alpha=None, n
 
 def default_count(tube, alpha, n_roots: int = 3, m=0, at_rest: bool = False) -> int:
     """N of the accurate discretisation (:func:`laminate`)."""
+    count = _resolved_count(tube, alpha, n_roots, m, at_rest)
+    return TRACED_LAYERS if count is None else count
+
+
+def _resolved_count(tube, alpha, n_roots, m, at_rest):
+    """:func:`auto_layer_count` of the worst point, or None where the inputs are traced or staged."""
     alpha, m = _concrete_max(alpha), _concrete_max(m)
     lengths = None if tube is None or alpha is None or m is None else wall_lengths(tube)
     if lengths is None:
-        return TRACED_LAYERS
+        return None
     return auto_layer_count(*lengths, alpha, int(n_roots), m, at_rest)
+
+
+def checked_laminate(n_layers=None, scheme=None, tube: Tube | None = None, alpha=None,
+                     n_roots: int = 3, m=0, at_rest: bool = False):
+    """(:func:`laminate` of the arguments, ``short``): ``short`` says where the accurate
+    discretisation has fewer sublayers than :func:`required_layers` asks for at a point of
+    ``tube``, ``alpha``, ``m`` (a boolean array of their broadcast shape; the solvers make those
+    roots INACCURATE), or is None where it has enough everywhere: concrete inputs below the cap of
+    :data:`LAYER_COUNTS` (N is chosen for the worst point) or a discretisation given by
+    ``n_layers`` or another ``scheme``.
+
+    Traced (or staged) inputs take :data:`TRACED_LAYERS` whatever the point, so the comparison is
+    staged with them: a few scalar operations per point. Invalid points (NaN lengths) are never
+    short; the solvers give them NaN and INVALID."""
+    if n_layers is not None or scheme not in (None, AUTO_SCHEME) or tube is None or alpha is None:
+        return laminate(n_layers, scheme, tube, alpha, n_roots, m, at_rest), None
+    count = _resolved_count(tube, alpha, n_roots, m, at_rest)
+    if count is None:  # staged: every point gets N = 16, the comparison is staged with them
+        lengths = _wall_lengths_of(tube.lambda_i, tube.lambda_z, tube.eta, tube.gent, tube.material)
+        return (Layers(TRACED_LAYERS, AUTO_SCHEME, True),
+                required_layers(*lengths, alpha, n_roots, m, at_rest, jnp) > TRACED_LAYERS)
+    layers = Layers(count, AUTO_SCHEME, True)
+    if count < LAYER_COUNTS[-1]:
+        return layers, None
+    need = required_layers(*point_lengths(tube), np.asarray(alpha), n_roots, np.asarray(m),
+                           at_rest)
+    return layers, np.asarray(need > count)
 
 
 def validate_scheme(scheme) -> None:
@@ -226,7 +296,7 @@ def grading_length(tube: Tube, geo=None):
     vary there.
 
     The coefficients of M hold 1/r̂ (the geometry and D̂_r ∝ 1/r̂: length r̂ from the axis) and the
-    energy's W_1, W_11 (theory.md Eq. 33). Near Gent locking W_1 ∝ 1/(G − (I_1 − 3)) and
+    energy's W_1, W_11 (docs/theory/axisymmetric.md Eq. 33). Near Gent locking W_1 ∝ 1/(G − (I_1 − 3)) and
     G − (I_1 − 3) ≈ d_0 + c(r̂ − r̂_i) (I_1 is largest at the inner face: λ(r̂) tends monotonically to
     λ_z^{-1/2}, where I_1 is smallest), a boundary layer of thickness W_1/|W_1'| = d_0/c (1.6e-3 of
     a 0.52 wall at 99 % of locking, G = 4); far from locking it is long (≈ G) and ℓ = r̂_i."""
@@ -305,12 +375,12 @@ class Wall(NamedTuple):
 
 
 def layer_coefficients(tube: Tube, r, moduli: str = "closed") -> Coefficients:
-    """State-matrix coefficients at radii r̂ (theory.md §3).
+    """State-matrix coefficients at radii r̂ (docs/theory/axisymmetric.md §3).
 
     ``moduli="closed"`` (default) evaluates the corrected Eq. (33) forms with W_1, W_11 from the
     energy by autodiff (exact for every energy W(I_1)); ``"tensor"`` pushes forward the full
-    autodiff Hessian of Ω(F, D_L) (theory.md §2), the general route, equal to rounding (tests) but
-    far costlier to compile and to differentiate.
+    autodiff Hessian of Ω(F, D_L) (docs/theory/axisymmetric.md §2), the general route, equal to rounding (tests)
+    but far costlier to compile and to differentiate.
     """
     bs = base_state(tube, r)
     lz, gent = as_float(tube.lambda_z), as_float(tube.gent)
@@ -354,8 +424,8 @@ def voltage_expansion(tube: Tube, n_layers) -> tuple[Wall, Wall, Wall]:
     """(W_0, W_1, W_2) with every leaf of :func:`discretize` at voltage V̂ equal to W_0 + V̂ W_1 + V̂² W_2.
 
     The wall is exactly quadratic in V̂ at fixed stretches: the geometry and λ(r̂) do not depend on
-    it, D̂_r ∝ V̂ (Eq. 8), the coefficients of theory.md Eq. (33) hold V̂ through D̂_r and D̂_r² only,
-    and ΔP̂ and p̂ through the electric integral ∝ V̂² (Eq. 1.1). The three terms are the Taylor
+    it, D̂_r ∝ V̂ (Eq. 8), the coefficients of docs/theory/axisymmetric.md Eq. (33) hold V̂ through D̂_r and
+    D̂_r² only, and ΔP̂ and p̂ through the electric integral ∝ V̂² (Eq. 1.1). The three terms are the Taylor
     coefficients at V̂ = 0 (forward mode, exact), so a search in V̂ (:func:`jaxdea.critical_voltage`)
     forms the base state once instead of at every V̂ (its first call: about 0.3 s less tracing and
     compilation, measured; the roots equal to rounding).
@@ -541,7 +611,7 @@ def _expm_of_power_polys_jvp(primals, tangents):
 
 INERTIA = inertia_matrix(LONGITUDINAL)
 """E with M(r̂; Ω) = M(r̂; 0) − Ω² E: Ω enters the state matrix only through the inertia terms of
-the traction rows (theory.md §3), the same at every radius."""
+the traction rows (docs/theory/axisymmetric.md §3), the same at every radius."""
 
 
 def _poly_add(*polys):
@@ -649,7 +719,7 @@ def _magnus6_generator(b1, b2, b3, add, scale, commutator):
 VOLTAGE_DEGREE = 4
 """Degree in V̂ of the state matrix at fixed stretches: the wall is quadratic in V̂
 (:func:`voltage_expansion`) and its only divisor, the shear modulus c − εd² = 2W_1λ_r², does not
-depend on V̂, so the entries hold at most (p − εd²)² (theory.md §3)."""
+depend on V̂, so the entries hold at most (p − εd²)² (docs/theory/axisymmetric.md §3)."""
 
 
 def _stacked_add(*polys):

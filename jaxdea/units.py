@@ -1,4 +1,4 @@
-"""SI units ↔ the dimensionless variables of jaxdea (theory.md §0).
+"""SI units ↔ the dimensionless variables of jaxdea (docs/theory/axisymmetric.md §0).
 
 jaxdea computes with lengths / R_i (undeformed inner radius), stresses and pressures / μ (shear
 modulus), time / (R_i/c_s) with the shear-wave speed c_s = sqrt(μ/ρ_s), potentials / (R_i sqrt(μ/ε)):
@@ -49,6 +49,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .base_state import _inner_stretch
 from .params import (
     TINY,
     Fluid,
@@ -137,7 +138,7 @@ _FIELDS = ("shear_modulus", "density", "permittivity", "inner_radius")
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class Scales:
-    """The material and size scales that make jaxdea's variables dimensionless (theory.md §0).
+    """The material and size scales that make jaxdea's variables dimensionless (docs/theory/axisymmetric.md §0).
 
     A pytree (every field a differentiable, vmappable leaf). Fields are kept as given (so a
     ``Scales`` can serve as a ``jax.vmap`` ``in_axes`` spec); they are validated (positive, finite)
@@ -149,7 +150,7 @@ class Scales:
         permittivity: ε in F/m (absolute; e.g. ``4.7 * VACUUM_PERMITTIVITY``).
         inner_radius: R_i in m (undeformed inner radius, the length scale).
 
-    Example:
+    Examples:
         >>> vhb = Scales(20e3, 960.0, 4.7 * VACUUM_PERMITTIVITY, 5e-3)
         >>> vhb.omega_to_hz(1.0)    # c_s/(2π R_i) = 145.3 Hz
     """
@@ -301,7 +302,9 @@ class TubeSI(NamedTuple):
         outer_radius: R_o in m (undeformed).
         length: L in m (undeformed).
         voltage: V in V.
-        lambda_i, lambda_z, gent: the (dimensionless) stretches and Gent constant.
+        lambda_i: the inner stretch λ_i (dimensionless).
+        lambda_z: the axial stretch λ_z (dimensionless).
+        gent: the Gent constant G (dimensionless).
     """
 
     outer_radius: jax.Array
@@ -319,12 +322,16 @@ class FluidSI(NamedTuple):
     sound_speed: jax.Array
 
 
-def tube_from_si(scales: Scales, outer_radius, length, voltage=0.0, lambda_i=1.0, lambda_z=1.0,
-                 gent=97.2, material: str = "gent") -> Tube:
-    """The dimensionless :class:`~jaxdea.Tube` of a tube given in SI units (theory.md §0).
+def tube_from_si(scales: Scales, outer_radius, length, voltage=0.0, lambda_i=None, lambda_z=1.0,
+                 gent=97.2, material: str = "gent", pressure=None) -> Tube:
+    """The dimensionless :class:`~jaxdea.Tube` of a tube given in SI units (docs/theory/axisymmetric.md §0).
 
     η = R_i/R_o, length_ratio = L/R_o, V̂ = sqrt(ε/μ) V/R_i; the stretches and G are dimensionless
-    already and are passed through. Concrete inputs are validated as the solvers validate a Tube:
+    already and are passed through. A tube held by a pressure difference, as in a lab, is given by
+    ``pressure`` ΔP = P_i − P_o in Pa instead of λ_i: λ_i is then the stable static state at
+    ΔP̂ = ΔP/μ and the voltage, the root of ΔP̂_el(λ_i) − V̂² E(λ_i) = ΔP̂
+    (docs/theory/axisymmetric.md Eq. 1.1, :func:`jaxdea.inner_stretch`), so it follows the voltage.
+    Concrete inputs are validated as the solvers validate a Tube:
     positive and finite, the material, and the Gent locking limit of the resulting wall (the
     message states the largest I_1 - 3 against G).
 
@@ -333,20 +340,25 @@ def tube_from_si(scales: Scales, outer_radius, length, voltage=0.0, lambda_i=1.0
         outer_radius: undeformed outer radius R_o > R_i in m.
         length: undeformed length L > 0 in m (enters only :func:`jaxdea.axial_wavenumber`).
         voltage: V in V (any finite value; only V² matters).
-        lambda_i: inner circumferential stretch r_i/R_i > 0.
+        lambda_i: inner circumferential stretch r_i/R_i > 0 (default 1; not with ``pressure``).
         lambda_z: axial stretch l/L > 0.
         gent: Gent constant G > 0 (``inf`` for neo-Hookean).
         material: static energy name, as in :class:`~jaxdea.Tube`.
+        pressure: None (held by its stretch ``lambda_i``) or the pressure difference ΔP in Pa
+            (finite) that holds the tube; differentiable, and NaN past pull-in when traced.
 
     Returns:
-        The :class:`~jaxdea.Tube`.
+        An instance of :class:`~jaxdea.Tube`.
 
     Raises:
         ValueError: naming the parameter, for concrete values out of range (e.g. R_o ≤ R_i, a
-            wall past Gent locking).
+            wall past Gent locking), ``lambda_i`` and ``pressure`` both given, or a pressure
+            with no stable static state at that voltage (past pull-in).
 
-    Example:
+    Examples:
         >>> tube = tube_from_si(vhb, outer_radius=5e-3 / 0.85, length=0.0588, voltage=5e3)
+        >>> held = tube_from_si(vhb, 5e-3 / 0.85, 0.0588, voltage=5e3, pressure=-397.0)
+        >>> float(held.lambda_i)  # ≈ 0.9: the pressure of the worked example at 5 kV
     """
     _check_scales(scales)
     if not isinstance(material, str):
@@ -355,7 +367,12 @@ def tube_from_si(scales: Scales, outer_radius, length, voltage=0.0, lambda_i=1.0
     r_o = _positive("outer_radius", outer_radius, "m")
     length = _positive("length", length, "m")
     v = _checked("voltage", voltage, "a real number (V)", lambda x: np.isreal(x))
-    lambda_i = _positive("lambda_i", lambda_i)
+    if pressure is not None and lambda_i is not None:
+        raise ValueError("give lambda_i (a tube held by its stretch) or pressure (held by a "
+                         "pressure difference, λ_i solved), not both")
+    if pressure is not None:
+        pressure = _checked("pressure", pressure, "a real number (Pa)", np.isreal)
+    lambda_i = _positive("lambda_i", 1.0 if lambda_i is None else lambda_i)
     lambda_z = _positive("lambda_z", lambda_z)
     gent = _checked("gent", gent, "> 0 (inf for neo-Hookean)", lambda x: x > 0, allow_inf=True)
     concrete = lambda x: None if isinstance(x, jax.core.Tracer) else x  # noqa: E731
@@ -376,7 +393,30 @@ def tube_from_si(scales: Scales, outer_radius, length, voltage=0.0, lambda_i=1.0
     tube = Tube(voltage=v_hat, lambda_i=lambda_i, lambda_z=lambda_z, eta=eta, gent=gent,
                 length_ratio=length_ratio, material=material)
     validate_tube(tube, scalar=False)  # the material, and Gent locking of the wall
+    if pressure is None:
+        return tube
+    delta_p = scales.pressure_from_si(pressure)
+    lambda_i = _held_stretch(tube, delta_p)
+    if not isinstance(lambda_i, jax.core.Tracer) and not np.all(np.isfinite(lambda_i)):
+        raise ValueError(f"pressure = {float(np.ravel(pressure)[0])!r} Pa has no stable static "
+                         f"state at voltage = {voltage!r} V (ΔP̂ = {float(np.ravel(delta_p)[0])!r}: "
+                         "past pull-in, jaxdea.pull_in): the pressure must lie below the pull-in "
+                         "pressure")
+    tube = tube.replace(lambda_i=lambda_i)
+    validate_tube(tube, scalar=False)  # Gent locking at the solved stretch
     return tube
+
+
+def _held_stretch(tube: Tube, delta_p):
+    """λ_i held by ΔP̂ (:func:`jaxdea.base_state.inner_stretch`), elementwise over array leaves."""
+    def one(voltage, lambda_z, eta, gent, length_ratio, dp):
+        t = Tube(voltage=voltage, lambda_i=1.0, lambda_z=lambda_z, eta=eta, gent=gent,
+                 length_ratio=length_ratio, material=tube.material)
+        return _inner_stretch(t, dp)[0]
+
+    leaves = [jnp.asarray(getattr(tube, k), jnp.float64)
+              for k in ("voltage", "lambda_z", "eta", "gent", "length_ratio")]
+    return jnp.vectorize(one)(*leaves, delta_p)
 
 
 def tube_to_si(scales: Scales, tube: Tube) -> TubeSI:
@@ -401,19 +441,19 @@ def tube_to_si(scales: Scales, tube: Tube) -> TubeSI:
 
 def fluid_from_si(scales: Scales, fluid_density, sound_speed, coupling: str = "acoustic",
                   bessel_order: int | None = None) -> Fluid:
-    """The dimensionless :class:`~jaxdea.Fluid`: ρ̂_f = ρ_f/ρ_s, ĉ_f = c_f/c_s (theory.md §0).
+    """The dimensionless :class:`~jaxdea.Fluid`: ρ̂_f = ρ_f/ρ_s, ĉ_f = c_f/c_s (docs/theory/axisymmetric.md §0).
 
     Args:
         scales: the :class:`Scales` (ρ_s and c_s = sqrt(μ/ρ_s) come from it).
         fluid_density: ρ_f > 0 in kg/m³ (water ≈ 1000, air ≈ 1.2).
         sound_speed: c_f > 0 in m/s (water ≈ 1480, air ≈ 343).
-        coupling: ``"acoustic"`` (consistent, default) or ``"paper"`` (theory.md §4).
+        coupling: ``"acoustic"`` (consistent, default) or ``"paper"`` (docs/theory/axisymmetric.md §4).
         bessel_order: the ``"paper"`` coupling's Bessel order, as in :class:`~jaxdea.Fluid`.
 
     Raises:
         ValueError: naming the parameter, for concrete values that are not positive and finite.
 
-    Example:
+    Examples:
         >>> water = fluid_from_si(vhb, fluid_density=1000.0, sound_speed=1480.0)
     """
     _check_scales(scales)

@@ -26,9 +26,6 @@
 import os
 
 import jax
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
@@ -129,3 +126,4 @@ ax.set_xlabel("voltage (kV)")
 ax.set_ylabel("frequency (Hz)")
 ax.legend(fontsize=8)
 fig.tight_layout()
+plt.show()

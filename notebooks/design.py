@@ -31,9 +31,6 @@
 import os
 
 import jax
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
@@ -100,6 +97,8 @@ ax2.set_xlabel("V̂")
 ax2.set_ylabel("lowest Ω, n = 1")
 ax2.legend()
 fig.tight_layout()
+plt.show()
+
 
 # %% [markdown]
 # ## 2. Maximal tunability at fixed thickness
@@ -164,6 +163,8 @@ ax.set_xlabel("V̂")
 ax.set_ylabel("|dΩ/dV̂|")
 ax.legend(fontsize=8)
 fig.tight_layout()
+plt.show()
+
 
 # %% [markdown]
 # ## 3. The difference the first instability makes

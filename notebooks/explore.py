@@ -25,9 +25,6 @@
 import os
 
 import jax
-import matplotlib
-
-matplotlib.use("Agg")
 import numpy as np
 from IPython.display import Image, display
 
@@ -55,7 +52,7 @@ print(app.status.text)
 assert app.status.unstable and (app.status.m, app.status.n) == (2, 1)
 curve = jd.dispersion_curve(tube, app.data.alpha, n_roots=3)
 assert np.allclose(app.data.omega, curve.omega, rtol=1e-12)
-display(Image(app.image.value))
+display(Image(app.png(), width=900))  # a still of the figure (the page is static)
 
 # %% [markdown]
 # ## Moving the sliders
@@ -78,7 +75,7 @@ alpha_1 = float(jd.axial_wavenumber(tube, 1))
 alpha, omega, r, fields = app.select(alpha_1, 0)
 print(f"α̂ = {alpha:.4f}, Ω = {omega:.5f}")
 assert np.allclose(fields, jd.mode_shape(tube.replace(voltage=0.02), alpha, omega)[1], atol=1e-10)
-display(Image(app.image.value))
+display(Image(app.png(), width=900))  # a still of the figure (the page is static)
 
 # %% [markdown]
 # ## Invalid values

@@ -12,8 +12,8 @@
 # # Reproducing the paper's figures
 #
 # `jaxdea figures` regenerates the analogues of Figs. 2–10 of the seed paper (J. Appl. Mech.,
-# DOI 10.1115/1.4065794) with the corrected formulation (theory.md), the consistent acoustic fluid
-# coupling drawn solid and the paper's own coupling dashed beside it. Here the same functions run in
+# DOI 10.1115/1.4065794) with the corrected formulation (docs/theory/axisymmetric.md), the consistent acoustic
+# fluid coupling drawn solid and the paper's own coupling dashed beside it. Here the same functions run in
 # the notebook; `JAXDEA_NOTEBOOK_FAST=1` uses the coarse grids of `jaxdea figures --quick`.
 
 # %%
@@ -22,9 +22,6 @@ import tempfile
 from pathlib import Path
 
 import jax
-import matplotlib
-
-matplotlib.use("Agg")
 import numpy as np
 
 jax.config.update("jax_enable_x64", True)
@@ -42,7 +39,7 @@ def show(path):
         from IPython.display import Image, display
     except ImportError:
         return
-    display(Image(filename=str(path)))
+    display(Image(filename=str(path), width=900))  # 300 dpi files: shown at page width
 
 
 out = Path(tempfile.mkdtemp(prefix="jaxdea-figures-"))
@@ -76,7 +73,7 @@ for n in (1, 2):
 # %% [markdown]
 # ## Fluid-filled tube against ĉ_f (Fig. 8) and the model comparison
 # The paper's coupling clears the fluid pressure with an order-n Bessel function and adds spurious
-# root pairs at its cavity poles; the acoustic coupling (order 0, theory.md §4(c)) has none.
+# root pairs at its cavity poles; the acoustic coupling (order 0, docs/theory/axisymmetric.md §4(c)) has none.
 
 # %%
 speed = figures.figure_fluid_parameter(ctx, "speed_ratio")

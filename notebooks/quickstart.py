@@ -15,14 +15,14 @@
 # under a radial voltage V̂: its axisymmetric dispersion curve, phase and group velocity, an exact
 # gradient dΩ/dV̂, the critical voltage and a mode shape. Everything is dimensionless
 # (Ω = ωR_i/c_s, α̂ = αR_i, V̂ = V√(ε/μ)/R_i). `JAXDEA_NOTEBOOK_FAST=1` runs it on coarse grids.
+#
+# The first call of each solver compiles it (a minute or two in all on a small machine, cell by
+# cell); later calls reuse the compiled programs and take milliseconds.
 
 # %%
 import os
 
 import jax
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
@@ -49,6 +49,8 @@ ax1.set(xlabel="axial wavenumber α̂", ylabel="frequency Ω", title="dispersion
 ax2.plot(alphas, curve.phase_velocity, marker=".")
 ax2.set(xlabel="α̂", ylabel="phase velocity Ω/α̂", ylim=(0, 6))
 fig.tight_layout()
+plt.show()
+
 
 # %% [markdown]
 # ## A finer curve by continuation
@@ -66,6 +68,8 @@ fig, ax = plt.subplots(figsize=(5, 4))
 ax.plot(fine, continued.omega, lw=1)
 ax.plot(alphas, curve.omega, ".", color="k")
 ax.set(xlabel="α̂", ylabel="Ω", title="continuation (lines) and the sweep (dots)")
+plt.show()
+
 
 # %% [markdown]
 # ## An exact gradient
@@ -112,3 +116,4 @@ ax.plot(r, fields[0], label="radial ū")
 ax.plot(r, fields[1], label="axial w̄")
 ax.set(xlabel="radius r̂", ylabel="displacement (max = 1)", title=f"mode shape at Ω = {omega0:.4f}")
 ax.legend()
+plt.show()

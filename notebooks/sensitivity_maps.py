@@ -22,9 +22,6 @@
 import os
 
 import jax
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
@@ -58,6 +55,8 @@ for ax, (title, values) in zip(axes.flat, maps, strict=True):
     ax.set(title=title, xlabel="λ_i", ylabel="V̂")
     fig.colorbar(im, ax=ax)
 fig.tight_layout()
+plt.show()
+
 
 # %% [markdown]
 # ## Check one entry against a central difference

@@ -20,6 +20,40 @@ import jaxdea.compiled  # noqa: E402
 jaxdea.compiled.configure()
 
 
+SLOW_LIST = os.path.join(os.path.dirname(__file__), "slow.txt")
+"""Tests moved to the slow tier by measured duration (one file, function or case a line)."""
+
+
+def slow_entries(path=SLOW_LIST) -> list[str]:
+    """The entries of :data:`SLOW_LIST`, comments and blank lines skipped."""
+    with open(path, encoding="utf-8") as stream:
+        return [line.strip() for line in stream if line.strip() and not line.startswith("#")]
+
+
+def _listed(nodeid: str, entries: frozenset) -> bool:
+    """True where ``nodeid`` is an entry, or lies in a listed file or function."""
+    base = nodeid.split("[", 1)[0]
+    return nodeid in entries or base in entries or nodeid.split("::", 1)[0] in entries
+
+
+def pytest_ignore_collect(collection_path, config):
+    """The default tier (``-m 'not slow'``) does not import the files listed whole in
+    :data:`SLOW_LIST`: they may need the ``all`` extra, which the default tier does without."""
+    if config.getoption("markexpr", "") != "not slow" or collection_path.suffix != ".py":
+        return None
+    relative = os.path.relpath(collection_path, os.path.dirname(os.path.dirname(__file__)))
+    return True if relative.replace(os.sep, "/") in slow_entries() else None
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """Marks the tests of :data:`SLOW_LIST` slow, before ``-m`` selects a tier."""
+    entries = frozenset(slow_entries())
+    for item in items:
+        if _listed(item.nodeid, entries):
+            item.add_marker(pytest.mark.slow)
+
+
 def fd_derivative(fun, x, h=None):
     """Central difference (f(x + h) − f(x − h)) / 2h with h ~ eps^(1/3)·max(1, |x|) by default
     (truncation O(h²) and rounding O(eps/h) balanced)."""

@@ -16,18 +16,22 @@ from exact_cylinder import EXACT_K, EXACT_OMEGA
 
 import jaxdea as jd
 from jaxdea import roots as R
+from jaxdea.roots import Roots, inaccurate_where
 from jaxdea.transfer import (
     LAYER_COUNTS,
     TRACED_LAYERS,
     Layers,
     auto_layer_count,
     breakpoints,
+    checked_laminate,
     grading_length,
     laminate,
+    wall_lengths,
 )
 
 PAPER = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2, eta=0.85)
 LOCKING_G4 = jd.Tube(voltage=0.05, lambda_i=0.35890249, lambda_z=1.2, eta=0.75, gent=4.0)
+THICK = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2, eta=0.5)
 TOL = 1e-8
 AUTO = None  # n_layers=None: the accurate discretisation
 
@@ -194,3 +198,117 @@ def test_bad_accuracy_arguments_name_the_parameter():
         jd.frequencies(PAPER, 0.445, n_layers=0)
     with pytest.raises(ValueError, match="scheme"):
         jd.frequencies(PAPER, 0.445, scheme="rk4")
+
+
+def _newton_reference(tube, alpha, roots, m, factor):
+    """``roots`` refined by Newton on the equal-thickness sixth-order wall ``factor`` times finer
+    than the default's (another discretisation, its error ≤ factor⁻⁶ of the default's)."""
+    count = laminate(None, None, tube, alpha, m=m).count
+    return np.array([float(jd.frequency(tube, alpha, w, m=m, n_layers=factor * count,
+                                        scheme="magnus6")) for w in roots])
+
+
+def _assert_accurate_order_m(tube, alpha, m, factor):
+    roots = jd.solve_frequencies(tube, alpha, m=m)
+    got = np.asarray(roots.omega)
+    assert np.all(np.isfinite(got)) and np.all(np.asarray(roots.status) == jd.Status.CONVERGED)
+    ref = _newton_reference(tube, alpha, got, m, factor)
+    err = float(np.max(np.abs(got - ref) / ref))
+    assert err <= TOL, (m, err)
+
+
+def test_accurate_high_order_on_the_papers_tube():
+    """m = 50: the fields vary like r̂^{±m} across the wall; without the order term of the rule
+    (N = 32) the second root was 1.7e-8 off."""
+    _assert_accurate_order_m(PAPER, 0.445, 50, 4)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("tube, alpha, m", [
+    (PAPER, 0.445, 100), (PAPER, 3.0, 100), (jd.Tube(eta=0.85), 0.445, 100), (THICK, 3.0, 50),
+    (THICK, 0.445, 100),
+    (jd.Tube(lambda_i=0.8, lambda_z=1.2, eta=0.5), 0.445, 8),  # squeezed thick wall: 1.6e-8 at N = 32
+])
+def test_accurate_high_orders(tube, alpha, m):
+    """Up to m = 100 on the paper's tube (N = 48 left 5.4e-8), the unstretched tube and a thick
+    wall, against Newton on an equal wall 3 times finer."""
+    _assert_accurate_order_m(tube, alpha, m, 3)
+
+
+def _rule_before_the_order_term(h, r, ell, alpha, m):
+    need = (4.0 + 4.5 + 2.0 * alpha * h + 2.0 * m * h / r + 4.0 * math.log1p(h / r)
+            + 9.0 * math.log1p(h / ell))
+    return next((c for c in LAYER_COUNTS if c >= need), LAYER_COUNTS[-1])
+
+
+def test_order_term_changes_no_count_below_m_5():
+    """The order term of the rule (N ≥ 5 m ln(1 + ĥ/r̂_i)^0.8) never exceeds the rest of it for
+    m ≤ 4, so the counts of the low orders (and their results) are those of the rule before it."""
+    rng = np.random.default_rng(7)
+    for _ in range(2000):
+        r = float(rng.uniform(0.2, 3.0))
+        h = r * float(10.0 ** rng.uniform(-3.0, 1.5))
+        ell = math.inf if rng.random() < 0.5 else h * float(10.0 ** rng.uniform(-4.0, 1.0))
+        alpha = float(10.0 ** rng.uniform(-3.0, 1.5))
+        for m in range(5):
+            assert auto_layer_count(h, r, ell, alpha, m=m) == _rule_before_the_order_term(
+                h, r, ell, alpha, m), (h, r, ell, alpha, m)
+    for tube in (PAPER, THICK):
+        assert laminate(None, None, tube, 0.445, m=50).count > _rule_before_the_order_term(
+            *wall_lengths(tube), 0.445, 50)
+
+
+def test_traced_inputs_flag_the_points_the_rule_would_refine():
+    """Traced geometry, α̂ or m fix N = 16; checked_laminate's staged comparison marks the points for
+    which the rule (concrete, rounded) asks for more, and nothing for a given discretisation."""
+    orders = (0, 2, 13, 14, 50, 100)
+    staged = jax.jit(jax.vmap(lambda e, m: checked_laminate(
+        None, None, PAPER.replace(eta=e), 0.445, 3, m)[1]))
+    short = staged(jnp.full(len(orders), 0.85), jnp.array(orders, float))
+    assert [bool(x) for x in short] == [laminate(None, None, PAPER, 0.445, m=m).count > TRACED_LAYERS
+                                        for m in orders]
+    assert [bool(x) for x in short] == [False, False, False, True, True, True]
+    thick_ring = staged(jnp.array([0.5]), jnp.array([2.0]))  # the rule: N = 24 at η = 0.5, m = 2
+    assert bool(thick_ring[0]) and laminate(None, None, THICK, 0.445, m=2).count > TRACED_LAYERS
+    assert checked_laminate(None, None, PAPER, 0.445, 3, 100)[1] is None  # concrete: N = 128
+    seen = []
+    jax.jit(lambda m: seen.append(checked_laminate(16, "magnus6", PAPER, 0.445, 3, m)[1]) or m)(50.0)
+    assert seen == [None]
+    # concrete beyond the largest count: the count is capped and the points are marked
+    layers, short = checked_laminate(None, None, THICK, 0.445, 3, np.array([2.0, 500.0]))
+    assert layers.count == LAYER_COUNTS[-1] and [bool(x) for x in short] == [False, True]
+
+
+def test_inaccurate_where_keeps_values_and_marks_converged_roots_only():
+    roots = Roots(jnp.array([[1.0, 2.0, jnp.nan], [3.0, 4.0, 5.0]]),
+                  jnp.array([[0, 6, 1], [0, 0, 0]], jnp.int32))
+    out = inaccurate_where(jnp.array([True, False]), roots)
+    np.testing.assert_array_equal(out.omega, roots.omega)
+    np.testing.assert_array_equal(out.status, [[5, 6, 1], [0, 0, 0]])
+    assert inaccurate_where(None, roots) is roots
+
+
+@pytest.mark.slow
+def test_traced_order_is_accurate_or_inaccurate():
+    """vmap over m fixes N = 16: m = 2 is as accurate as alone, m = 50 and 100 (1.1e-6 and 3.4e-5
+    off) are INACCURATE with their values, never CONVERGED; a dispersion curve of a traced m too.
+    Given the N of the largest order (docs/howto/accuracy.md), every order is accurate."""
+    orders = jnp.array([2.0, 50.0, 100.0])
+    roots = jax.jit(jax.vmap(lambda m: jd.solve_frequencies(PAPER, 0.445, m=m)))(orders)
+    status, omega = np.asarray(roots.status), np.asarray(roots.omega)
+    assert np.all(status[0] == jd.Status.CONVERGED)
+    assert np.all(status[1:] == jd.Status.INACCURATE)
+    accurate = [np.asarray(jd.frequencies(PAPER, 0.445, m=m)) for m in (2, 50, 100)]  # the rule's N
+    for row, ref, m in zip(omega, accurate, (2, 50, 100), strict=True):
+        err = float(np.max(np.abs(row - ref) / ref))
+        assert err <= TOL if m == 2 else err > TOL, (m, err)
+    # a NumPy grid beside a traced m (it raised an AssertionError in the implicit derivatives)
+    curve = jax.jit(lambda m: jd.dispersion_curve(PAPER, np.array([0.445, 0.5]), m=m))(50.0)
+    assert np.all(np.asarray(curve.status) == jd.Status.INACCURATE)
+    # the N of the largest order, given: every order accurate and CONVERGED
+    layers = laminate(None, None, PAPER, 0.445, m=100)
+    fixed = jax.jit(jax.vmap(lambda m: jd.solve_frequencies(PAPER, 0.445, m=m, n_layers=layers)))(
+        orders)
+    assert np.all(np.asarray(fixed.status) == jd.Status.CONVERGED)
+    for row, ref in zip(np.asarray(fixed.omega), accurate, strict=True):
+        assert float(np.max(np.abs(row - ref) / ref)) <= TOL

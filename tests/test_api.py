@@ -186,6 +186,52 @@ def test_bad_arguments_raise_value_error(call, name):
         call()
 
 
+@pytest.mark.parametrize("name", ["voltage", "lambda_i", "lambda_z", "eta", "gent", "length_ratio",
+                                  "density_ratio", "speed_ratio"])
+def test_a_boolean_is_no_number(name):
+    """Tube(voltage=True) was solved as V̂ = 1.0: every float field of Tube and Fluid refuses a
+    boolean (Python's, NumPy's, an array of them), naming the field, as does a sweep axis."""
+    for value in (True, np.bool_(False), np.array([True, False])):
+        tube, fluid = TUBE, jd.Fluid()
+        if name in ("density_ratio", "speed_ratio"):
+            fluid = fluid.replace(**{name: value})
+        else:
+            tube = tube.replace(**{name: value})
+        with pytest.raises(ValueError, match=f"^{name} must be a real number, got the boolean"):
+            jd.frequencies(tube, ALPHA, fluid)
+    with pytest.raises(ValueError, match=f"axis '{name}' must be a real number, got the boolean"):
+        jd.sweep(TUBE, jd.Fluid(), n=[1], progress=False, **{name: [True, False]})
+
+
+def test_alpha_past_the_thickness_limit_raises():
+    """α̂ = 1e6 returned NaN (status NOT_FINITE) for concrete inputs: α̂ĥ must stay within
+    ALPHA_THICKNESS_MAX = 150 (ĥ the deformed wall thickness), a ValueError naming alpha and the
+    limit of this tube; α̂ĥ = 150 itself is accepted (tests/test_core.py solves there)."""
+    from jaxdea.dispersion import check_inputs
+
+    limit = 150.0 / float(jd.thickness_ratio(TUBE))
+    message = rf"alpha must be <= 150/ĥ = {limit:.6g} for this tube \(α̂ĥ <= 150"
+    for alpha in (1e6, limit * (1.0 + 1e-6)):
+        for call in (lambda a: jd.frequencies(TUBE, a), lambda a: jd.characteristic(TUBE, 1.0, a),
+                     lambda a: jd.dispersion_curve(TUBE, np.array([0.5, a]))):
+            with pytest.raises(ValueError, match=message):
+                call(alpha)
+    check_inputs(TUBE, limit, None, None)
+
+
+def test_root_and_layer_counts_have_a_limit():
+    """n_roots or n_layers of 1e8 ran out of memory inside JAX: they are refused first, naming the
+    limit (MAX_ROOTS, MAX_LAYERS), in the solvers and in sweep."""
+    for call, match in (
+            (lambda: jd.frequencies(TUBE, ALPHA, n_roots=10**8), "n_roots must be <= MAX_ROOTS = 1000"),
+            (lambda: jd.frequencies(TUBE, ALPHA, n_layers=10**8), "n_layers must be <= MAX_LAYERS = 4096"),
+            (lambda: jd.dispersion_curve(TUBE, np.array([0.5]), n_roots=10**8), "MAX_ROOTS"),
+            (lambda: jd.sweep(TUBE, n=[1], n_roots=10**8, progress=False), "MAX_ROOTS"),
+            (lambda: jd.sweep(TUBE, n=[1], n_layers=10**8, progress=False), "MAX_LAYERS")):
+        with pytest.raises(ValueError, match=match):
+            call()
+
+
 def test_group_velocity_refuses_an_omega_that_is_no_root():
     """Ω = 0.123 at α̂ = 0.4 is no root (a Newton step moves it by ~14 of itself): a concrete call
     raises naming omega, the distance and the tolerance (−f_α̂/f_Ω there would be a plausible

@@ -2,6 +2,7 @@
 and the validation of sweep configurations (jaxdea.config)."""
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -65,17 +66,21 @@ def library_result():
 
 @pytest.fixture(scope="module")
 def cli_runs(tmp_path_factory):
-    """The sweep through the CLI from a TOML file (outputs next to it, named by output.name) and
-    from a JSON file (outputs in --out, named after the file)."""
+    """The sweep through the CLI from a TOML file (outputs in the current folder, not the
+    config's, named by output.name) and from a JSON file (outputs in --out, named after the
+    file)."""
     base = tmp_path_factory.mktemp("cli")
     toml_path, json_path = base / "cfg" / "grid_config.toml", base / "cfg" / "case.json"
     toml_path.parent.mkdir()
+    (base / "work").mkdir()
     toml_path.write_text(SWEEP_TOML, encoding="utf-8")
     json_path.write_text(json.dumps(SWEEP_DICT), encoding="utf-8")
     out_json = base / "json_out"
-    codes = (cli.main(["--quiet", "sweep", str(toml_path)]),
-             cli.main(["sweep", str(json_path), "--out", str(out_json), "--quiet"]))
-    return codes, toml_path.parent / "grid", out_json / "case"
+    with contextlib.chdir(base / "work"):
+        codes = (cli.main(["--quiet", "sweep", str(toml_path)]),
+                 cli.main(["sweep", str(json_path), "--out", str(out_json), "--quiet"]))
+    assert not list(toml_path.parent.glob("grid.*"))  # nothing next to the config
+    return codes, base / "work" / "grid", out_json / "case"
 
 
 def test_sweep_from_toml_and_json_matches_the_library(cli_runs, library_result):
@@ -122,7 +127,8 @@ def units_run(tmp_path_factory):
     pytest.importorskip("netCDF4")
     base = tmp_path_factory.mktemp("units")
     (base / "vhb.toml").write_text(UNITS_TOML, encoding="utf-8")
-    return cli.main(["--quiet", "sweep", str(base / "vhb.toml")]), base / "grid"
+    with contextlib.chdir(base):
+        return cli.main(["--quiet", "sweep", "vhb.toml"]), base / "grid"
 
 
 def test_sweep_with_units_gives_hertz_and_volts(units_run, library_result):
@@ -193,7 +199,8 @@ def test_sweep_writes_a_png_plot(cli_runs):
 
 def test_sweep_prints_the_written_paths(tmp_path, capsys, cli_runs):
     _, toml_stem, _ = cli_runs
-    assert cli.main(["sweep", str(toml_stem.parent / "grid_config.toml"), "--out", str(tmp_path)]) == 0
+    config_path = toml_stem.parent.parent / "cfg" / "grid_config.toml"
+    assert cli.main(["sweep", str(config_path), "--out", str(tmp_path)]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[0].startswith("sweep voltage[2] x n[2]: 2 roots per point, 8/8 converged")
     assert lines[1:] == [str(tmp_path / f"grid.{ext}") for ext in ("csv", "npz", "png")]
@@ -269,8 +276,8 @@ def test_bad_config_names_the_key_and_exits_2(tmp_path, capsys, data, message):
 
 
 @pytest.mark.parametrize(("name", "text", "message"), [
-    ("bad.toml", "[axes]\nn = [1, 2\n", "bad.toml is no valid TOML"),
-    ("bad.json", '{"axes": ', "bad.json is no valid JSON"),
+    ("bad.toml", "[axes]\nn = [1, 2\n", "bad.toml: invalid TOML"),
+    ("bad.json", '{"axes": ', "bad.json: invalid JSON"),
     ("missing.toml", None, "cannot read"),
     ("config.yaml", "axes: {n: [1]}\n", "the file must end in .toml or .json"),
 ])
@@ -534,3 +541,248 @@ def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
     assert f"removed jaxdea's cache at {root}" in capsys.readouterr().out and not root.exists()
     monkeypatch.setenv("JAXDEA_CACHE_DIR", "off")
     assert cli.main(["cache", "clear"]) == 0 and "off" in capsys.readouterr().out
+
+
+def test_help_says_what_jaxdea_does_and_that_only_the_square_of_the_voltage_matters(capsys):
+    assert cli.main(["--help"]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "Axisymmetric dispersion" not in out
+    assert "every circumferential order m" in out and "stability" in out
+    assert "Negative voltages are accepted: only V² enters the physics" in out
+
+
+def test_quiet_keeps_the_fit_report(monkeypatch, capsys, tmp_path):
+    """--quiet drops progress, not results: the fit's table of estimates is still printed."""
+    from jaxdea import fit_io
+
+    report = "parameter  estimate  95 % interval"
+    monkeypatch.setattr(fit_io, "run_fit", lambda data, config, out: (None, report, [tmp_path / "x.json"]))
+    assert cli.main(["--quiet", "fit", "peaks.csv", "--config", "fit.toml"]) == 0
+    out = capsys.readouterr().out
+    assert report in out and "x.json" in out
+
+
+def test_table_marks_rows_past_the_first_instability_and_imaginary_lowest_roots(monkeypatch, capsys):
+    """The rule of every figure (V̂ ≥ V̂_first) marks table rows; where V̂ ≥ V̂_cr(n) the lowest root is
+    imaginary and the row says that Ω_1 is the next branch."""
+    import types
+
+    roots = types.SimpleNamespace(omega=np.array([0.5, 0.9, 1.2]), status=np.zeros(3, int))
+    rows = [(li, v, 1, 0.445, "empty", roots) for li in (0.9, 1.1) for v in (0.0, 0.2)]
+    monkeypatch.setattr(cli, "paper_table", lambda n_layers, log=None: rows)
+    monkeypatch.setattr(cli, "table_stability", lambda rows, n_layers: (
+        {0.9: (0.0293, 2, 1), 1.1: (0.1062, 2, 1)}, {(0.9, 1): 0.2959, (1.1, 1): 0.1976}))
+    assert cli.main(["table"]) == 0
+    captured = capsys.readouterr()
+    lines = [line for line in captured.out.splitlines() if line.lstrip().startswith("empty")]
+    assert len(lines) == 4
+    stable_09, past_09, stable_11, past_11 = lines
+    assert "UNSTABLE" not in stable_09 and "UNSTABLE" not in stable_11
+    assert "UNSTABLE" in past_09 and "V̂_first = 0.0293" in past_09 and "imaginary" not in past_09
+    assert "UNSTABLE" in past_11 and "lowest root imaginary (V̂ ≥ V̂_cr = 0.1976)" in past_11
+    assert "compiling" in captured.err  # progress on stderr, the table on stdout
+    assert cli.main(["--quiet", "table"]) == 0
+    assert capsys.readouterr().err == ""
+
+
+# --------------------------------------------------------------- hostile inputs, interrupts, full disk
+
+FIT_TOML = "[free]\nshear_modulus = [5e4, 2e5]\n[fixed]\ndensity = 1000.0\n"
+
+
+def _hostile_inputs(tmp_path):
+    """(arguments, what the one-line error says) for inputs that raised a traceback (or were
+    misread) before any computation."""
+    def write(name, text):
+        (tmp_path / name).write_text(text, encoding="utf-8")
+        return str(tmp_path / name)
+
+    fit_config = write("fit.toml", FIT_TOML)
+    return [
+        (["sweep", write("deep.json", '{"axes": ' + "[" * 50_000 + "]" * 50_000 + "}")],
+         "nest deeper than 64 levels"),
+        (["sweep", write("deep.toml", "[axes]\nn = " + "[" * 5000 + "]" * 5000 + "\n")],
+         "nest deeper than 64 levels"),
+        (["sweep", write("twice.json", '{"axes": {"n": [1]}, "axes": {"n": [0]}}')],
+         "the key 'axes' appears twice in one table"),
+        (["sweep", write("huge.toml", "[axes]\nn = [1]\nvoltage = {start = 0, stop = 0.1, "
+                                      "num = 1000000000000}\n")],
+         "the grid has 1,000,000,000,000 points up to 'axes.voltage'; a sweep takes at most "
+         "MAX_POINTS = 100,000,000"),
+        (["sweep", write("roots.toml", "[axes]\nn = [1]\n[solver]\nn_roots = 100000000\n")],
+         "'solver.n_roots' must be <= MAX_ROOTS = 1,000, got 100,000,000"),
+        (["sweep", write("layers.toml", "[axes]\nn = [1]\n[solver]\nn_layers = 100000000\n")],
+         "'solver.n_layers' must be <= MAX_LAYERS = 4,096"),
+        (["fit", write("label.csv", "voltage_V,frequency_Hz,m\n1000,40,1e20\n"), "--config",
+          fit_config], "label.csv, line 2, column 'm': 1e20, must be an integer >= 0 and <= 2147483647"),
+        (["fit", write("long.csv", "voltage_V,frequency_Hz\n1000," + "4" * 140_000 + "\n"),
+          "--config", fit_config], "long.csv, line 2: field larger than field limit (131072)"),
+        (["fit", write("under.csv", "voltage_V,frequency_Hz\n1000,2_86.62\n"), "--config",
+          fit_config], "'2_86.62' is not a number"),
+        (["fit", write("ok.csv", "voltage_V,frequency_Hz\n1000,40\n"), "--config",
+          write("deep_fit.toml", "[free]\nshear_modulus = " + "[" * 5000 + "]" * 5000 + "\n")],
+         "nest deeper than 64 levels"),
+    ]
+
+
+def test_hostile_inputs_are_one_line_with_status_2(tmp_path, capsys, monkeypatch):
+    """Each input that raised RecursionError, OverflowError, _csv.Error, MemoryError or a JAX
+    out-of-memory error, or that was silently misread (a repeated JSON key, 2_86.62): exit status
+    2, one line naming the problem and the limit, nothing computed or written."""
+    monkeypatch.chdir(tmp_path)
+    cases = _hostile_inputs(tmp_path)
+    inputs = set(tmp_path.iterdir())
+    for argv, message in cases:
+        assert cli.main(argv) == 2, argv
+        captured = capsys.readouterr()
+        assert captured.err.count("\n") == 1 and message in captured.err, (argv, captured.err)
+        assert captured.out == ""
+    assert set(tmp_path.iterdir()) == inputs
+
+
+def test_a_byte_order_mark_is_accepted(tmp_path):
+    """Excel's "CSV UTF-8" and some editors start a file with a byte-order mark: configs and peak
+    tables are read as without it."""
+    for name, text in (("a.json", json.dumps(SWEEP_DICT)), ("a.toml", SWEEP_TOML)):
+        (tmp_path / name).write_bytes(b"\xef\xbb\xbf" + text.encode())
+        cfg = config.load_config(tmp_path / name)
+        assert cfg.n_roots == 2 and list(cfg.axes) == ["voltage", "n"]
+
+
+def hand_result(omega_shift=0.0, status=None):
+    """A SweepResult of voltage[2] x n[2] built by hand (the CLI's writing without a solve)."""
+    omega = np.arange(8.0).reshape(2, 2, 2) + 1.0 + omega_shift
+    return jd.SweepResult(axes={"voltage": np.array([0.0, 0.15]), "n": np.array([1.0, 3.0])},
+                          omega=omega, status=np.zeros((2, 2, 2), np.int32) if status is None else status,
+                          alpha=np.array([[0.4, 1.2], [0.4, 1.2]]),
+                          settings=dict(tube=dict(lambda_i=0.95, lambda_z=1.2, eta=0.8, gent=60.0)))
+
+
+@pytest.fixture
+def previous_run(tmp_path, monkeypatch):
+    """A config in tmp_path and the outputs of a previous run of it: (config, {name: bytes})."""
+    monkeypatch.chdir(tmp_path)
+    path = tmp_path / "grid.toml"
+    path.write_text(SWEEP_TOML, encoding="utf-8")
+    monkeypatch.setattr(jd, "sweep", lambda *a, **k: hand_result())
+    assert cli.main(["--quiet", "sweep", str(path)]) == 0
+    return path, {p.name: p.read_bytes() for p in tmp_path.glob("grid.*") if p != path}
+
+
+def test_a_full_disk_keeps_the_previous_outputs(previous_run, monkeypatch, capsys):
+    """A full disk while writing the set grid.csv, grid.npz, grid.png (here: a file-size limit
+    below the PNG's size) leaves all three from the previous run, byte for byte, and no
+    temporary; one line, exit status 2."""
+    import resource
+    import signal
+
+    config_path, before = previous_run
+    assert sorted(before) == ["grid.csv", "grid.npz", "grid.png"]
+    capsys.readouterr()
+    monkeypatch.setattr(jd, "sweep", lambda *a, **k: hand_result(omega_shift=0.5))
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    previous = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (len(before["grid.png"]) // 2, hard))
+    try:
+        status = cli.main(["--quiet", "sweep", str(config_path)])
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+        signal.signal(signal.SIGXFSZ, previous)
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1
+    assert "cannot write into .: File too large (the previous files are unchanged)" in err
+    folder = config_path.parent
+    assert sorted(p.name for p in folder.iterdir()) == sorted([config_path.name, *before])
+    assert {name: (folder / name).read_bytes() for name in before} == before
+
+
+@pytest.mark.parametrize("signal_name, status", [("SIGINT", 130), ("SIGTERM", 143)])
+def test_an_interrupted_sweep_saves_the_solved_points_apart(previous_run, monkeypatch, capsys,
+                                                          signal_name, status):
+    """Ctrl-C (or SIGTERM) during the solve: the points solved so far go to grid.partial.* (the
+    others NaN with status NOT_SOLVED, the settings marked incomplete), the previous grid.* stay
+    as they were, one line on stderr, exit status 130 (143); the next complete run removes the
+    partial files."""
+    import os
+    import signal
+
+    from jaxdea.sweeps import SweepInterrupted
+
+    config_path, before = previous_run
+    capsys.readouterr()
+    status_array = np.zeros((2, 2, 2), np.int32)
+    status_array[1] = jd.Status.NOT_SOLVED
+    partial = hand_result(omega_shift=0.5, status=status_array)
+    partial.omega[1] = np.nan
+    partial.settings["incomplete"] = True
+
+    def interrupted(*args, **kwargs):  # as jaxdea.sweep meets an interrupt between two chunks
+        try:
+            if signal_name == "SIGTERM":  # as a batch system's time limit sends it
+                os.kill(os.getpid(), signal.SIGTERM)
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise SweepInterrupted(partial, 2, 4) from None
+
+    monkeypatch.setattr(jd, "sweep", interrupted)
+    assert cli.main(["--quiet", "sweep", str(config_path)]) == status
+    captured = capsys.readouterr()
+    assert captured.err == (f"jaxdea sweep: interrupted by {signal_name}: 2 of 4 points solved, "
+                            "written to grid.partial.* (the others NaN, status 7 not solved)\n")
+    folder = config_path.parent
+    assert captured.out.splitlines() == [f"grid.partial.{ext}" for ext in ("csv", "npz", "png")]
+    assert {name: (folder / name).read_bytes() for name in before} == before
+    saved = jd.SweepResult.from_npz(folder / "grid.partial.npz")
+    np.testing.assert_array_equal(saved.status, status_array)
+    np.testing.assert_array_equal(saved.omega, partial.omega)
+    assert saved.settings["incomplete"] is True
+    table = np.loadtxt(folder / "grid.partial.csv", delimiter=",", skiprows=1)
+    np.testing.assert_array_equal(table[2:, -2:], 7)  # status_1, status_2 of the unsolved points
+    monkeypatch.setattr(jd, "sweep", lambda *a, **k: hand_result())
+    assert cli.main(["--quiet", "sweep", str(config_path)]) == 0
+    assert sorted(p.name for p in folder.iterdir()) == sorted([config_path.name, *before])
+
+
+def test_an_interrupt_before_any_point_or_while_writing_changes_nothing(previous_run, monkeypatch,
+                                                                        capsys):
+    """Ctrl-C before a point is solved, or while the outputs are written: no file changes, no
+    temporary is left, one line, exit status 130."""
+    from jaxdea.sweeps import SweepInterrupted
+
+    config_path, before = previous_run
+    folder = config_path.parent
+    capsys.readouterr()
+
+    def nothing_solved(*args, **kwargs):
+        raise SweepInterrupted(None, 0, 4)
+
+    def interrupted_plot(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(jd, "sweep", nothing_solved)
+    assert cli.main(["--quiet", "sweep", str(config_path)]) == 130
+    assert capsys.readouterr().err == ("jaxdea sweep: interrupted by SIGINT: 0 of 4 points solved; "
+                                       "no file was written\n")
+    monkeypatch.setattr(jd, "sweep", lambda *a, **k: hand_result(omega_shift=0.5))
+    monkeypatch.setattr(cli, "plot_sweep", interrupted_plot)
+    assert cli.main(["--quiet", "sweep", str(config_path)]) == 130
+    captured = capsys.readouterr()
+    assert captured.err == f"jaxdea sweep: interrupted by SIGINT: {cli.INTERRUPTED}\n"
+    assert captured.out == ""
+    assert sorted(p.name for p in folder.iterdir()) == sorted([config_path.name, *before])
+    assert {name: (folder / name).read_bytes() for name in before} == before
+
+
+def test_an_unexpected_error_is_still_one_line(tmp_path, monkeypatch, capsys):
+    """An exception no check foresaw (here MemoryError from the solve) is one line with its type,
+    exit status 2, not a traceback."""
+    path = tmp_path / "grid.toml"
+    path.write_text(SWEEP_TOML, encoding="utf-8")
+
+    def out_of_memory(*args, **kwargs):
+        raise MemoryError("Unable to allocate 7.28 TiB for an array")
+
+    monkeypatch.setattr(jd, "sweep", out_of_memory)
+    assert cli.main(["sweep", str(path), "--out", str(tmp_path)]) == 2
+    assert capsys.readouterr().err == ("jaxdea sweep: error: unexpected MemoryError: Unable to "
+                                       "allocate 7.28 TiB for an array\n")

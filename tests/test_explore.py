@@ -2,6 +2,7 @@
 the sliders' values, invalid values show their message instead of raising, a click gives the mode
 shape of that root, and the stability status is first_instability's."""
 
+import importlib.util
 import os
 import subprocess
 import sys
@@ -11,7 +12,7 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea.explore import explorer_data, explorer_grid, judge_stability, stability_status
+from jaxdea.explore import explorer_data, explorer_grid, judge_stability, stability_status, unstable_alphas
 
 pytest.importorskip("ipywidgets")
 
@@ -68,7 +69,7 @@ def test_sliders_redraw_the_dispersion_curve(app):
     np.testing.assert_allclose(markers, expected[app.data.axial_index], rtol=1e-12)
     np.testing.assert_allclose(app.data.alpha[app.data.axial_index],
                                jd.axial_wavenumber(TUBE, np.arange(1, 6)), rtol=1e-14)
-    assert app.image.value[:8] == b"\x89PNG\r\n\x1a\n"
+    assert app.png()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_invalid_values_show_the_message(app):
@@ -132,3 +133,95 @@ def test_order_m_in_a_filled_tube():
     assert fields.shape[0] == 8
     _, fields_ref = jd.mode_shape(TUBE, alpha, omega, fluid, m=2)
     np.testing.assert_allclose(fields, fields_ref, rtol=1e-9, atol=1e-12)
+
+
+def test_toggle_rows_are_labelled_and_fluid_controls_follow_the_tube(app):
+    """The toggle rows say what they choose; the fluid controls are disabled for an empty tube and ν
+    only acts with the paper's coupling."""
+    c = app.controls
+    assert c["filled"].description == "tube" and c["coupling"].description == "fluid model"
+    assert app.parameters()[1] is None
+    assert all(c[key].disabled for key in ("density_ratio", "speed_ratio", "coupling", "bessel_order"))
+    app._holding = True  # switch the controls without solving the filled tube
+    try:
+        c["filled"].value = "filled"
+        app._sync_controls()
+        assert not any(c[key].disabled for key in ("density_ratio", "speed_ratio", "coupling"))
+        assert c["bessel_order"].disabled  # the acoustic coupling has no ν
+        c["coupling"].value = "paper"
+        app._sync_controls()
+        assert not c["bessel_order"].disabled
+    finally:
+        c["coupling"].value, c["filled"].value = "acoustic", "empty"
+        app._holding = False
+    app._sync_controls()
+    assert c["density_ratio"].disabled
+
+
+def test_compiling_status_shows_once_per_kind_of_problem(app):
+    kind = ("paper", True)  # never solved here
+    app._compiling("curve", kind)
+    assert "compiling (once)" in app.busy.value
+    app._compiled_now("curve", kind)
+    assert app.busy.value == ""
+    app._compiling("curve", kind)  # compiled: nothing to say
+    assert app.busy.value == ""
+    assert ("curve", ("empty", False)) in app._compiled  # what the app solved is known compiled
+
+
+def test_empty_mode_panel_draws_no_axes_and_no_legend():
+    fresh = jd.explore(TUBE, stability=False)
+    assert fresh.mode is None
+    assert not fresh.mode_axes.axison and fresh.mode_axes.get_legend() is None
+    assert "click a curve" in fresh.mode_label.value
+    fresh.select(float(fresh.data.alpha[fresh.data.axial_index[0]]), 0)
+    assert fresh.mode_axes.axison and fresh.mode_axes.get_legend() is not None
+    assert "branch 1" in fresh.mode_label.value
+    assert fresh.pick["alpha"].value == pytest.approx(fresh.mode[0]) and fresh.pick["branch"].value == 0
+
+
+def test_default_view_is_not_squeezed_by_a_far_branch(app):
+    """Where the highest branch lies far above the others (a thickness branch), the Ω axis shows
+    the lower branches with room, not the whole of the far one."""
+    app.set(voltage=0.05, lambda_i=0.9)
+    omega = app.data.omega
+    lower, highest = np.nanmax(omega[:, :-1]), np.nanmax(omega)
+    top = app.axes[0].get_ylim()[1]
+    assert lower < top
+    assert highest > 2.0 * lower  # the paper's tube: the third branch near Ω ≈ 18 at small α̂
+    assert top < 0.5 * highest
+    speeds = app.data.phase_velocity[app.data.alpha >= 0.2 * app.data.alpha[-1]]
+    assert np.nanmax(speeds[:, :-1]) < app.axes[1].get_ylim()[1] < np.nanmax(speeds)
+
+
+def test_explorer_keeps_the_matplotlib_backend():
+    code = ("import matplotlib; matplotlib.use('agg'); import jax; jax.config.update('jax_enable_x64', True)\n"
+            "import jaxdea\n"
+            "from jaxdea.explore import _interactive_canvas\n"
+            "from matplotlib.figure import Figure\n"
+            "canvas = _interactive_canvas(Figure())\n"
+            "print(matplotlib.get_backend(), canvas is not None)\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                         env=dict(os.environ, JAXDEA_CACHE_DIR="off"))
+    assert run.returncode == 0, run.stderr
+    backend, interactive = run.stdout.split()
+    assert backend == "agg"
+    assert interactive == str(importlib.util.find_spec("ipympl") is not None)
+
+
+@pytest.mark.slow
+def test_unstable_alphas_are_where_the_lowest_root_is_imaginary():
+    """At m = 2, V̂ = 0.08 the ring mode's lowest root is imaginary over a band of α̂: the flags are
+    those of growth_rates, and the app shades that band."""
+    tube = TUBE.replace(voltage=0.08)
+    alphas = np.linspace(0.05, 3.0, 12)
+    flags = unstable_alphas(tube, alphas, m=2)
+    expected = [bool(float(jd.growth_rates(tube, a, m=2, n_roots=1)[0]) > 0) for a in alphas]
+    np.testing.assert_array_equal(flags, expected)
+    assert flags.any() and not flags.all()
+    assert not unstable_alphas(tube.replace(voltage=0.0), alphas[:3], m=0).any()
+    marked = jd.explore(tube, alphas=alphas, n_max=1, m_max=2)
+    marked.set(m=2)
+    marked.wait()
+    np.testing.assert_array_equal(marked.unstable, unstable_alphas(tube, marked.data.alpha, m=2))
+    assert len(marked.spans) == 2 * int(marked.unstable.sum())

@@ -7,6 +7,10 @@ notebook (tests/test_notebooks.py) drives the same figure functions in their qui
 
 import csv
 import math
+import os
+import re
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -102,10 +106,15 @@ def test_a_curve_breaks_only_at_a_branch_change():
 FIG_N = 30  # the figures use the paper's laminate (midpoint, N = 30): their CSV says so
 
 @pytest.fixture(scope="module")
-def written(tmp_path_factory):
+def context(tmp_path_factory):
     out = tmp_path_factory.mktemp("figures")
-    paths = figures.make_figures(out, quick=True, progress=False)
-    return out, paths
+    return out, figures.run_figures(out, quick=True, progress=False)
+
+
+@pytest.fixture(scope="module")
+def written(context):
+    out, ctx = context
+    return out, ctx.written
 
 
 def rows(out, name):
@@ -116,10 +125,15 @@ def rows(out, name):
 @pytest.mark.slow
 def test_every_figure_has_a_png_and_its_csv(written):
     out, paths = written
-    assert sorted(p.name for p in paths) == sorted(f"{n}.{ext}" for n in EXPECTED for ext in ("png", "csv"))
+    assert sorted(p.name for p in paths) == sorted([f"{n}.{ext}" for n in EXPECTED for ext in ("png", "csv")]
+                                                   + ["README.md"])
+    shots = os.environ.get("JAXDEA_SCREENSHOTS")  # where a reviewer looks at them
     for name in EXPECTED:
         assert (out / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert len(rows(out, name)) > 0
+        if shots:
+            Path(shots).mkdir(parents=True, exist_ok=True)
+            shutil.copy(out / f"{name}.png", Path(shots) / f"figure_{name}.png")
 
 
 @pytest.mark.slow
@@ -269,3 +283,166 @@ def test_order_m_dispersion_points_are_roots(written):
     assert alpha_1 == pytest.approx(float(jd.axial_wavenumber(tube, 1)), rel=1e-14)
     direct = float(jd.frequencies(tube, alpha_1, n_roots=1, m=1, n_layers=FIG_N)[0])
     assert float(lowest[0]["omega"]) == pytest.approx(direct, rel=1e-10)
+
+
+# ----------------------------------------------------------------------------- style and marks
+
+
+def test_the_library_never_sets_a_matplotlib_backend():
+    """No module of jaxdea calls matplotlib.use or imports pyplot: a library leaves the user's backend
+    (and pyplot's figure list) alone; the figures are built on matplotlib.figure.Figure."""
+    import re
+    from pathlib import Path
+
+    import matplotlib
+
+    for path in sorted((Path(figures.__file__).parent).glob("*.py")):
+        code = path.read_text(encoding="utf-8")
+        assert not re.search(r"matplotlib\.use\(|import matplotlib\.pyplot|from matplotlib import pyplot",
+                             code), path.name
+    before = matplotlib.get_backend()
+    fig, axes = figures.plotstyle.new_figure(2, title="t")
+    assert matplotlib.get_backend() == before and len(axes) == 2
+    assert type(fig).__name__ == "Figure" and fig.get_layout_engine() is not None
+
+
+def test_one_rule_marks_states_past_the_first_instability():
+    rule = figures.plotstyle.past_first_instability
+    np.testing.assert_array_equal(rule([0.0, 0.0293, 0.03, 0.2], 0.0293), [False, True, True, True])
+    assert not rule(0.2, float("nan"))  # none found: nothing marked
+    np.testing.assert_array_equal(rule(0.15, [0.1, 0.2, np.nan]), [True, False, False])
+
+
+def test_marked_curve_fades_exactly_the_points_past_the_instability():
+    from matplotlib.figure import Figure
+
+    ax = Figure().add_subplot()
+    x = np.arange(6.0)
+    y = x**2
+    past = x >= 3.0
+    figures._plot(ax, x, y, past=past, color="k")
+    stable, faded = ax.get_lines()
+    np.testing.assert_array_equal(np.isfinite(stable.get_ydata()), [1, 1, 1, 0, 0, 0])
+    np.testing.assert_array_equal(np.isfinite(faded.get_ydata()), [0, 0, 1, 1, 1, 1])  # joined at x = 2
+    assert stable.get_alpha() == 1.0 and faded.get_alpha() == figures.plotstyle.PAST_ALPHA
+
+
+def test_static_stability_is_where_the_curve_meets_the_first_instability():
+    map_stretches = np.array([0.9, 1.0, 1.1])
+    v_first = np.array([0.03, 0.06, 0.09])
+    stretches = np.array([0.8, 0.95, 1.05, 1.2])
+    # V̂ − V̂_first over the map: −0.02 at 0.95 (V̂_first 0.045), +0.0 … crossing between 0.95 and 1.05
+    voltage = np.array([0.0, 0.025, 0.085, 0.2])
+    li, v = figures.static_stability(stretches, voltage, map_stretches, v_first)
+    gap = lambda s, w: w - np.interp(s, map_stretches, v_first)  # noqa: E731
+    t = gap(0.95, 0.025) / (gap(0.95, 0.025) - gap(1.05, 0.085))
+    assert li == pytest.approx(0.95 + 0.1 * t, rel=1e-14)
+    assert v == pytest.approx(0.025 + 0.06 * t, rel=1e-14)
+    assert math.isnan(figures.static_stability(stretches, 0.5 * voltage * 0, map_stretches, v_first)[0])
+    # a curve that enters the map already past it: its stable part lies outside the map, unknown
+    assert math.isnan(figures.static_stability(stretches, voltage + 0.1, map_stretches, v_first)[0])
+
+
+def test_index_has_a_caption_and_the_files_of_every_figure(tmp_path):
+    captions = {"fig2_voltage_empty": "Fluid-free tube.", "static_response": "Static response."}
+    path = figures.write_index(tmp_path, captions)
+    text = path.read_text(encoding="utf-8")
+    for name, caption in captions.items():
+        assert f"## {name}" in text and f"![{name}]({name}.png)" in text and caption in text
+        assert f"[{name}.csv]({name}.csv)" in text
+
+
+def test_source_stamp_ignores_docstrings_and_follows_the_code(tmp_path, monkeypatch):
+    import importlib
+
+    monkeypatch.syspath_prepend(str(tmp_path))
+
+    def stamp(name, source):
+        (tmp_path / f"{name}.py").write_text(source, encoding="utf-8")
+        return figures.plotstyle.source_stamp(importlib.import_module(name))
+
+    base = stamp("stamp_a", '"""Doc."""\n\ndef f():\n    """One."""\n    return 1  # a comment\n')
+    assert stamp("stamp_b", '"""Other doc."""\n\ndef f():\n    """Two."""\n    return 1\n') == base
+    assert stamp("stamp_c", '"""Doc."""\n\ndef f():\n    """One."""\n    return 2\n') != base
+
+
+DOCS_FIGURES = Path(__file__).resolve().parents[1] / "docs" / "figures"
+
+
+def test_the_figures_the_docs_embed_are_the_main_jobs_current_output():
+    """README.md and the docs embed docs/figures/*.png, written by ``jaxdea figures --out docs/figures``:
+    every PNG there carries the stamp of the code that drew it, which must be the current code
+    (regenerate with that command when this fails), and every figure has its CSV and caption."""
+    from PIL import Image
+
+    root = DOCS_FIGURES.parents[1]
+    embedded = set()
+    for page in [root / "README.md", *sorted((root / "docs").rglob("*.md"))]:
+        for target in re.findall(r"!\[[^\]]*\]\(([^)]+\.png)\)", page.read_text(encoding="utf-8")):
+            resolved = (page.parent / target).resolve()
+            if resolved.parent == DOCS_FIGURES:
+                embedded.add(resolved.name)
+    assert {"fig6_modes_fluid.png", "fig2_voltage_empty.png"} <= embedded
+    stamp = f"jaxdea figures {figures.figures_stamp()}"
+    stale = []
+    for name in EXPECTED:
+        png = DOCS_FIGURES / f"{name}.png"
+        assert png.is_file() and (DOCS_FIGURES / f"{name}.csv").is_file(), name
+        with Image.open(png) as image:
+            if image.info.get("Source") != stamp:
+                stale.append(name)
+            assert image.info.get("dpi", (0, 0))[0] == pytest.approx(figures.SAVE_DPI, abs=1)
+    assert not stale, f"stale figures in docs/figures (run jaxdea figures --out docs/figures): {stale}"
+    index = (DOCS_FIGURES / "README.md").read_text(encoding="utf-8")
+    assert all(f"## {name}" in index for name in EXPECTED)
+
+
+IDENTIFIERS = ("speed_ratio", "density_ratio", "thickness_ratio", "lambda_i", "voltage_")
+PSEUDO_SUBSCRIPT = re.compile(r"[A-Za-zΩλρηα-ω]̂?_[A-Za-z{]")
+
+
+def texts(fig):
+    """Every text the figure shows: titles, labels, tick-free annotations and legend entries."""
+    out = [t.get_text() for t in fig.findobj(lambda a: hasattr(a, "get_text") and a.get_visible())]
+    return [t for t in out if t]
+
+
+@pytest.mark.slow
+def test_figures_speak_mathtext_and_share_their_axes(context):
+    """No Python identifiers and no plain-text pseudo-subscripts (λ_i) outside mathtext; legends
+    with handles long enough for the dash patterns; Fig. 10's panels share their x range."""
+    _, ctx = context
+    assert set(ctx.figures) == set(EXPECTED)
+    for name, fig in ctx.figures.items():
+        for text in texts(fig):
+            outside = re.sub(r"\$[^$]*\$", "", text)
+            assert not any(word in outside for word in IDENTIFIERS), (name, text)
+            assert not PSEUDO_SUBSCRIPT.search(outside), (name, text)
+        for legend in fig.legends + [ax.get_legend() for ax in fig.axes if ax.get_legend()]:
+            assert legend.handlelength >= 4.0, name
+    panels = [ax for ax in ctx.figures["fig10_thickness_ratio"].axes if ax.get_xlabel()]
+    assert len(panels) == 2 and panels[0].get_xlim() == panels[1].get_xlim()
+    assert set(ctx.captions) == set(EXPECTED) and all(len(c) > 100 for c in ctx.captions.values())
+
+
+@pytest.mark.slow
+def test_every_csv_with_a_voltage_says_whether_the_state_is_past_the_first_instability(written):
+    """The one rule (V̂ ≥ V̂_first) in every table that has a voltage, Figs. 8–10 and the comparison
+    included; V̂ = 0.15 and 0.2 are past it at λ_i = 0.9 and 1.1 (V̂_first 0.029 and 0.106)."""
+    out, _ = written
+    for name in EXPECTED:
+        table = rows(out, name)
+        if "voltage" not in table[0] or name == "stability_map":
+            continue
+        assert "v_first" in table[0] and "past_first_instability" in table[0], name
+        for r in table:
+            v, vf = float(r["voltage"]), float(r["v_first"])
+            assert (r["past_first_instability"] == "True") == (np.isfinite(vf) and v >= vf), (name, r)
+    for name in ("fig8_speed_ratio", "fig9_density_ratio", "comparison_couplings"):
+        marked = {(float(r["voltage"]), r["past_first_instability"]) for r in rows(out, name)}
+        assert (0.0, "False") in marked and (0.15 if name != "comparison_couplings" else 0.2, "True") in marked
+    thick = rows(out, "fig10_thickness_ratio")  # the first instability moves with the wall
+    assert len({r["v_first"] for r in thick}) > 2
+    with open(out / "README.md", encoding="utf-8") as fh:
+        index = fh.read()
+    assert all(f"![{name}]({name}.png)" in index for name in EXPECTED)

@@ -37,6 +37,7 @@ from hypothesis import strategies as st
 import jaxdea as jd
 from jaxdea import units
 from jaxdea.params import ALPHA_MIN, GENT_MIN, TINY
+from jaxdea.transfer import TRACED_LAYERS, laminate
 
 SMALL = 6
 LARGE = int(os.environ.get("JAXDEA_FUZZ_EXAMPLES", "1000"))  # examples per entry point, -m slow
@@ -159,11 +160,12 @@ def gent_excess(lambda_i, lambda_z, eta):
     return float(worst) if worst.ndim == 0 else worst
 
 
-def _problems(values, material="gent", arrays=False):
+def _problems(values, material="gent", arrays=False, thickness=True):
     """(set of invalid parameter names, ambiguous): ``WIDE`` and ``LOCKING`` as in
     :func:`wall_problems`; ambiguous within rounding of either limit (either outcome is fine).
     With ``arrays`` real arrays that broadcast together are valid (elementwise helpers); otherwise
-    only scalars."""
+    only scalars. With ``thickness`` (concrete calls; traced ones do not check it) an α̂ with
+    α̂ĥ > 150 on a valid wall is invalid too (ĥ the deformed thickness)."""
     bad, x = set(), {}
     for name, value in values.items():
         x[name] = _real_array(value) if arrays else _scalar(value)
@@ -180,6 +182,13 @@ def _problems(values, material="gent", arrays=False):
     if all(k in x for k in keys) and not bad & {*keys, "gent"}:
         gent = x.get("gent", jd.Tube().gent)
         wall, ambiguous = wall_problems(*(x[k] for k in keys), gent, material=material)
+        if thickness and "alpha" in x and "alpha" not in bad and not wall:
+            li, lz, eta = (np.asarray(x[k], dtype=np.float64) for k in keys)
+            c = (1.0 / eta**2 - 1.0) / lz
+            product = np.max(np.asarray(x["alpha"]) * c / (np.sqrt(li**2 + c) + li))
+            if product > 150.0:
+                bad.add("alpha")
+            ambiguous |= bool(abs(product - 150.0) <= 1e-9 * 150.0)
         return bad | wall, ambiguous
     return bad, False
 
@@ -263,17 +272,20 @@ def assert_no_root_below(tube, alpha, omega, fluid=None):
         f"a root below the first root {omega!r} was missed: f = {values}"
 
 
-def assert_statuses(omega, status):
+def assert_statuses(omega, status, found=(jd.Status.CONVERGED,)):
+    """A value where the status is one of ``found`` (INACCURATE too where the default
+    discretisation serves traced inputs), NaN elsewhere."""
     omega, status = np.asarray(omega), np.asarray(status)
     assert omega.shape == status.shape and status.dtype == np.int32
     assert set(np.unique(status)) <= {int(s) for s in jd.Status}
-    np.testing.assert_array_equal(np.isfinite(omega), status == jd.Status.CONVERGED)
+    np.testing.assert_array_equal(np.isfinite(omega), np.isin(status, found))
 
 
-def assert_roots(tube, alpha, fluid, roots, omega_max=None, complete=True):
+def assert_roots(tube, alpha, fluid, roots, omega_max=None, complete=True,
+                 found=(jd.Status.CONVERGED,)):
     """Statuses consistent, converged roots ascending, positive, below omega_max, genuine, and
     (``complete``) none missed below the first."""
-    assert_statuses(roots.omega, roots.status)
+    assert_statuses(roots.omega, roots.status, found)
     omega = np.asarray(roots.omega)
     found = omega[np.isfinite(omega)]
     np.testing.assert_array_equal(np.isfinite(omega), np.arange(omega.size) < found.size)
@@ -906,7 +918,7 @@ def sweep(case):
     for i, a in enumerate(axes["alpha"]):
         for j, v in enumerate(axes["voltage"]):
             point = dict(_fields(values, TUBE_FIELDS), voltage=v)
-            bad, ambiguous = _problems(point | {"alpha": a})
+            bad, ambiguous = _problems(point | {"alpha": a}, thickness=False)
             omega, status = out.omega[i, j], out.status[i, j]
             assert_statuses(omega, status)
             if ambiguous:
@@ -1201,7 +1213,7 @@ def traced(columns):
     _, fields = jax.vmap(lambda t, a: jd.mode_shape(t, a, 1.0, n_points=N_POINTS))(tubes, alpha)
     for i in range(BATCH):
         row = {k: float(columns[k][i]) for k in columns}
-        bad, ambiguous = _problems(row)
+        bad, ambiguous = _problems(row, thickness=False)
         tube_bad, _ = _problems(_fields(row, TUBE_FIELDS))
         if ambiguous:
             continue
@@ -1210,7 +1222,7 @@ def traced(columns):
         placeholder, _ = _problems(_fields(row, TUBE_FIELDS) | dict(lambda_i=1.0))
         if placeholder:  # inner_stretch ignores λ_i
             assert status[i] == jd.Status.INVALID and np.isnan(stretch[i])
-        cv_bad, _ = _problems(row | dict(voltage=0.0))  # the critical voltage ignores V̂
+        cv_bad, _ = _problems(row | dict(voltage=0.0), thickness=False)  # the critical voltage ignores V̂
         if cv_bad:
             assert cv.status[i] == jd.Status.INVALID and np.isnan(cv.omega[i])
         if bad:
@@ -1219,7 +1231,14 @@ def traced(columns):
             assert np.all(np.isnan(np.asarray(fields[i])))
             continue
         t, a = _valid_tube(row), row["alpha"]
-        assert_roots(t, a, None, jd.Roots(roots.omega[i], roots.status[i]))
+        # the default discretisation of traced inputs (N = 16): its roots are INACCURATE exactly
+        # where the rule would give the point alone more sublayers
+        short = laminate(None, None, t, a).count > TRACED_LAYERS
+        found = np.asarray(roots.omega[i])[np.isfinite(np.asarray(roots.omega[i]))]
+        expected = jd.Status.INACCURATE if short else jd.Status.CONVERGED
+        assert np.all(np.asarray(roots.status[i])[: found.size] == expected), (row, roots.status[i])
+        assert_roots(t, a, None, jd.Roots(roots.omega[i], roots.status[i]),
+                     found=(jd.Status.CONVERGED, jd.Status.INACCURATE))
         if cv.status[i] == jd.Status.CONVERGED:
             assert_critical(t, a, float(cv.omega[i]))
         if _moderate(row, "voltage", limit=1e100):

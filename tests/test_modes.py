@@ -236,3 +236,24 @@ def test_mode_shape_equals_exact_linear_cylinder():
             np.testing.assert_allclose(y[[2, 5]], 0.0, atol=1e-12)
         assert errors[0] < 1e-4  # measured 5.5e-6 (bar), 3.5e-5 (breathing)
         assert 3.8 < errors[0] / errors[1] < 4.2  # measured 4.00, 4.00
+
+
+def test_named_fields_are_one_layout_for_a_concrete_and_a_traced_m():
+    """A concrete m = 0 (6 rows) and a traced m = 0 (8 rows, vmapped with m = 2) give the same
+    named fields: ū, w̄, Φ, T̄, S̄, D̄ equal to rounding, v̄ = Q̄ = 0; the ring mode has v̄ ≠ 0."""
+    alpha = 0.445
+    omega0 = float(jd.frequencies(TUBE, alpha, n_roots=1)[0])
+    omega2 = float(jd.frequencies(TUBE, alpha, n_roots=1, m=2)[0])
+    concrete = jd.mode_shape(TUBE, alpha, omega0)
+    assert concrete.fields.shape == (6, 64)
+    traced = jax.vmap(lambda m, om: jd.mode_shape(TUBE, alpha, om, m=m))(
+        jnp.array([0, 2]), jnp.array([omega0, omega2]))
+    assert traced.fields.shape == (2, 8, 64)
+    for name in ("u", "w", "phi", "T", "S", "D"):
+        np.testing.assert_allclose(traced.field(name)[0], concrete.field(name), rtol=1e-7, atol=1e-9,
+                                   err_msg=name)
+    for name in ("v", "Q"):
+        assert not np.any(concrete.field(name)) and np.max(np.abs(traced.field(name)[0])) < 1e-9
+    assert np.max(np.abs(traced.v[1])) > 0.1
+    with pytest.raises(ValueError, match="name must be one of"):
+        concrete.field("x")

@@ -233,3 +233,75 @@ def test_group_velocity_through_a_zero_group_velocity_point():
     d = 1e-3
     rise = [branch(a_zgv + s * d) - branch(a_zgv) for s in (-1, 1)]
     assert min(rise) > 0 and abs(rise[0] - rise[1]) < 1e-2 * max(rise)  # symmetric minimum
+
+
+def test_an_interrupted_sweep_keeps_the_solved_chunks(grid, monkeypatch):
+    """Ctrl-C during the third chunk: SweepInterrupted (a KeyboardInterrupt) carries the 8 points
+    of the first two chunks, bit-identical to the full sweep, and the ninth as NaN with status
+    NOT_SOLVED, the settings marked incomplete; before the first chunk it carries no result."""
+    solve, calls = sweep_module._solve_chunk, []
+
+    def stopped_at(k):
+        def chunk(*args):
+            calls.append(1)
+            if len(calls) == k:
+                raise KeyboardInterrupt
+            return solve(*args)
+        return chunk
+
+    monkeypatch.setattr(sweep_module, "_solve_chunk", stopped_at(3))
+    with pytest.raises(sweep_module.SweepInterrupted) as stop:
+        sweep(TUBE, voltage=VOLTAGES, n=MODES, chunk_size=4, progress=False)
+    assert isinstance(stop.value, KeyboardInterrupt) and (stop.value.solved, stop.value.total) == (8, 9)
+    part = stop.value.result
+    flat = lambda a: a.reshape(9, *a.shape[2:])  # noqa: E731
+    np.testing.assert_array_equal(flat(part.omega)[:8], flat(grid.omega)[:8])
+    np.testing.assert_array_equal(flat(part.status)[:8], flat(grid.status)[:8])
+    np.testing.assert_array_equal(flat(part.alpha)[:8], flat(grid.alpha)[:8])
+    assert np.all(np.isnan(flat(part.omega)[8])) and np.isnan(flat(part.alpha)[8])
+    assert np.all(flat(part.status)[8] == jd.Status.NOT_SOLVED)
+    assert part.settings == {**grid.settings, "incomplete": True}
+    calls.clear()
+    monkeypatch.setattr(sweep_module, "_solve_chunk", stopped_at(1))
+    with pytest.raises(sweep_module.SweepInterrupted) as stop:
+        sweep(TUBE, voltage=VOLTAGES, n=MODES, chunk_size=4, progress=False)
+    assert stop.value.result is None and (stop.value.solved, stop.value.total) == (0, 9)
+
+
+def test_grid_size_and_memory_are_checked_before_allocating(monkeypatch):
+    """10¹² points raised numpy's MemoryError (7 TiB) from the grid's columns: a grid past
+    MAX_POINTS, or whose arrays need more than MEMORY_SHARE of the machine's memory, is refused
+    before anything is allocated, naming the limit."""
+    with pytest.raises(ValueError, match=r"the grid has 1,000,000,000,000 points \(1000000 x 1000000\); "
+                                         r"a sweep takes at most MAX_POINTS = 100,000,000"):
+        sweep(TUBE, voltage=np.zeros(10**6), n=np.arange(1.0, 10**6 + 1), progress=False)
+    monkeypatch.setattr(sweep_module, "physical_memory", lambda: 2**30)
+    need = sweep_module.sweep_bytes((10**4, 10**3), 3)
+    assert need > 2**29
+    with pytest.raises(ValueError, match=rf"needs about {need / 2**30:.1f} GiB, more than "
+                                         r"MEMORY_SHARE = 0.5 of this machine's 1.0 GiB"):
+        sweep(TUBE, voltage=np.zeros(10**4), n=np.arange(1.0, 10**3 + 1), progress=False)
+
+
+def test_the_memory_estimate_bounds_the_arrays(grid):
+    """sweep_bytes is an upper bound of what a sweep and its CSV hold (the grid's columns, the
+    result's arrays, the CSV columns and table), within a factor 2, with and without derivatives
+    and growth rates."""
+    rng = np.random.default_rng(1)
+    jacobian = rng.normal(size=(3, 3, 3, 2))
+    cases = [(grid, None, 0),
+             (SweepResult(axes=grid.axes, omega=grid.omega, status=grid.status, alpha=grid.alpha,
+                          jacobian=jacobian, jacobian_names=("voltage", "gent"),
+                          group_velocity=grid.omega, growth_rate=grid.omega[..., :2],
+                          settings=grid.settings), 2, 2)]
+    for result, names, growth in cases:
+        columns = result.columns()
+        held = sum(np.meshgrid(*result.axes.values(), indexing="ij")[k].nbytes
+                   for k in range(len(result.axes)))
+        held += sum(a.nbytes for a in (result.omega, result.status, result.status, result.alpha,
+                                       result.jacobian, result.group_velocity, result.growth_rate)
+                    if a is not None)
+        held += sum(np.asarray(c).nbytes for c in columns.values())
+        held += np.column_stack(list(columns.values())).nbytes
+        estimate = sweep_module.sweep_bytes(result.shape, 3, names, growth)
+        assert held <= estimate <= 2 * held, (held, estimate)
