@@ -128,10 +128,12 @@ from .roots import (
     critical_voltage_unchecked,
     default_omega_max,
     inaccurate_where,
+    invalid_where,
     scan_roots,
+    scan_step,
     scanned_function,
 )
-from .scalar import Status, iterate_lanes, lanes_from_slots, value_and_slope
+from .scalar import Status, iterate_lanes, lanes_from_slots, start_lanes, value_and_slope
 from .state_matrix import LONGITUDINAL, ORDER_M
 from .transfer import checked_laminate, discretize, voltage_expansion
 
@@ -449,6 +451,40 @@ def frequencies_along(tube, alpha, fluid, omega_max, m=0.0, *, n_roots, n_layers
     return Roots(omega, status)
 
 
+def frequency_along(tube, alpha, guess, fluid, m=0.0, *, n_layers, order, family,
+                    decoupled) -> Roots:
+    """The roots of :func:`jaxdea.frequency` at every (α̂, guess) of a batch (M,) of one tube and
+    fluid (traceable): ``jax.vmap`` of ``frequency`` over α̂ and the guess (either or both) comes
+    here (:func:`jaxdea.roots.along_alpha`).
+
+    The same safeguarded Newton from each guess as a point alone, the points' lanes side by side
+    (vectorised, as the points take alike few iterations), but each (f, f') from the lanes of a
+    curve: the generators formed once as polynomials in α̂ of the one wall, the 4×4 propagation at
+    V̂ = 0 (``decoupled``) and f' carried through the propagation instead of forward mode
+    (:func:`jaxdea.dispersion.value_and_slope_on_wall`). Equal to the points alone to the Newton
+    tolerance (tests/test_vmap_rules.py)."""
+    alpha, guess = jnp.broadcast_arrays(as_float(alpha), as_float(guess))
+    ok, tube, _, fluid = guard(tube, 1.0, fluid)
+    ok, m_safe = _family_order(ok, m, fluid, family)
+    ok = ok & jnp.isfinite(alpha) & (alpha >= ALPHA_MIN) & jnp.isfinite(guess) & (guess > 0)
+    alpha, guess = jnp.where(ok, alpha, 1.0), jnp.where(ok, guess, 1.0)
+    wall = discretize(tube, n_layers)
+    polys = generator_polynomials(wall, m_safe, family, decoupled)
+    step = jnp.reshape(4.0 * scan_step(wall, fluid, family), (1,))  # as roots._solve_frequency
+
+    def newton(a, x):  # one point's lane (the points' loops vectorised by the vmap below)
+        generators = lane_generators(polys, a)
+        nan = jnp.full((1,), jnp.nan)
+        lanes = start_lanes(x[None], x[None], nan, nan, nan, nan, jnp.array([3]), max_step=step,
+                            pairs=False)
+        lanes = iterate_lanes(lambda om: value_and_slope_on_wall(
+            wall, om, a, fluid, order, m_safe, family, decoupled, generators), lanes,
+            with_slope=True)
+        return jnp.where(lanes.status == Status.CONVERGED, lanes.x, jnp.nan)[0], lanes.status[0]
+
+    return invalid_where(ok, Roots(*jax.vmap(newton)(alpha, guess)))
+
+
 _solve_curve = cached_jit(curve_unchecked,
                           static_argnames=("n_roots", "n_layers", "order", "family", "decoupled"))
 
@@ -644,4 +680,5 @@ def critical_voltages_along(tube, alpha, fluid, m=0.0, *, n_layers, family) -> R
     return Roots(voltage[:, 0], status[:, 0])
 
 
-BATCH_ENGINES.update(frequencies=frequencies_along, critical_voltage=critical_voltages_along)
+BATCH_ENGINES.update(frequencies=frequencies_along, frequency=frequency_along,
+                     critical_voltage=critical_voltages_along)

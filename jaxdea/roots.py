@@ -617,7 +617,7 @@ class Residual(NamedTuple):
         return _residual(x, *params, self.n_layers, self.order, self.unknown, self.family)
 
 
-def one_point_at_a_time(solve, *args, along=None):
+def one_point_at_a_time(solve, *args, along=None, vectorised=False):
     """``solve(*args)`` (a solver of one case, values only), whose ``jax.vmap`` on the CPU solves the
     points of the batch one after another (``lax.map``, like :func:`jaxdea.sweep`) instead of
     vectorising its while loops, or solves the whole batch with an engine of ``along``.
@@ -625,8 +625,8 @@ def one_point_at_a_time(solve, *args, along=None):
     A vectorised root search runs every point of the batch for as many chunks and iterations as
     the slowest one needs: over 200 α̂ the vectorised scan took 1.8–2.7 times as long as the same
     points one by one, and the critical voltages 1.6 times (benchmarks/vmap_idiom.py). The Newton
-    of :func:`frequency` stays vectorised (its points take alike few iterations, and the
-    vectorised batch was twice as fast as the points one by one). A batch of points is mapped, the
+    of :func:`frequency` stays vectorised (``vectorised``: its points take alike few iterations,
+    and the vectorised batch was twice as fast as the points one by one). A batch of points is mapped, the
     arguments that are not batched held fixed; nested vmaps map again (the body holds the same
     function). On other backends, whose vector units a batch fills, the batch is vectorised
     (``jax.vmap`` of ``solve``), as the sweep does there. ``jax.custom_batching.custom_vmap`` has
@@ -636,15 +636,16 @@ def one_point_at_a_time(solve, *args, along=None):
     ``along(in_batched)`` (optional, :func:`along_alpha`): a solver of the whole batch for the
     argument pattern ``in_batched`` (a pytree of bools per argument), or None where the batch is
     mapped; its result must be that of the points solved alone. An outer vmap maps it, batch by
-    batch."""
+    batch. ``vectorised``: a batch that ``along`` does not take is vectorised (``jax.vmap`` of
+    ``solve``) on every backend, not mapped (:func:`frequency`'s Newton)."""
     if not any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(args)):
         return solve(*args)
-    return _mapped_over_batches(solve, along)(*args)
+    return _mapped_over_batches(solve, along, vectorised)(*args)
 
 
-def _mapped_over_batches(solve, along=None):
+def _mapped_over_batches(solve, along=None, vectorised=False):
     """``custom_vmap`` of ``solve`` whose rule maps it over the batch (:func:`one_point_at_a_time`),
-    or hands the batch to ``along``'s engine."""
+    or hands the batch to ``along``'s engine, or vectorises it (``vectorised``)."""
     mapped = jax.custom_batching.custom_vmap(lambda *args: solve(*args))
 
     @mapped.def_vmap
@@ -655,7 +656,7 @@ def _mapped_over_batches(solve, along=None):
             engine = along(list(in_batched))
         if engine is not None:
             out = _mapped_over_batches(engine)(*args)
-        elif jax.default_backend() != "cpu":
+        elif vectorised or jax.default_backend() != "cpu":
             axes = jax.tree_util.tree_map(lambda b: 0 if b else None, list(in_batched))
             out = jax.vmap(solve, in_axes=tuple(axes))(*args)
         else:
@@ -681,13 +682,14 @@ registers them (it imports this module, so this module cannot import it); :func:
 looks them up when a batch is traced."""
 
 
-def along_alpha(name, **static):
+def along_alpha(name, batchable=(1,), **static):
     """The ``along`` of :func:`one_point_at_a_time` for the solver ``name``: its engine of
-    :data:`BATCH_ENGINES` (with the keywords ``static``) where α̂, the second argument, is the only
-    batched one; None (map the points) otherwise."""
+    :data:`BATCH_ENGINES` (with the keywords ``static``) where the batched arguments are among the
+    positions ``batchable`` (α̂, the second argument, by default; α̂ and the guess for
+    :func:`frequency`), the tube, fluid and m shared; None (map the points) otherwise."""
     def along(in_batched):
-        batched = [any(jax.tree_util.tree_leaves(flags)) for flags in in_batched]
-        if name not in BATCH_ENGINES or batched != [k == 1 for k in range(len(batched))]:
+        batched = {k for k, flags in enumerate(in_batched) if any(jax.tree_util.tree_leaves(flags))}
+        if name not in BATCH_ENGINES or not batched <= set(batchable):
             return None
         return functools.partial(BATCH_ENGINES[name], **static)
 
@@ -961,10 +963,18 @@ def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
     tube, alpha, guess, fluid, m = canonical(tube, alpha, guess, fluid, m)
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, m=m)
     values = detached((tube, alpha, guess, fluid))
+    along = None  # a batch over α̂ and the guess alone: the curves' lanes (jaxdea.curves), any other
+    if fluid is None or fluid.coupling == "acoustic":  # vectorised as before
+        along = along_alpha("frequency", (1, 2), n_layers=layers, order=order, family=family,
+                            decoupled=_decoupled(tube, family))
     if family == LONGITUDINAL:
-        roots = _solve_frequency(*values, layers, order)
+        solve = functools.partial(_solve_frequency, n_layers=layers, order=order)
+        roots = one_point_at_a_time(solve, *values, along=along, vectorised=True)
     else:
-        roots = _solve_frequency(*values, layers, order, detached(m), family)
+        def solve(tube, alpha, guess, fluid, m):
+            return _solve_frequency(tube, alpha, guess, fluid, layers, order, m, family)
+
+        roots = one_point_at_a_time(solve, *values, detached(m), along=along, vectorised=True)
     return inaccurate_where(short, _with_derivatives(roots, (tube, alpha, fluid, m), layers, order,
                                                      "omega", family))
 

@@ -69,6 +69,30 @@ def test_a_batch_over_alpha_alone_is_continued_any_other_is_mapped(monkeypatch):
     assert all(v.aval.shape[:1] == (len(ALPHA),) for v in scans[0].outvars)
 
 
+def test_a_batch_of_frequency_over_alpha_and_guess_takes_the_curves_lanes(monkeypatch):
+    """frequency: a batch over α̂, the guess or both (tube and fluid shared) goes to
+    jaxdea.curves.frequency_along; with the tube batched too it is vectorised as before (a while
+    loop over the batch, no scan of its length). Traced only."""
+    calls = []
+    engine = roots.BATCH_ENGINES["frequency"]
+    monkeypatch.setitem(roots.BATCH_ENGINES, "frequency",
+                        lambda *args, **static: calls.append(static) or engine(*args, **static))
+    alpha, guess = jnp.asarray(ALPHA), jnp.full(len(ALPHA), 0.6)
+    for args in ((alpha, guess), (0.7, guess), (alpha, 0.6)):
+        axes = tuple(None if np.ndim(x) == 0 else 0 for x in args)
+        jax.make_jaxpr(jax.vmap(lambda a, g: jd.frequency(TUBE, a, g, n_layers=N), axes))(*args)
+        assert calls[-1]["decoupled"] is False
+    jax.make_jaxpr(jax.vmap(lambda a, g: jd.frequency(TUBE.replace(voltage=0.0), a, g)))(alpha, guess)
+    assert calls[-1]["decoupled"] is True and len(calls) == 4
+    jaxpr = jax.make_jaxpr(jax.vmap(lambda li, a, g: jd.frequency(TUBE.replace(lambda_i=li), a, g,
+                                                                  n_layers=N)))(0.9 + 0.0 * alpha, alpha, guess)
+    assert len(calls) == 4
+    programs = [e for e in jaxpr.jaxpr.eqns if e.primitive.name in ("jit", "scan")]
+    assert [e.params.get("name") for e in programs] == ["_solve_frequency"]
+    assert [v.aval.shape for v in programs[0].outvars] == [(len(ALPHA),)] * 2
+    assert "while" in [e.primitive.name for e in programs[0].params["jaxpr"].eqns]
+
+
 def test_continued_batches_equal_the_points_alone():
     """Over α̂ alone, ordered upwards, downwards and shuffled (every point scanned), with an α̂
     below ALPHA_MIN (INVALID) and a search range omega_max = 2.5 that holds 2, 1 or no roots at
@@ -155,6 +179,25 @@ def test_forward_mode_and_vmap_of_the_gradient():
     voltages = jnp.array([0.0, 0.05, 0.12])
     np.testing.assert_allclose(jax.jit(jax.vmap(jax.grad(lowest)))(voltages),
                                [float(jax.grad(lowest)(float(v))) for v in voltages], rtol=1e-12)
+
+
+@pytest.mark.slow
+def test_vmapped_frequency_over_alpha_equals_the_points_alone():
+    """Over α̂ and the guess (the curves' lanes): unordered, with an invalid α̂ and a bad guess in
+    the batch (their NaN and INVALID their own), at V̂ = 0.1 (6×6) and V̂ = 0 (4×4), and over the
+    guess alone with a traced tube."""
+    alpha = np.array([1.5, 0.2, 3.0, 0.7, 1e-13, 0.7])
+    for tube in (TUBE, TUBE.replace(voltage=0.0)):
+        lowest = np.array([float(_roots(tube, float(a)).omega[0]) for a in ALPHA])
+        guess = np.concatenate([lowest[[2, 0, 3, 1]] * np.array([1.02, 0.98, 1.01, 1.0]), [0.5, -1.0]])
+        got = jax.jit(jax.vmap(lambda a, g, t=tube: jd.solve_frequency(t, a, g, n_layers=N)))(
+            jnp.asarray(alpha), jnp.asarray(guess))
+        alone = _stacked([jd.solve_frequency(tube, float(a), float(g), n_layers=N)
+                          for a, g in zip(alpha[:4], guess[:4], strict=True)])
+        _assert_roots_equal(jax.tree_util.tree_map(lambda x: x[:4], got), alone)
+        np.testing.assert_allclose(np.asarray(got.omega[:4]), lowest[[2, 0, 3, 1]], rtol=RTOL)
+        assert np.all(np.asarray(got.status[4:]) == Status.INVALID)
+        assert np.all(np.isnan(np.asarray(got.omega[4:])))
 
 
 @pytest.mark.slow
