@@ -257,3 +257,29 @@ def test_vmapped_critical_voltage_equals_the_points_alone_and_differentiates():
                      for a in ALPHA[:3])
     assert grad == pytest.approx(alone_grad, rel=1e-12)
     assert grad == pytest.approx(fd_derivative(total, 0.9), rel=1e-6)
+
+
+@pytest.mark.slow
+def test_the_vmap_idiom_gives_the_curves_roots_on_the_peers_points():
+    """``jax.jit(jax.vmap(...))`` over the 200 ordered α̂ of the GEWtool-shaped curve
+    (benchmarks/vmap_idiom.py, default discretisation): ``frequencies`` equal to
+    ``dispersion_curve``'s roots, ``frequency`` from 1.02× the lowest root equal to the curve's
+    lowest, ``critical_voltage`` equal to the points alone (every 20th), all to 1e-13 relative
+    (the solvers' tolerance is 1e-15); and reversed, the same roots."""
+    tube = jd.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, eta=0.85)
+    alpha = np.linspace(0.01, 5.0, 200)
+    curve = jd.dispersion_curve(tube, alpha, n_roots=4)
+    assert np.all(np.asarray(curve.status) == Status.CONVERGED)
+    omega = np.asarray(curve.omega)
+    over = jax.jit(jax.vmap(lambda a: jd.solve_frequencies(tube, a, n_roots=4)))
+    for order in (np.arange(200), np.arange(200)[::-1]):
+        got = over(jnp.asarray(alpha[order]))
+        assert np.all(np.asarray(got.status) == Status.CONVERGED)
+        np.testing.assert_allclose(np.asarray(got.omega), omega[order], rtol=1e-13, atol=0)
+    newton = jax.jit(jax.vmap(lambda a, g: jd.solve_frequency(tube, a, g)))(
+        jnp.asarray(alpha), jnp.asarray(1.02 * omega[:, 0]))
+    assert np.all(np.asarray(newton.status) == Status.CONVERGED)
+    np.testing.assert_allclose(np.asarray(newton.omega), omega[:, 0], rtol=1e-13, atol=0)
+    critical = jax.jit(jax.vmap(lambda a: jd.solve_critical_voltage(tube, a)))(jnp.asarray(alpha))
+    alone = _stacked([jd.solve_critical_voltage(tube, float(a)) for a in alpha[::20]])
+    _assert_roots_equal(jax.tree_util.tree_map(lambda x: x[::20], critical), alone)
