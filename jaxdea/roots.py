@@ -617,34 +617,46 @@ class Residual(NamedTuple):
         return _residual(x, *params, self.n_layers, self.order, self.unknown, self.family)
 
 
-def one_point_at_a_time(solve, *args):
+def one_point_at_a_time(solve, *args, along=None, vectorised=False):
     """``solve(*args)`` (a solver of one case, values only), whose ``jax.vmap`` on the CPU solves the
     points of the batch one after another (``lax.map``, like :func:`jaxdea.sweep`) instead of
-    vectorising its while loops.
+    vectorising its while loops, or solves the whole batch with an engine of ``along``.
 
     A vectorised root search runs every point of the batch for as many chunks and iterations as
     the slowest one needs: over 200 α̂ the vectorised scan took 1.8–2.7 times as long as the same
     points one by one, and the critical voltages 1.6 times (benchmarks/vmap_idiom.py). The Newton
-    of :func:`frequency` stays vectorised (its points take alike few iterations, and the
-    vectorised batch was twice as fast as the points one by one). A batch of points is mapped, the
+    of :func:`frequency` stays vectorised (``vectorised``: its points take alike few iterations,
+    and the vectorised batch was twice as fast as the points one by one). A batch of points is mapped, the
     arguments that are not batched held fixed; nested vmaps map again (the body holds the same
     function). On other backends, whose vector units a batch fills, the batch is vectorised
     (``jax.vmap`` of ``solve``), as the sweep does there. ``jax.custom_batching.custom_vmap`` has
     no reverse mode: it holds the values only, inside the implicit derivatives' ``custom_jvp``
-    (:func:`_with_derivatives`). Concrete arguments call ``solve`` itself (its cached program)."""
+    (:func:`_with_derivatives`). Concrete arguments call ``solve`` itself (its cached program).
+
+    ``along(in_batched)`` (optional, :func:`along_alpha`): a solver of the whole batch for the
+    argument pattern ``in_batched`` (a pytree of bools per argument), or None where the batch is
+    mapped; its result must be that of the points solved alone. An outer vmap maps it, batch by
+    batch. ``vectorised``: a batch that ``along`` does not take is vectorised (``jax.vmap`` of
+    ``solve``) on every backend, not mapped (:func:`frequency`'s Newton)."""
     if not any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(args)):
         return solve(*args)
-    return _mapped_over_batches(solve)(*args)
+    return _mapped_over_batches(solve, along, vectorised)(*args)
 
 
-def _mapped_over_batches(solve):
-    """``custom_vmap`` of ``solve`` whose rule maps it over the batch (:func:`one_point_at_a_time`)."""
+def _mapped_over_batches(solve, along=None, vectorised=False):
+    """``custom_vmap`` of ``solve`` whose rule maps it over the batch (:func:`one_point_at_a_time`),
+    or hands the batch to ``along``'s engine, or vectorises it (``vectorised``)."""
     mapped = jax.custom_batching.custom_vmap(lambda *args: solve(*args))
 
     @mapped.def_vmap
     def rule(axis_size, in_batched, *args):
         del axis_size
-        if jax.default_backend() != "cpu":
+        engine = None
+        if jax.default_backend() == "cpu" and along is not None:
+            engine = along(list(in_batched))
+        if engine is not None:
+            out = _mapped_over_batches(engine)(*args)
+        elif vectorised or jax.default_backend() != "cpu":
             axes = jax.tree_util.tree_map(lambda b: 0 if b else None, list(in_batched))
             out = jax.vmap(solve, in_axes=tuple(axes))(*args)
         else:
@@ -660,6 +672,28 @@ def _mapped_over_batches(solve):
         return out, jax.tree_util.tree_map(lambda _: True, out)
 
     return mapped
+
+
+BATCH_ENGINES = {}
+"""Solvers of a whole batch of α̂ with every other argument shared, by the name of the solver whose
+points they solve (``"frequencies"``, ``"critical_voltage"``): ``engine(*args, **static)`` of that
+solver's arguments, α̂ of shape (M,). :mod:`jaxdea.curves` holds the continuation along α̂ and
+registers them (it imports this module, so this module cannot import it); :func:`along_alpha`
+looks them up when a batch is traced."""
+
+
+def along_alpha(name, batchable=(1,), **static):
+    """The ``along`` of :func:`one_point_at_a_time` for the solver ``name``: its engine of
+    :data:`BATCH_ENGINES` (with the keywords ``static``) where the batched arguments are among the
+    positions ``batchable`` (α̂, the second argument, by default; α̂ and the guess for
+    :func:`frequency`), the tube, fluid and m shared; None (map the points) otherwise."""
+    def along(in_batched):
+        batched = {k for k, flags in enumerate(in_batched) if any(jax.tree_util.tree_leaves(flags))}
+        if name not in BATCH_ENGINES or not batched <= set(batchable):
+            return None
+        return functools.partial(BATCH_ENGINES[name], **static)
+
+    return along
 
 
 def _with_derivatives(roots: Roots, params, n_layers, order, unknown="omega",
@@ -825,17 +859,31 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
     tube, alpha, fluid, omega_max, m = canonical(tube, alpha, fluid, omega_max, m)
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, n_roots, m)
     values = detached((tube, alpha, fluid, omega_max))
+    along = None  # a batch over α̂ alone: continued along α̂ (jaxdea.curves), not the paper's coupling
+    if fluid is None or fluid.coupling == "acoustic":
+        along = along_alpha("frequencies", n_roots=n_roots, n_layers=layers, order=order,
+                            family=family, decoupled=_decoupled(tube, family))
     if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
         solve = functools.partial(_solve_frequencies, n_roots=n_roots, n_layers=layers, order=order)
-        roots = one_point_at_a_time(solve, *values)
+        roots = one_point_at_a_time(solve, *values, along=along)
     else:
         def solve(tube, alpha, fluid, omega_max, m):
             return _solve_frequencies(tube, alpha, fluid, omega_max, n_roots, layers, order, m,
                                       family)
 
-        roots = one_point_at_a_time(solve, *values, detached(m))
+        roots = one_point_at_a_time(solve, *values, detached(m), along=along)
     return inaccurate_where(short, _with_derivatives(roots, (tube, alpha, fluid, m), layers, order,
                                                      "omega", family))
+
+
+def _decoupled(tube, family):
+    """The propagation of a continuation along α̂ (:func:`jaxdea.curves.curve_unchecked`): the 4×4
+    one (True) for a concrete V̂ = 0 of the axisymmetric family, the 6×6 one (False) for another or
+    a traced V̂, each point's choice (None) off that family."""
+    if family != LONGITUDINAL:
+        return None
+    voltage = tube.voltage
+    return False if isinstance(voltage, jax.core.Tracer) else bool(np.all(np.asarray(voltage) == 0))
 
 
 def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
@@ -915,10 +963,18 @@ def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
     tube, alpha, guess, fluid, m = canonical(tube, alpha, guess, fluid, m)
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, m=m)
     values = detached((tube, alpha, guess, fluid))
+    along = None  # a batch over α̂ and the guess alone: the curves' lanes (jaxdea.curves), any other
+    if fluid is None or fluid.coupling == "acoustic":  # vectorised as before
+        along = along_alpha("frequency", (1, 2), n_layers=layers, order=order, family=family,
+                            decoupled=_decoupled(tube, family))
     if family == LONGITUDINAL:
-        roots = _solve_frequency(*values, layers, order)
+        solve = functools.partial(_solve_frequency, n_layers=layers, order=order)
+        roots = one_point_at_a_time(solve, *values, along=along, vectorised=True)
     else:
-        roots = _solve_frequency(*values, layers, order, detached(m), family)
+        def solve(tube, alpha, guess, fluid, m):
+            return _solve_frequency(tube, alpha, guess, fluid, layers, order, m, family)
+
+        roots = one_point_at_a_time(solve, *values, detached(m), along=along, vectorised=True)
     return inaccurate_where(short, _with_derivatives(roots, (tube, alpha, fluid, m), layers, order,
                                                      "omega", family))
 
@@ -1014,27 +1070,31 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, m=m, at_rest=True)
     values = detached((tube, alpha, fluid))
+    # a batch over α̂ alone: continued along α̂ (jaxdea.curves); fluids (which do not change V̂_cr) mapped
+    along = along_alpha("critical_voltage", n_layers=layers, family=family) if fluid is None else None
     if family == LONGITUDINAL:
         solve = functools.partial(_solve_critical_voltage, n_layers=layers, order=order)
-        roots = Roots(*one_point_at_a_time(solve, *values))
+        roots = Roots(*one_point_at_a_time(solve, *values, along=along))
     else:
         def solve(tube, alpha, fluid, m):
             return _solve_critical_voltage(tube, alpha, fluid, layers, order, m=m, family=family)
 
-        roots = Roots(*one_point_at_a_time(solve, *values, detached(m)))
+        roots = Roots(*one_point_at_a_time(solve, *values, detached(m), along=along))
     return inaccurate_where(short, _with_derivatives(roots, (tube, alpha, fluid, m), layers, order,
                                                      "voltage", family))
 
 
-def critical_function(tube, alpha, fluid, n_layers, order, v_end=None, m=0.0, family=LONGITUDINAL):
+def critical_function(tube, alpha, fluid, n_layers, order, v_end=None, m=0.0, family=LONGITUDINAL,
+                      expansion=None):
     """(ok, g, v_end): g(V̂) = f(Ω = 0; V̂), whose first zero in (0, v_end] is the critical voltage
     (traceable; ``v_end`` None: the pull-in limit), and ``ok`` for the case. The wall at each V̂ is
-    formed from its expansion in V̂; on a Magnus wall the generators are polynomials in V̂, formed
-    here once (:func:`critical_voltage_unchecked`)."""
+    formed from its expansion in V̂ (``expansion``: already formed for this tube, or None); on a
+    Magnus wall the generators are polynomials in V̂, formed here once
+    (:func:`critical_voltage_unchecked`)."""
     ok, tube, alpha, fluid = _guard_order(tube.replace(voltage=0.0), alpha, fluid, m, family)
     v_end = voltage_limit(tube) if v_end is None else as_float(v_end)
 
-    expansion = voltage_expansion(tube, n_layers)
+    expansion = voltage_expansion(tube, n_layers) if expansion is None else expansion
     m_safe = jnp.where(ok, as_float(m), 0.0)
     magnus = split_layers(n_layers)[1] != "midpoint"
     if magnus:  # the generators as polynomials in V̂, formed once (the midpoint laminate's are h M)
@@ -1061,7 +1121,7 @@ def critical_function(tube, alpha, fluid, n_layers, order, v_end=None, m=0.0, fa
 
 
 def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=32, v_end=None, m=0.0,
-                               family=LONGITUDINAL):
+                               family=LONGITUDINAL, expansion=None):
     """(V̂_cr, status) for one case (traceable); see :func:`critical_voltage`.
 
     :func:`_first_root` over (0, V̂_lim] with step V̂_lim/``n_grid``: the chunked scan with Hermite
@@ -1077,9 +1137,11 @@ def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=32, v
     generators are formed once, as polynomials in V̂ (:func:`jaxdea.transfer.voltage_generators`,
     on the circle of radius ``v_end``), and each V̂ sums them (one critical voltage of the paper's
     tube 2.1 → 0.8× the time of the paper's laminate; V̂_cr within 1.1e-14 of forming them at each
-    V̂, measured; tests/test_core.py).
+    V̂, measured; tests/test_core.py). ``expansion``: the wall's expansion in V̂ if already formed
+    (:func:`critical_function`).
     """
-    ok, g, v_end = critical_function(tube, alpha, fluid, n_layers, order, v_end, m, family)
+    ok, g, v_end = critical_function(tube, alpha, fluid, n_layers, order, v_end, m, family,
+                                     expansion)
     roots = _first_root(g, v_end / n_grid, v_end)
     empty = (v_end == 0) & (roots.status == Status.NOT_FINITE)  # no range, so no root
     return invalid_where(ok, Roots(roots.omega, jnp.where(empty, Status.NO_ROOT, roots.status)))
