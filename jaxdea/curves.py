@@ -121,21 +121,26 @@ from .params import (
 )
 from .roots import (
     BATCH_ENGINES,
+    VERIFY_ROUNDS,
     Roots,
+    _concrete,
     _order_inputs,
+    _shortfall,
     _with_derivatives,
     critical_function,
     critical_voltage_unchecked,
     default_omega_max,
     inaccurate_where,
     invalid_where,
+    newton_steps,
+    refined_layers,
     scan_roots,
     scan_step,
     scanned_function,
 )
 from .scalar import Status, iterate_lanes, lanes_from_slots, start_lanes, value_and_slope
 from .state_matrix import LONGITUDINAL, ORDER_M
-from .transfer import checked_laminate, discretize, voltage_expansion
+from .transfer import AUTO_SCHEME, Layers, checked_laminate, discretize, is_graded, voltage_expansion
 
 HISTORY = 12  # rows of the predictor (its order chosen per branch, :func:`_extrapolate`)
 SHARE_OF_GAP = 0.25  # a lane may move at most this share of the distance to its neighbours
@@ -600,6 +605,8 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
         curve = _solve_curve(*values, n_roots, layers, order, decoupled=decoupled)
     else:
         curve = _solve_curve(*values, n_roots, layers, order, detached(m), family)
+    if short is None and n_layers is None and is_graded(layers) and _concrete(values, m):
+        curve, short = _checked_curve(curve, layers, values, n_roots, order, m, family)
     curve = curve._replace(status=inaccurate_where(short, Roots(curve.omega, curve.status)).status)
     if not traced((tube, alpha, fluid, m)):
         # concrete inputs carry no tangents: the implicit derivatives would leave the values as
@@ -612,6 +619,48 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
     # custom-derivative constants (AssertionError: non-canonical constant of type ndarray)
     return curve._replace(alpha=alpha, omega=with_derivatives(curve.omega, curve.status,
                                                               jnp.asarray(alpha)))
+
+
+CHECKED_POINTS = 9
+"""Points of a concrete default curve (evenly spread, both ends) whose roots are checked."""
+
+
+def sampled_newton_steps(tube, alphas, fluid, omegas, n_layers, order, m=0.0, family=LONGITUDINAL):
+    """:func:`jaxdea.roots.newton_steps` at each (α̂, its roots) of a curve's sampled points."""
+    return jax.vmap(lambda a, w: newton_steps(tube, a, fluid, w, n_layers, order, m, family))(
+        alphas, omegas)
+
+
+_sampled_steps = cached_jit(sampled_newton_steps, static_argnames=("n_layers", "order", "family"))
+
+
+def _checked_curve(curve, layers, values, n_roots, order, m, family):
+    """(curve, short): a concrete default curve checked like the points of
+    :func:`jaxdea.solve_frequencies` (:func:`jaxdea.roots._verified`), at CHECKED_POINTS of its
+    points (the error varies smoothly along α̂): one Newton step per root on the wall of N/2
+    sublayers estimates its error; where some exceed 1e-8 the curve is solved again on the finer
+    N they ask for; a root index still short at a checked point is INACCURATE along the curve."""
+    tube, alpha, fluid = values
+    order_args = () if family == LONGITUDINAL else (m, family)
+    pick = np.unique(np.round(np.linspace(0, np.shape(alpha)[0] - 1, CHECKED_POINTS)).astype(int))
+    decoupled = (family == LONGITUDINAL
+                 and bool(np.all(np.asarray(tube.voltage) == 0)))
+    for round_ in range(VERIFY_ROUNDS + 1):
+        coarse = Layers(layers.count // 2, AUTO_SCHEME, True)
+        sampled = Roots(curve.omega[pick], curve.status[pick])
+        steps = _sampled_steps(tube, jnp.asarray(alpha)[pick], fluid, sampled.omega, coarse, order,
+                               *order_args)
+        ratio = _shortfall(sampled, steps)
+        finer = refined_layers(layers, ratio) if round_ < VERIFY_ROUNDS else None
+        if finer is None:
+            break
+        layers = finer
+        if family == LONGITUDINAL:
+            curve = _solve_curve(*values, n_roots, layers, order, decoupled=decoupled)
+        else:
+            curve = _solve_curve(*values, n_roots, layers, order, m, family)
+    short = np.broadcast_to(np.any(ratio > 1.0, axis=0), np.shape(curve.omega))
+    return curve, (short if short.any() else None)
 
 
 def critical_path_unchecked(tubes, alphas, abscissa, starts, orders, n_layers, family=ORDER_M,

@@ -88,8 +88,14 @@ from .scalar import (
 )
 from .state_matrix import LONGITUDINAL, ORDER_M
 from .transfer import (
+    AUTO_SCHEME,
+    DEFAULT_RTOL,
+    LAYER_COUNTS,
+    Layers,
     Wall,
     checked_laminate,
+    is_graded,
+    scheme_order,
     discretize,
     laminate,
     split_layers,
@@ -863,7 +869,9 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
     if fluid is None or fluid.coupling == "acoustic":
         along = along_alpha("frequencies", n_roots=n_roots, n_layers=layers, order=order,
                             family=family, decoupled=_decoupled(tube, family))
-    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
+    if short is None and n_layers is None and is_graded(layers) and _concrete(values, m):
+        layers, roots, short = _verified(layers, *values, n_roots, order, m, family)
+    elif family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
         solve = functools.partial(_solve_frequencies, n_roots=n_roots, n_layers=layers, order=order)
         roots = one_point_at_a_time(solve, *values, along=along)
     else:
@@ -876,6 +884,99 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
                                                      "omega", family))
 
 
+def _concrete(*args) -> bool:
+    """Whether no leaf of ``args`` is a tracer (a call outside any jit, vmap or grad of them)."""
+    return not any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(args))
+
+
+VERIFY_ROUNDS = 3
+"""Refinements :func:`_verified` tries before it calls a root INACCURATE."""
+VERIFY_MARGIN = 2.0
+"""A refined N aims at DEFAULT_RTOL / VERIFY_MARGIN (the estimate's own spread)."""
+
+
+def newton_steps(tube, alpha, fluid, omegas, n_layers, order, m=0.0, family=LONGITUDINAL):
+    """−f(Ω)/f'(Ω) at each Ω of ``omegas`` on the laminate ``n_layers``: to first order the
+    distance from Ω to that laminate's root (one evaluation with its forward-mode slope per Ω)."""
+    if family == LONGITUDINAL:
+        ok, tube, alpha, fluid = guard(tube, alpha, fluid)
+    else:
+        ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
+    _, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
+    finite = jnp.isfinite(omegas) & ok
+
+    def step(omega):
+        value, slope = jax.jvp(fun, (omega,), (jnp.ones_like(omega),))
+        return -value / slope
+
+    return jnp.where(finite, jax.vmap(step)(jnp.where(finite, omegas, 1.0)), jnp.nan)
+
+
+def checked_frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, order, m=0.0,
+                                  family=LONGITUDINAL):
+    """(roots, steps): :func:`frequencies_unchecked` on ``n_layers`` (graded sixth-order Magnus)
+    and :func:`newton_steps` from its roots on the wall of half as many sublayers, in one program
+    (the check of :func:`_verified`)."""
+    roots = frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, order, m, family)
+    coarse = Layers(n_layers.count // 2, n_layers.scheme, True)
+    return roots, newton_steps(tube, alpha, fluid, roots.omega, coarse, order, m, family)
+
+
+_solve_checked_frequencies = cached_jit(checked_frequencies_unchecked,
+                                        static_argnames=("n_roots", "n_layers", "order", "family"))
+
+
+def _shortfall(roots: Roots, steps):
+    """Per root, estimated error / (DEFAULT_RTOL·Ω) of the default discretisation's roots.
+
+    The graded sixth-order Magnus roots converge as Ω_N = Ω + c N⁻⁶ + … (:mod:`jaxdea.accuracy`),
+    so Ω_{N/2} − Ω_N ≈ (2⁶ − 1)(Ω_N − Ω): one Newton step on the wall of N/2 sublayers from each
+    root (``steps``, :func:`newton_steps`) gives Ω_{N/2} − Ω_N to first order, and error ≈
+    |step|/63. A step that is not finite gives ratio ∞; a root that did not converge, 0."""
+    omega, status, steps = np.asarray(roots.omega), np.asarray(roots.status), np.asarray(steps)
+    error = np.abs(steps) / (2.0 ** scheme_order(AUTO_SCHEME) - 1.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(np.isfinite(steps), error / (DEFAULT_RTOL * np.abs(omega)), np.inf)
+    return np.where(status == Status.CONVERGED, ratio, 0.0)
+
+
+def refined_layers(layers: Layers, ratio):
+    """The finer default discretisation that the estimated errors ``ratio`` (:func:`_shortfall`)
+    ask for: N' ≥ N (VERIFY_MARGIN·max ratio)^(1/6) from :data:`LAYER_COUNTS` (2N where a root
+    was lost on the coarse wall), or None where every root meets DEFAULT_RTOL or N is at its cap."""
+    worst = float(np.max(ratio, initial=0.0))
+    if worst <= 1.0 or layers.count >= LAYER_COUNTS[-1]:
+        return None
+    need = 2.0 * layers.count if np.isinf(worst) else layers.count * (VERIFY_MARGIN * worst) ** (1 / 6)
+    return Layers(next((c for c in LAYER_COUNTS if c >= need), LAYER_COUNTS[-1]), AUTO_SCHEME, True)
+
+
+def _verified(layers, tube, alpha, fluid, omega_max, n_roots, order, m, family):
+    """(layers, roots, short): the roots of the default discretisation, checked as they are solved.
+
+    The rule of :func:`jaxdea.transfer.required_layers` sees the wall's lengths, α̂, K and m but
+    not the state: a thick inflated wall (η = 0.4, λ_i = 1.3, G = 10) needs N = 38 for its 8th root
+    where the rule gives 24 (1.2e-7 off; benchmarks/layer_errors_results.md). So a concrete call
+    estimates the error of its roots (:func:`_shortfall`) and, where it exceeds DEFAULT_RTOL,
+    solves again on N' ≥ N (VERIFY_MARGIN·ratio)^(1/6) (from :data:`LAYER_COUNTS`), at most
+    VERIFY_ROUNDS times; roots still short are INACCURATE (``short``). Where the rule sufficed, the
+    roots are those of N."""
+    order_args = () if family == LONGITUDINAL else (m, family)
+    roots, steps = _solve_checked_frequencies(tube, alpha, fluid, omega_max, n_roots, layers, order,
+                                              *order_args)
+    ratio = _shortfall(roots, steps)
+    for _ in range(VERIFY_ROUNDS):
+        finer = refined_layers(layers, ratio)
+        if finer is None:
+            break
+        layers = finer
+        roots, steps = _solve_checked_frequencies(tube, alpha, fluid, omega_max, n_roots, layers,
+                                                  order, *order_args)
+        ratio = _shortfall(roots, steps)
+    short = ratio > 1.0
+    return layers, roots, (short if short.any() else None)
+
+
 def _decoupled(tube, family):
     """The propagation of a continuation along α̂ (:func:`jaxdea.curves.curve_unchecked`): the 4×4
     one (True) for a concrete V̂ = 0 of the axisymmetric family, the 6×6 one (False) for another or
@@ -884,6 +985,27 @@ def _decoupled(tube, family):
         return None
     voltage = tube.voltage
     return False if isinstance(voltage, jax.core.Tracer) else bool(np.all(np.asarray(voltage) == 0))
+
+
+@cached_jit(static_argnames=("n_layers", "order", "family"))
+def follow_roots(tube, alpha, fluid, guesses, n_layers, order, m=0.0, family=LONGITUDINAL):
+    """Safeguarded Newton from each guess on the laminate of ``n_layers`` sublayers (one lane
+    per root, steps capped at a quarter of the scan step, as in :func:`jaxdea.solve_frequency`).
+    ``family`` (static) and ``m`` (traced): the mode family, as in :func:`jaxdea.frequencies`."""
+    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
+        ok, tube, alpha, fluid = guard(tube, alpha, fluid)
+    else:
+        ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
+    wall, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
+    finite = jnp.isfinite(guesses) & ok
+    start = jnp.where(finite, guesses, 1.0)
+    nan = jnp.full_like(start, jnp.nan)
+    cap = jnp.full_like(start, 0.25 * scan_step(wall, fluid, family))
+    lanes = start_lanes(start, start, nan, nan, nan, nan, jnp.where(finite, 3, 0), max_step=cap,
+                        pairs=False)
+    roots, _, status = run_lanes(fun, lanes)
+    status = jnp.where(finite, status, Status.NO_ROOT)
+    return jnp.where(status == Status.CONVERGED, roots, jnp.nan), status
 
 
 def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
