@@ -1,21 +1,26 @@
 """``jax.vmap`` of the solvers against the other ways of solving the same batch, side by side.
 
-    python3 benchmarks/vmap_idiom.py [--points 200] [--repeats 3]
+    python3 benchmarks/vmap_idiom.py [--points 200] [--repeats 5]
 
 Batch: ``points`` α̂ in [0.01, 5] of the tube Tube(voltage=0, lambda_i=1, lambda_z=1, eta=0.85),
-4 roots each. For each solver the row gives, in seconds (best of ``repeats``, the calls of one
-round run one after another, so that a changing load hits them alike):
+4 roots each. For each solver the row gives, in seconds, the best and the median of ``repeats``
+(the calls of one round run one after another, so that a changing load hits them alike):
 
-* **vmap**: ``jax.jit(jax.vmap(...))`` of the public function, what a user writes;
+* **vmap**: ``jax.jit(jax.vmap(...))`` of the public function, what a user writes (a batch over
+  α̂ alone is continued along α̂ by :func:`jaxdea.curves.frequencies_along` and
+  :func:`jaxdea.curves.critical_voltages_along`);
 * **vectorised**: ``jax.jit(jax.vmap(...))`` of the solver's program itself, every while loop
-  vectorised lane by lane (the public functions' batching before they mapped the points);
+  vectorised lane by lane;
 * **lax.map**: ``jax.jit`` of ``jax.lax.map`` of the public function, one point after another;
-* for ``frequencies`` also ``jaxdea.sweep`` of the same points and ``jaxdea.dispersion_curve``
-  along them (continuation).
+* **sweep** (``frequencies``): ``jaxdea.sweep`` of the same points;
+* **continuation**: the fastest way the library has to the same answer: ``jaxdea.dispersion_curve``
+  along the points for ``frequencies`` and ``frequency`` (its 4 roots against the one root of
+  ``frequency``), the critical-voltage path of the figures (``jaxdea.curves.critical_path_unchecked``,
+  compiled by ``_solve_critical_path``) for ``critical_voltage``.
 
 ``frequency`` starts Newton at 1.02 times the lowest root of each point. The last columns are the
-ratio of vmap to the best of lax.map and sweep, to ``dispersion_curve``, and of the vectorised
-program to vmap; the heading gives the load averages at the end of the run.
+ratios of vmap to the continuation (best and median) and to the best of lax.map and sweep, and of
+the vectorised program to vmap; the heading gives the load averages at the end of the run.
 """
 
 from __future__ import annotations
@@ -31,8 +36,9 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 import jaxdea as jd  # noqa: E402
-from jaxdea import roots  # noqa: E402
+from jaxdea import curves, roots  # noqa: E402
 from jaxdea.params import canonical  # noqa: E402
+from jaxdea.state_matrix import LONGITUDINAL  # noqa: E402
 from jaxdea.transfer import laminate  # noqa: E402
 
 jd.configure()  # the disk cache and XLA's loop threshold, as the CLI runs
@@ -64,6 +70,15 @@ def workloads(alpha):
     def critical_voltage(x):
         return jd.critical_voltage(TUBE, x)
 
+    def critical_path():  # the figures' path along α̂ (the public call's laminate)
+        layers = laminate(None, None, tube, a, at_rest=True)
+        tubes = jax.tree_util.tree_map(lambda v: jnp.full(a.shape, v), tube)
+        return curves._solve_critical_path(tubes, a, a, jnp.zeros(a.shape, bool), jnp.zeros(a.shape),
+                                           layers, LONGITUDINAL)[0]
+
+    def curve():
+        return jd.dispersion_curve(TUBE, alpha, n_roots=N_ROOTS).omega
+
     def vmapped(fun, *args):
         compiled = jax.jit(jax.vmap(fun))
         return lambda: compiled(*args)
@@ -78,16 +93,18 @@ def workloads(alpha):
             "vectorised": vmapped(vectorised_frequencies, a),
             "lax.map": mapped(frequencies, a),
             "sweep": lambda: jd.sweep(TUBE, alpha=alpha, n_roots=N_ROOTS, progress=False).omega,
-            "dispersion_curve": lambda: jd.dispersion_curve(TUBE, alpha, n_roots=N_ROOTS).omega,
+            "continuation": curve,
         },
         "frequency": {
             "vmap": vmapped(frequency, a, guess),
             "lax.map": mapped(frequency, a, guess),
+            "continuation": curve,
         },
         "critical_voltage": {
             "vmap": vmapped(critical_voltage, a),
             "vectorised": vmapped(vectorised_critical_voltage, a),
             "lax.map": mapped(critical_voltage, a),
+            "continuation": critical_path,
         },
     }
 
@@ -99,33 +116,36 @@ def timed(call):
 
 
 def measure(calls, repeats):
-    """{path: (first call s, best of ``repeats`` s)}, the paths alternating within each round."""
+    """{path: (first call s, best s, median s of ``repeats``)}, the paths alternating within each
+    round."""
     first = {name: timed(call) for name, call in calls.items()}
-    best = dict.fromkeys(calls, np.inf)
+    times = {name: [] for name in calls}
     for _ in range(repeats):
         for name, call in calls.items():
-            best[name] = min(best[name], timed(call))
-    return {name: (first[name], best[name]) for name in calls}
+            times[name].append(timed(call))
+    return {name: (first[name], min(times[name]), float(np.median(times[name]))) for name in calls}
 
 
 def table(results, points, load):
-    paths = ["vmap", "vectorised", "lax.map", "sweep", "dispersion_curve"]
-    cell = lambda t: "–" if t is None else f"{t:.3f}"  # noqa: E731
-    lines = [f"vmap idiom, {points} α̂ × {N_ROOTS} roots (best of the repeats, seconds; first call "
-             f"with compilation in parentheses); load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}",
+    paths = ["vmap", "vectorised", "lax.map", "sweep", "continuation"]
+    lines = [f"vmap idiom, {points} α̂ × {N_ROOTS} roots (seconds: best / median of the repeats, first "
+             f"call with compilation in parentheses); load average "
+             f"{load[0]:.2f} {load[1]:.2f} {load[2]:.2f}",
              "",
-             "| solver | batch | " + " | ".join(paths) + " | vmap / best other | vmap / curve "
-             "| vectorised / vmap |",
+             "| solver | batch | " + " | ".join(paths) + " | vmap / continuation (best, median) "
+             "| vmap / best other | vectorised / vmap |",
              "|" + "---|" * (len(paths) + 5)]
     for solver, res in results.items():
         best = {k: v[1] for k, v in res.items()}
+        median = {k: v[2] for k, v in res.items()}
         others = [t for k, t in best.items() if k in ("lax.map", "sweep")]
         row = [solver, str(points)]
-        row += [("–" if k not in res else f"{res[k][1]:.3f} ({res[k][0]:.1f})") for k in paths]
-        row.append(f"{best['vmap'] / min(others):.2f}")
-        row.append(f"{best['vmap'] / best['dispersion_curve']:.1f}" if "dispersion_curve" in best
-                   else cell(None))
-        row.append(f"{best['vectorised'] / best['vmap']:.2f}" if "vectorised" in best else cell(None))
+        row += [("–" if k not in res else f"{res[k][1]:.4f} / {res[k][2]:.4f} ({res[k][0]:.1f})")
+                for k in paths]
+        row.append(f"{best['vmap'] / best['continuation']:.2f}, "
+                   f"{median['vmap'] / median['continuation']:.2f}")
+        row.append(f"{best['vmap'] / min(others):.3f}")
+        row.append(f"{best['vectorised'] / best['vmap']:.1f}" if "vectorised" in best else "–")
         lines.append("| " + " | ".join(row) + " |")
     return "\n".join(lines)
 
@@ -133,7 +153,7 @@ def table(results, points, load):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--points", type=int, default=200)
-    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--only", choices=["frequencies", "frequency", "critical_voltage"],
                         action="append", help="measure only these solvers (repeatable)")
     args = parser.parse_args()

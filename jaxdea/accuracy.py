@@ -43,14 +43,13 @@ N = 30 there (measured with a geometric grading: ratios 3.99, 4.00, 4.00).
 
 from typing import NamedTuple
 
-import jax.numpy as jnp
 import numpy as np
 
-from .compiled import cached_jit, serializable
+from .compiled import serializable
 from .params import Fluid, Tube, canonical, validate_layers, validate_roots
-from .roots import _guard_order, _order_inputs, _problem, guard, scan_step, solve_frequencies
+from .roots import _order_inputs, follow_roots, solve_frequencies
+from .scalar import Status
 from .state_matrix import LONGITUDINAL
-from .scalar import Status, run_lanes, start_lanes
 from .transfer import Layers, is_graded, laminate, scheme_order, split_layers
 
 
@@ -75,27 +74,6 @@ class Estimate(NamedTuple):
     status: np.ndarray
     levels: np.ndarray
     n_layers: np.ndarray
-
-
-@cached_jit(static_argnames=("n_layers", "order", "family"))
-def _follow(tube, alpha, fluid, guesses, n_layers, order, m=0.0, family=LONGITUDINAL):
-    """Safeguarded Newton from each guess on the laminate of ``n_layers`` sublayers (one lane
-    per root, steps capped at a quarter of the scan step, as in :func:`jaxdea.solve_frequency`).
-    ``family`` (static) and ``m`` (traced): the mode family, as in :func:`jaxdea.frequencies`."""
-    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
-        ok, tube, alpha, fluid = guard(tube, alpha, fluid)
-    else:
-        ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
-    wall, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
-    finite = jnp.isfinite(guesses) & ok
-    start = jnp.where(finite, guesses, 1.0)
-    nan = jnp.full_like(start, jnp.nan)
-    cap = jnp.full_like(start, 0.25 * scan_step(wall, fluid, family))
-    lanes = start_lanes(start, start, nan, nan, nan, nan, jnp.where(finite, 3, 0), max_step=cap,
-                        pairs=False)
-    roots, _, status = run_lanes(fun, lanes)
-    status = jnp.where(finite, status, Status.NO_ROOT)
-    return jnp.where(status == Status.CONVERGED, roots, jnp.nan), status
 
 
 def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
@@ -153,7 +131,7 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
     layers = [count]
     while True:
         n = 2 * layers[-1]
-        omega, stat = (np.asarray(x) for x in _follow(tube, alpha, fluid, levels[-1], level(n),
+        omega, stat = (np.asarray(x) for x in follow_roots(tube, alpha, fluid, levels[-1], level(n),
                                                       order, *order_args))
         status = np.where(status == Status.CONVERGED, stat, status)
         levels.append(omega)

@@ -84,6 +84,12 @@ more than ρ_k from its prediction: the k-th root changed branch there.
 Inside ``jax.vmap`` the fallback (a ``lax.cond``) turns
 into a select that runs the scan at every step: vmap the curve only where few steps would succeed
 anyway, and loop in Python (or use :func:`jaxdea.sweep`) otherwise.
+
+The other way round, ``jax.vmap`` of :func:`jaxdea.frequencies` or :func:`jaxdea.critical_voltage`
+over α̂ alone (the tube and the rest shared) is a curve: their batching rule
+(:func:`jaxdea.roots.one_point_at_a_time`) hands the batch to :func:`frequencies_along` or
+:func:`critical_voltages_along`, which continue along it where it is ordered and scan each point
+where it is not; every point gets the roots it gets alone, to rounding.
 """
 
 from typing import NamedTuple
@@ -92,6 +98,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .base_state import voltage_limit
 from .compiled import cached_jit, serializable
 from .dispersion import (
     characteristic_on_wall,
@@ -113,18 +120,27 @@ from .params import (
     validate_roots,
 )
 from .roots import (
+    BATCH_ENGINES,
+    VERIFY_ROUNDS,
     Roots,
+    _concrete,
     _order_inputs,
+    _shortfall,
     _with_derivatives,
     critical_function,
     critical_voltage_unchecked,
+    default_omega_max,
     inaccurate_where,
+    invalid_where,
+    newton_steps,
+    refined_layers,
     scan_roots,
+    scan_step,
     scanned_function,
 )
-from .scalar import Status, iterate_lanes, lanes_from_slots, value_and_slope
+from .scalar import Status, iterate_lanes, lanes_from_slots, start_lanes, value_and_slope
 from .state_matrix import LONGITUDINAL, ORDER_M
-from .transfer import checked_laminate, discretize
+from .transfer import AUTO_SCHEME, Layers, checked_laminate, discretize, is_graded, voltage_expansion
 
 HISTORY = 12  # rows of the predictor (its order chosen per branch, :func:`_extrapolate`)
 SHARE_OF_GAP = 0.25  # a lane may move at most this share of the distance to its neighbours
@@ -237,7 +253,7 @@ def _track(fun, pred, curvature=None):
     return omega, ok, jnp.where(measured, lanes.curvature[:k], jnp.nan)
 
 
-def _omega_problem(problem, n_roots, m_safe, family, decoupled=None, polys=None):
+def _omega_problem(problem, n_roots, m_safe, family, decoupled=None, polys=None, omega_max=None):
     """The callables of :func:`_follow` for the K lowest roots in Ω of ``problem(x, s)`` = (wall, α̂,
     fluid, Bessel order) at abscissa s near the point x of a path: (f, f') for the corrector lanes,
     f itself (the tangent's differences) and the guaranteed scan. ``decoupled`` (static,
@@ -245,7 +261,8 @@ def _omega_problem(problem, n_roots, m_safe, family, decoupled=None, polys=None)
     the 4×4 propagation alone (:func:`jaxdea.dispersion.value_and_slope_on_wall`); False: the 6×6
     one alone; None: checked at each point (both compiled). ``polys``: the lanes' generators as
     polynomials in α̂ (:func:`jaxdea.dispersion.generator_polynomials`), where every point has the
-    same wall (a dispersion curve of one tube); None: formed from each point's wall."""
+    same wall (a dispersion curve of one tube); None: formed from each point's wall. ``omega_max``:
+    the scan's search range, as in :func:`jaxdea.frequencies` (None: automatic)."""
     def value(x, s, om):
         wall, a, fluid, order = problem(x, s)
         if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
@@ -266,12 +283,13 @@ def _omega_problem(problem, n_roots, m_safe, family, decoupled=None, polys=None)
         generators = None if polys is None else lane_generators(polys, a)
         fun = scanned_function(wall, a, fluid, order, m_safe, family, decoupled=bool(decoupled),
                                generators=generators)
-        return scan_roots(wall, fun, a, fluid, None, n_roots, m_safe, family, order=order)
+        return scan_roots(wall, fun, a, fluid, omega_max, n_roots, m_safe, family, order=order)
 
     return at, value, search
 
 
-def _follow(at, value, search, points, abscissa, ok_points, starts, n_roots, conservative):
+def _follow(at, value, search, points, abscissa, ok_points, starts, n_roots, conservative,
+            limit=None):
     """The continuation of the module docstring over a path of M points (traceable).
 
     At abscissa s near the point x of ``points`` (a pytree with leading axis M), ``at(x, s)`` is the
@@ -279,7 +297,9 @@ def _follow(at, value, search, points, abscissa, ok_points, starts, n_roots, con
     ``value(x, s, u)`` is f(u) and ``search(x, s)`` the guaranteed search for the K lowest roots
     (:class:`Roots`). ``abscissa`` (M,) is the coordinate the predictor extrapolates in (α̂ on a
     dispersion curve); ``ok_points`` (M,) marks the admissible points and ``starts`` (M,) those
-    where a new curve starts (solved by the search, the history dropped).
+    where a new curve starts (solved by the search, the history dropped). ``limit(x, s)``
+    (optional): the end of the search's range; a step whose roots are not all inside it is solved
+    by the search (which pads the roots above it with NaN).
     Returns (Ω (M, K), status, scanned (M,), restarted (M, K)), ``restarted`` True where a root
     found by the scan is not within ρ_k of its prediction (at the first point, and where the k-th
     root left the branch it followed: a step the continuation could not follow)."""
@@ -336,6 +356,8 @@ def _follow(at, value, search, points, abscissa, ok_points, starts, n_roots, con
             omega, accepted, carry, pred, curvature = jax.lax.cond(
                 tried, lambda: follow(carry, x, s),
                 lambda: (jnp.zeros(n_roots), jnp.array(False), carry, jnp.zeros(n_roots), unknown))
+            if limit is not None:
+                accepted &= jnp.all(omega <= limit(x, s))
         else:  # roots are born in pairs: scan every point (the prediction tells a jump)
             omega, accepted, curvature = jnp.zeros(n_roots), jnp.array(False), unknown
             pred = _extrapolate(*carry[:3], s)
@@ -381,6 +403,15 @@ def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order, m=0.0,
     """The curve for one tube (traceable; the grid ``alpha`` has shape (M,)). ``family`` (static)
     and ``m`` (traced, ``"order_m"``): the mode family, as in :func:`jaxdea.frequencies`; an
     inadmissible m gives INVALID everywhere. ``decoupled`` (static): :func:`_omega_problem`."""
+    return Curve(*_along_alpha(tube, alpha, fluid, n_roots, n_layers, order, m, family, decoupled))
+
+
+def _along_alpha(tube, alpha, fluid, n_roots, n_layers, order, m, family, decoupled, fresh=None,
+                 omega_max=None, bounded=False):
+    """(α̂, Ω, status, scanned) of :func:`curve_unchecked`, with a fresh start (a scan) at every
+    point where ``fresh`` (a scalar) is True; ``bounded`` (static): the roots of a step inside the
+    search range ``omega_max`` (None: :func:`jaxdea.roots.default_omega_max`) or that step is
+    scanned, as the frequencies are (:func:`frequencies_along`)."""
     ok_tube, tube, _, fluid = guard(tube, 1.0, fluid)
     ok_tube, m_safe = _family_order(ok_tube, m, fluid, family)
     alpha = as_float(alpha)
@@ -391,10 +422,72 @@ def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order, m=0.0,
     # (the state matrices and the scheme's products at every step cost as much as the lanes' evaluation)
     polys = generator_polynomials(wall, m_safe, family, decoupled)
     callables = _omega_problem(lambda _, a: (wall, a, fluid, order), n_roots, m_safe, family,
-                               decoupled, polys)
-    omega, status, scanned, _ = _follow(*callables, alpha, alpha, ok_alpha, jnp.zeros(alpha.shape, bool),
-                                        n_roots, conservative)
-    return Curve(alpha, omega, status, scanned)
+                               decoupled, polys, omega_max)
+    limit = None
+    if bounded:
+        def limit(_, a):
+            return default_omega_max(wall, a, n_roots, m_safe) if omega_max is None else omega_max
+    starts = jnp.zeros(alpha.shape, bool) if fresh is None else jnp.full(alpha.shape, fresh)
+    omega, status, scanned, _ = _follow(*callables, alpha, alpha, ok_alpha, starts, n_roots,
+                                        conservative, limit)
+    return alpha, omega, status, scanned
+
+
+def ordered(alpha):
+    """True where the batch ``alpha`` (M,) is finite and strictly monotone (either direction)."""
+    step = jnp.diff(alpha)
+    return jnp.all(jnp.isfinite(alpha)) & (jnp.all(step > 0) | jnp.all(step < 0))
+
+
+def frequencies_along(tube, alpha, fluid, omega_max, m=0.0, *, n_roots, n_layers, order, family,
+                      decoupled) -> Roots:
+    """The roots of :func:`jaxdea.frequencies` at every α̂ of a batch (M,) of one tube and fluid
+    (traceable): ``jax.vmap`` of ``frequencies`` over α̂ alone comes here
+    (:func:`jaxdea.roots.along_alpha`).
+
+    Where the batch is ordered (:func:`ordered`, checked in the program) it is a dispersion curve:
+    the continuation of the module docstring, with one more check, that the roots of a step lie
+    inside the search range (0, omega_max] of ``frequencies`` (a step with a root above it is
+    scanned, and the scan pads with NaN as ``frequencies`` does). Elsewhere every α̂ starts anew:
+    the same scan as a point alone. Equal to the points solved alone to rounding (the scan of a
+    continuation runs on the 4×4 propagation at V̂ = 0, ``decoupled``; tests/test_vmap_rules.py)."""
+    _, omega, status, _ = _along_alpha(tube, alpha, fluid, n_roots, n_layers, order, m, family,
+                                       decoupled, ~ordered(as_float(alpha)), omega_max, bounded=True)
+    return Roots(omega, status)
+
+
+def frequency_along(tube, alpha, guess, fluid, m=0.0, *, n_layers, order, family,
+                    decoupled) -> Roots:
+    """The roots of :func:`jaxdea.frequency` at every (α̂, guess) of a batch (M,) of one tube and
+    fluid (traceable): ``jax.vmap`` of ``frequency`` over α̂ and the guess (either or both) comes
+    here (:func:`jaxdea.roots.along_alpha`).
+
+    The same safeguarded Newton from each guess as a point alone, the points' lanes side by side
+    (vectorised, as the points take alike few iterations), but each (f, f') from the lanes of a
+    curve: the generators formed once as polynomials in α̂ of the one wall, the 4×4 propagation at
+    V̂ = 0 (``decoupled``) and f' carried through the propagation instead of forward mode
+    (:func:`jaxdea.dispersion.value_and_slope_on_wall`). Equal to the points alone to the Newton
+    tolerance (tests/test_vmap_rules.py)."""
+    alpha, guess = jnp.broadcast_arrays(as_float(alpha), as_float(guess))
+    ok, tube, _, fluid = guard(tube, 1.0, fluid)
+    ok, m_safe = _family_order(ok, m, fluid, family)
+    ok = ok & jnp.isfinite(alpha) & (alpha >= ALPHA_MIN) & jnp.isfinite(guess) & (guess > 0)
+    alpha, guess = jnp.where(ok, alpha, 1.0), jnp.where(ok, guess, 1.0)
+    wall = discretize(tube, n_layers)
+    polys = generator_polynomials(wall, m_safe, family, decoupled)
+    step = jnp.reshape(4.0 * scan_step(wall, fluid, family), (1,))  # as roots._solve_frequency
+
+    def newton(a, x):  # one point's lane (the points' loops vectorised by the vmap below)
+        generators = lane_generators(polys, a)
+        nan = jnp.full((1,), jnp.nan)
+        lanes = start_lanes(x[None], x[None], nan, nan, nan, nan, jnp.array([3]), max_step=step,
+                            pairs=False)
+        lanes = iterate_lanes(lambda om: value_and_slope_on_wall(
+            wall, om, a, fluid, order, m_safe, family, decoupled, generators), lanes,
+            with_slope=True)
+        return jnp.where(lanes.status == Status.CONVERGED, lanes.x, jnp.nan)[0], lanes.status[0]
+
+    return invalid_where(ok, Roots(*jax.vmap(newton)(alpha, guess)))
 
 
 _solve_curve = cached_jit(curve_unchecked,
@@ -512,6 +605,8 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
         curve = _solve_curve(*values, n_roots, layers, order, decoupled=decoupled)
     else:
         curve = _solve_curve(*values, n_roots, layers, order, detached(m), family)
+    if short is None and n_layers is None and is_graded(layers) and _concrete(values, m):
+        curve, short = _checked_curve(curve, layers, values, n_roots, order, m, family)
     curve = curve._replace(status=inaccurate_where(short, Roots(curve.omega, curve.status)).status)
     if not traced((tube, alpha, fluid, m)):
         # concrete inputs carry no tangents: the implicit derivatives would leave the values as
@@ -526,7 +621,50 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
                                                               jnp.asarray(alpha)))
 
 
-def critical_path_unchecked(tubes, alphas, abscissa, starts, orders, n_layers, family=ORDER_M):
+CHECKED_POINTS = 9
+"""Points of a concrete default curve (evenly spread, both ends) whose roots are checked."""
+
+
+def sampled_newton_steps(tube, alphas, fluid, omegas, n_layers, order, m=0.0, family=LONGITUDINAL):
+    """:func:`jaxdea.roots.newton_steps` at each (α̂, its roots) of a curve's sampled points."""
+    return jax.vmap(lambda a, w: newton_steps(tube, a, fluid, w, n_layers, order, m, family))(
+        alphas, omegas)
+
+
+_sampled_steps = cached_jit(sampled_newton_steps, static_argnames=("n_layers", "order", "family"))
+
+
+def _checked_curve(curve, layers, values, n_roots, order, m, family):
+    """(curve, short): a concrete default curve checked like the points of
+    :func:`jaxdea.solve_frequencies` (:func:`jaxdea.roots._verified`), at CHECKED_POINTS of its
+    points (the error varies smoothly along α̂): one Newton step per root on the wall of N/2
+    sublayers estimates its error; where some exceed 1e-8 the curve is solved again on the finer
+    N they ask for; a root index still short at a checked point is INACCURATE along the curve."""
+    tube, alpha, fluid = values
+    order_args = () if family == LONGITUDINAL else (m, family)
+    pick = np.unique(np.round(np.linspace(0, np.shape(alpha)[0] - 1, CHECKED_POINTS)).astype(int))
+    decoupled = (family == LONGITUDINAL
+                 and bool(np.all(np.asarray(tube.voltage) == 0)))
+    for round_ in range(VERIFY_ROUNDS + 1):
+        coarse = Layers(layers.count // 2, AUTO_SCHEME, True)
+        sampled = Roots(curve.omega[pick], curve.status[pick])
+        steps = _sampled_steps(tube, jnp.asarray(alpha)[pick], fluid, sampled.omega, coarse, order,
+                               *order_args)
+        ratio = _shortfall(sampled, steps)
+        finer = refined_layers(layers, ratio) if round_ < VERIFY_ROUNDS else None
+        if finer is None:
+            break
+        layers = finer
+        if family == LONGITUDINAL:
+            curve = _solve_curve(*values, n_roots, layers, order, decoupled=decoupled)
+        else:
+            curve = _solve_curve(*values, n_roots, layers, order, m, family)
+    short = np.broadcast_to(np.any(ratio > 1.0, axis=0), np.shape(curve.omega))
+    return curve, (short if short.any() else None)
+
+
+def critical_path_unchecked(tubes, alphas, abscissa, starts, orders, n_layers, family=ORDER_M,
+                            formed=None):
     """The critical voltages V̂_cr (:func:`jaxdea.critical_voltage`) at the M points of a path
     (traceable): the tube ``tubes`` (leaves of shape (M,); their voltage is ignored), α̂ = ``alphas``
     and the circumferential order ``orders`` (M,) of each point (``family`` static), fluid-free
@@ -537,6 +675,9 @@ def critical_path_unchecked(tubes, alphas, abscissa, starts, orders, n_layers, f
     of the module docstring with K = 1 (sign g'(V̂_cr) = −sign g(0): no zero missed below it) hold
     it; g is NaN above the pull-in limit V̂_lim, so a continued V̂_cr never passes it. A step that
     fails the checks is solved by the search of :func:`jaxdea.roots.critical_voltage_unchecked`.
+    ``formed`` (optional, a path whose points share one tube): (the wall's expansion in V̂, the
+    pull-in limit V̂_lim) of that tube (:func:`jaxdea.transfer.voltage_expansion`,
+    :func:`jaxdea.base_state.voltage_limit`), formed once instead of at every evaluation.
     Returns (V̂_cr (M, 1), status, scanned, restarted), as :func:`path_unchecked`."""
     orders = as_float(orders)
     ok, tubes, alphas, _ = jax.vmap(guard)(tubes.replace(voltage=jnp.zeros_like(abscissa)),
@@ -550,14 +691,17 @@ def critical_path_unchecked(tubes, alphas, abscissa, starts, orders, n_layers, f
     def problem(x, s):
         return (*moved(x[0], s), x[1])
 
+    expansion, limit = (None, None) if formed is None else formed
+
     def bounded(x, s):  # g, NaN above the pull-in limit
         tube, a, m = problem(x, s)
-        _, g, v_end = critical_function(tube, a, None, n_layers, 0, None, m, family)
+        _, g, v_end = critical_function(tube, a, None, n_layers, 0, limit, m, family, expansion)
         return lambda v: jnp.where(v <= v_end, g(v), jnp.nan)
 
     def search(x, s):
         tube, a, m = problem(x, s)
-        found = critical_voltage_unchecked(tube, a, None, n_layers, 0, m=m, family=family)
+        found = critical_voltage_unchecked(tube, a, None, n_layers, 0, v_end=limit, m=m, family=family,
+                                           expansion=expansion)
         return Roots(found.omega[None], found.status[None])
 
     return _follow(lambda x, s: (lambda v: value_and_slope(bounded(x, s), v)),
@@ -566,3 +710,24 @@ def critical_path_unchecked(tubes, alphas, abscissa, starts, orders, n_layers, f
 
 
 _solve_critical_path = cached_jit(critical_path_unchecked, static_argnames=("n_layers", "family"))
+
+
+def critical_voltages_along(tube, alpha, fluid, m=0.0, *, n_layers, family) -> Roots:
+    """(V̂_cr, status) of :func:`jaxdea.critical_voltage` at every α̂ of a batch (M,) of one tube
+    (traceable): ``jax.vmap`` of ``critical_voltage`` over α̂ alone comes here, fluid-free
+    (:func:`jaxdea.roots.along_alpha`). :func:`critical_path_unchecked` along α̂ where the batch is
+    ordered (:func:`ordered`, checked in the program); elsewhere every α̂ starts anew with the
+    search of a point alone. The tube's expansion in V̂ and its pull-in limit are formed once."""
+    del fluid  # None: a batch with a fluid is mapped (solve_critical_voltage)
+    alpha = as_float(alpha)
+    _, at_rest, _, _ = guard(tube.replace(voltage=0.0), 1.0, None)  # as critical_function forms it
+    formed = (voltage_expansion(at_rest, n_layers), voltage_limit(at_rest))
+    tubes = jax.tree_util.tree_map(lambda v: jnp.broadcast_to(as_float(v), alpha.shape), tube)
+    voltage, status, _, _ = critical_path_unchecked(
+        tubes, alpha, alpha, jnp.full(alpha.shape, ~ordered(alpha)),
+        jnp.broadcast_to(as_float(m), alpha.shape), n_layers, family, formed)
+    return Roots(voltage[:, 0], status[:, 0])
+
+
+BATCH_ENGINES.update(frequencies=frequencies_along, frequency=frequency_along,
+                     critical_voltage=critical_voltages_along)

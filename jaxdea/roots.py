@@ -88,10 +88,16 @@ from .scalar import (
 )
 from .state_matrix import LONGITUDINAL, ORDER_M
 from .transfer import (
+    AUTO_SCHEME,
+    DEFAULT_RTOL,
+    LAYER_COUNTS,
+    Layers,
     Wall,
     checked_laminate,
     discretize,
+    is_graded,
     laminate,
+    scheme_order,
     split_layers,
     voltage_expansion,
     voltage_exponentials,
@@ -617,34 +623,46 @@ class Residual(NamedTuple):
         return _residual(x, *params, self.n_layers, self.order, self.unknown, self.family)
 
 
-def one_point_at_a_time(solve, *args):
+def one_point_at_a_time(solve, *args, along=None, vectorised=False):
     """``solve(*args)`` (a solver of one case, values only), whose ``jax.vmap`` on the CPU solves the
     points of the batch one after another (``lax.map``, like :func:`jaxdea.sweep`) instead of
-    vectorising its while loops.
+    vectorising its while loops, or solves the whole batch with an engine of ``along``.
 
     A vectorised root search runs every point of the batch for as many chunks and iterations as
     the slowest one needs: over 200 α̂ the vectorised scan took 1.8–2.7 times as long as the same
     points one by one, and the critical voltages 1.6 times (benchmarks/vmap_idiom.py). The Newton
-    of :func:`frequency` stays vectorised (its points take alike few iterations, and the
-    vectorised batch was twice as fast as the points one by one). A batch of points is mapped, the
+    of :func:`frequency` stays vectorised (``vectorised``: its points take alike few iterations,
+    and the vectorised batch was twice as fast as the points one by one). A batch of points is mapped, the
     arguments that are not batched held fixed; nested vmaps map again (the body holds the same
     function). On other backends, whose vector units a batch fills, the batch is vectorised
     (``jax.vmap`` of ``solve``), as the sweep does there. ``jax.custom_batching.custom_vmap`` has
     no reverse mode: it holds the values only, inside the implicit derivatives' ``custom_jvp``
-    (:func:`_with_derivatives`). Concrete arguments call ``solve`` itself (its cached program)."""
+    (:func:`_with_derivatives`). Concrete arguments call ``solve`` itself (its cached program).
+
+    ``along(in_batched)`` (optional, :func:`along_alpha`): a solver of the whole batch for the
+    argument pattern ``in_batched`` (a pytree of bools per argument), or None where the batch is
+    mapped; its result must be that of the points solved alone. An outer vmap maps it, batch by
+    batch. ``vectorised``: a batch that ``along`` does not take is vectorised (``jax.vmap`` of
+    ``solve``) on every backend, not mapped (:func:`frequency`'s Newton)."""
     if not any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(args)):
         return solve(*args)
-    return _mapped_over_batches(solve)(*args)
+    return _mapped_over_batches(solve, along, vectorised)(*args)
 
 
-def _mapped_over_batches(solve):
-    """``custom_vmap`` of ``solve`` whose rule maps it over the batch (:func:`one_point_at_a_time`)."""
+def _mapped_over_batches(solve, along=None, vectorised=False):
+    """``custom_vmap`` of ``solve`` whose rule maps it over the batch (:func:`one_point_at_a_time`),
+    or hands the batch to ``along``'s engine, or vectorises it (``vectorised``)."""
     mapped = jax.custom_batching.custom_vmap(lambda *args: solve(*args))
 
     @mapped.def_vmap
     def rule(axis_size, in_batched, *args):
         del axis_size
-        if jax.default_backend() != "cpu":
+        engine = None
+        if jax.default_backend() == "cpu" and along is not None:
+            engine = along(list(in_batched))
+        if engine is not None:
+            out = _mapped_over_batches(engine)(*args)
+        elif vectorised or jax.default_backend() != "cpu":
             axes = jax.tree_util.tree_map(lambda b: 0 if b else None, list(in_batched))
             out = jax.vmap(solve, in_axes=tuple(axes))(*args)
         else:
@@ -660,6 +678,28 @@ def _mapped_over_batches(solve):
         return out, jax.tree_util.tree_map(lambda _: True, out)
 
     return mapped
+
+
+BATCH_ENGINES = {}
+"""Solvers of a whole batch of α̂ with every other argument shared, by the name of the solver whose
+points they solve (``"frequencies"``, ``"critical_voltage"``): ``engine(*args, **static)`` of that
+solver's arguments, α̂ of shape (M,). :mod:`jaxdea.curves` holds the continuation along α̂ and
+registers them (it imports this module, so this module cannot import it); :func:`along_alpha`
+looks them up when a batch is traced."""
+
+
+def along_alpha(name, batchable=(1,), **static):
+    """The ``along`` of :func:`one_point_at_a_time` for the solver ``name``: its engine of
+    :data:`BATCH_ENGINES` (with the keywords ``static``) where the batched arguments are among the
+    positions ``batchable`` (α̂, the second argument, by default; α̂ and the guess for
+    :func:`frequency`), the tube, fluid and m shared; None (map the points) otherwise."""
+    def along(in_batched):
+        batched = {k for k, flags in enumerate(in_batched) if any(jax.tree_util.tree_leaves(flags))}
+        if name not in BATCH_ENGINES or not batched <= set(batchable):
+            return None
+        return functools.partial(BATCH_ENGINES[name], **static)
+
+    return along
 
 
 def _with_derivatives(roots: Roots, params, n_layers, order, unknown="omega",
@@ -825,17 +865,159 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
     tube, alpha, fluid, omega_max, m = canonical(tube, alpha, fluid, omega_max, m)
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, n_roots, m)
     values = detached((tube, alpha, fluid, omega_max))
-    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
+    along = None  # a batch over α̂ alone: continued along α̂ (jaxdea.curves), not the paper's coupling
+    if fluid is None or fluid.coupling == "acoustic":
+        along = along_alpha("frequencies", n_roots=n_roots, n_layers=layers, order=order,
+                            family=family, decoupled=_decoupled(tube, family))
+    if short is None and n_layers is None and is_graded(layers) and _concrete(values, m):
+        layers, roots, short = _verified(layers, *values, n_roots, order, m, family)
+    elif family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
         solve = functools.partial(_solve_frequencies, n_roots=n_roots, n_layers=layers, order=order)
-        roots = one_point_at_a_time(solve, *values)
+        roots = one_point_at_a_time(solve, *values, along=along)
     else:
         def solve(tube, alpha, fluid, omega_max, m):
             return _solve_frequencies(tube, alpha, fluid, omega_max, n_roots, layers, order, m,
                                       family)
 
-        roots = one_point_at_a_time(solve, *values, detached(m))
+        roots = one_point_at_a_time(solve, *values, detached(m), along=along)
     return inaccurate_where(short, _with_derivatives(roots, (tube, alpha, fluid, m), layers, order,
                                                      "omega", family))
+
+
+def _concrete(*args) -> bool:
+    """Whether no leaf of ``args`` is a tracer (a call outside any jit, vmap or grad of them)."""
+    return not any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(args))
+
+
+VERIFY_ROUNDS = 3
+"""Refinements :func:`_verified` tries before it calls a root INACCURATE."""
+VERIFY_MARGIN = 2.0
+"""A refined N aims at DEFAULT_RTOL / VERIFY_MARGIN (the estimate's own spread)."""
+
+
+SECANT_STEP = 1e-6
+"""Relative step of the secant slope in :func:`newton_steps`."""
+
+
+def newton_steps(tube, alpha, fluid, omegas, n_layers, order, m=0.0, family=LONGITUDINAL):
+    """−f(Ω)/f'(Ω) at each Ω of ``omegas`` on the laminate ``n_layers``: to first order the
+    distance from Ω to that laminate's root (:func:`secant_steps`)."""
+    if family == LONGITUDINAL:
+        ok, tube, alpha, fluid = guard(tube, alpha, fluid)
+    else:
+        ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
+    _, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
+    return jnp.where(ok, secant_steps(fun, omegas), jnp.nan)
+
+
+def secant_steps(fun, omegas):
+    """−f(Ω)/f'(Ω) at each finite Ω of ``omegas`` (NaN elsewhere), f' the secant over
+    Ω(1 + SECANT_STEP): two values per Ω, no tangent program (the slope's own error, ~1e-6
+    relative, is nothing to an error estimate)."""
+    finite = jnp.isfinite(omegas)
+    omegas = jnp.where(finite, omegas, 1.0)
+    shift = SECANT_STEP * omegas
+    values = jax.vmap(fun)(jnp.concatenate([omegas, omegas + shift]))
+    value, moved = values[: omegas.shape[0]], values[omegas.shape[0]:]
+    return jnp.where(finite, -value * shift / (moved - value), jnp.nan)
+
+
+def checked_frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, order, m=0.0,
+                                  family=LONGITUDINAL):
+    """(roots, steps): :func:`frequencies_unchecked` on ``n_layers`` (graded sixth-order Magnus)
+    and :func:`newton_steps` from its roots on the wall of half as many sublayers, in one program
+    (the check of :func:`_verified`). The walls are discretised apart: formed together (one
+    evaluation of the moduli) the program was 10 % smaller but changed the last bits of the ring
+    and torsional roots (XLA fuses the shared moduli otherwise)."""
+    roots = frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, order, m, family)
+    coarse = Layers(n_layers.count // 2, n_layers.scheme, True)
+    return roots, newton_steps(tube, alpha, fluid, roots.omega, coarse, order, m, family)
+
+
+_solve_checked_frequencies = cached_jit(checked_frequencies_unchecked,
+                                        static_argnames=("n_roots", "n_layers", "order", "family"))
+
+
+def _shortfall(roots: Roots, steps):
+    """Per root, estimated error / (DEFAULT_RTOL·Ω) of the default discretisation's roots.
+
+    The graded sixth-order Magnus roots converge as Ω_N = Ω + c N⁻⁶ + … (:mod:`jaxdea.accuracy`),
+    so Ω_{N/2} − Ω_N ≈ (2⁶ − 1)(Ω_N − Ω): one Newton step on the wall of N/2 sublayers from each
+    root (``steps``, :func:`newton_steps`) gives Ω_{N/2} − Ω_N to first order, and error ≈
+    |step|/63. A step that is not finite gives ratio ∞; a root that did not converge, 0."""
+    omega, status, steps = np.asarray(roots.omega), np.asarray(roots.status), np.asarray(steps)
+    error = np.abs(steps) / (2.0 ** scheme_order(AUTO_SCHEME) - 1.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(np.isfinite(steps), error / (DEFAULT_RTOL * np.abs(omega)), np.inf)
+    return np.where(status == Status.CONVERGED, ratio, 0.0)
+
+
+def refined_layers(layers: Layers, ratio):
+    """The finer default discretisation that the estimated errors ``ratio`` (:func:`_shortfall`)
+    ask for: N' ≥ N (VERIFY_MARGIN·max ratio)^(1/6) from :data:`LAYER_COUNTS` (2N where a root
+    was lost on the coarse wall), or None where every root meets DEFAULT_RTOL or N is at its cap."""
+    worst = float(np.max(ratio, initial=0.0))
+    if worst <= 1.0 or layers.count >= LAYER_COUNTS[-1]:
+        return None
+    need = 2.0 * layers.count if np.isinf(worst) else layers.count * (VERIFY_MARGIN * worst) ** (1 / 6)
+    return Layers(next((c for c in LAYER_COUNTS if c >= need), LAYER_COUNTS[-1]), AUTO_SCHEME, True)
+
+
+def _verified(layers, tube, alpha, fluid, omega_max, n_roots, order, m, family):
+    """(layers, roots, short): the roots of the default discretisation, checked as they are solved.
+
+    The rule of :func:`jaxdea.transfer.required_layers` sees the wall's lengths, α̂, K and m but
+    not the state: a thick inflated wall (η = 0.4, λ_i = 1.3, G = 10) needs N = 38 for its 8th root
+    where the rule gives 24 (1.2e-7 off; benchmarks/layer_errors_results.md). So a concrete call
+    estimates the error of its roots (:func:`_shortfall`) and, where it exceeds DEFAULT_RTOL,
+    solves again on N' ≥ N (VERIFY_MARGIN·ratio)^(1/6) (from :data:`LAYER_COUNTS`), at most
+    VERIFY_ROUNDS times; roots still short are INACCURATE (``short``). Where the rule sufficed, the
+    roots are those of N."""
+    order_args = () if family == LONGITUDINAL else (m, family)
+    roots, steps = _solve_checked_frequencies(tube, alpha, fluid, omega_max, n_roots, layers, order,
+                                              *order_args)
+    ratio = _shortfall(roots, steps)
+    for _ in range(VERIFY_ROUNDS):
+        finer = refined_layers(layers, ratio)
+        if finer is None:
+            break
+        layers = finer
+        roots, steps = _solve_checked_frequencies(tube, alpha, fluid, omega_max, n_roots, layers,
+                                                  order, *order_args)
+        ratio = _shortfall(roots, steps)
+    short = ratio > 1.0
+    return layers, roots, (short if short.any() else None)
+
+
+def _decoupled(tube, family):
+    """The propagation of a continuation along α̂ (:func:`jaxdea.curves.curve_unchecked`): the 4×4
+    one (True) for a concrete V̂ = 0 of the axisymmetric family, the 6×6 one (False) for another or
+    a traced V̂, each point's choice (None) off that family."""
+    if family != LONGITUDINAL:
+        return None
+    voltage = tube.voltage
+    return False if isinstance(voltage, jax.core.Tracer) else bool(np.all(np.asarray(voltage) == 0))
+
+
+@cached_jit(static_argnames=("n_layers", "order", "family"))
+def follow_roots(tube, alpha, fluid, guesses, n_layers, order, m=0.0, family=LONGITUDINAL):
+    """Safeguarded Newton from each guess on the laminate of ``n_layers`` sublayers (one lane
+    per root, steps capped at a quarter of the scan step, as in :func:`jaxdea.solve_frequency`).
+    ``family`` (static) and ``m`` (traced): the mode family, as in :func:`jaxdea.frequencies`."""
+    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
+        ok, tube, alpha, fluid = guard(tube, alpha, fluid)
+    else:
+        ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
+    wall, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
+    finite = jnp.isfinite(guesses) & ok
+    start = jnp.where(finite, guesses, 1.0)
+    nan = jnp.full_like(start, jnp.nan)
+    cap = jnp.full_like(start, 0.25 * scan_step(wall, fluid, family))
+    lanes = start_lanes(start, start, nan, nan, nan, nan, jnp.where(finite, 3, 0), max_step=cap,
+                        pairs=False)
+    roots, _, status = run_lanes(fun, lanes)
+    status = jnp.where(finite, status, Status.NO_ROOT)
+    return jnp.where(status == Status.CONVERGED, roots, jnp.nan), status
 
 
 def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
@@ -915,10 +1097,18 @@ def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
     tube, alpha, guess, fluid, m = canonical(tube, alpha, guess, fluid, m)
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, m=m)
     values = detached((tube, alpha, guess, fluid))
+    along = None  # a batch over α̂ and the guess alone: the curves' lanes (jaxdea.curves), any other
+    if fluid is None or fluid.coupling == "acoustic":  # vectorised as before
+        along = along_alpha("frequency", (1, 2), n_layers=layers, order=order, family=family,
+                            decoupled=_decoupled(tube, family))
     if family == LONGITUDINAL:
-        roots = _solve_frequency(*values, layers, order)
+        solve = functools.partial(_solve_frequency, n_layers=layers, order=order)
+        roots = one_point_at_a_time(solve, *values, along=along, vectorised=True)
     else:
-        roots = _solve_frequency(*values, layers, order, detached(m), family)
+        def solve(tube, alpha, guess, fluid, m):
+            return _solve_frequency(tube, alpha, guess, fluid, layers, order, m, family)
+
+        roots = one_point_at_a_time(solve, *values, detached(m), along=along, vectorised=True)
     return inaccurate_where(short, _with_derivatives(roots, (tube, alpha, fluid, m), layers, order,
                                                      "omega", family))
 
@@ -1014,27 +1204,31 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, m=m, at_rest=True)
     values = detached((tube, alpha, fluid))
+    # a batch over α̂ alone: continued along α̂ (jaxdea.curves); fluids (which do not change V̂_cr) mapped
+    along = along_alpha("critical_voltage", n_layers=layers, family=family) if fluid is None else None
     if family == LONGITUDINAL:
         solve = functools.partial(_solve_critical_voltage, n_layers=layers, order=order)
-        roots = Roots(*one_point_at_a_time(solve, *values))
+        roots = Roots(*one_point_at_a_time(solve, *values, along=along))
     else:
         def solve(tube, alpha, fluid, m):
             return _solve_critical_voltage(tube, alpha, fluid, layers, order, m=m, family=family)
 
-        roots = Roots(*one_point_at_a_time(solve, *values, detached(m)))
+        roots = Roots(*one_point_at_a_time(solve, *values, detached(m), along=along))
     return inaccurate_where(short, _with_derivatives(roots, (tube, alpha, fluid, m), layers, order,
                                                      "voltage", family))
 
 
-def critical_function(tube, alpha, fluid, n_layers, order, v_end=None, m=0.0, family=LONGITUDINAL):
+def critical_function(tube, alpha, fluid, n_layers, order, v_end=None, m=0.0, family=LONGITUDINAL,
+                      expansion=None):
     """(ok, g, v_end): g(V̂) = f(Ω = 0; V̂), whose first zero in (0, v_end] is the critical voltage
     (traceable; ``v_end`` None: the pull-in limit), and ``ok`` for the case. The wall at each V̂ is
-    formed from its expansion in V̂; on a Magnus wall the generators are polynomials in V̂, formed
-    here once (:func:`critical_voltage_unchecked`)."""
+    formed from its expansion in V̂ (``expansion``: already formed for this tube, or None); on a
+    Magnus wall the generators are polynomials in V̂, formed here once
+    (:func:`critical_voltage_unchecked`)."""
     ok, tube, alpha, fluid = _guard_order(tube.replace(voltage=0.0), alpha, fluid, m, family)
     v_end = voltage_limit(tube) if v_end is None else as_float(v_end)
 
-    expansion = voltage_expansion(tube, n_layers)
+    expansion = voltage_expansion(tube, n_layers) if expansion is None else expansion
     m_safe = jnp.where(ok, as_float(m), 0.0)
     magnus = split_layers(n_layers)[1] != "midpoint"
     if magnus:  # the generators as polynomials in V̂, formed once (the midpoint laminate's are h M)
@@ -1061,7 +1255,7 @@ def critical_function(tube, alpha, fluid, n_layers, order, v_end=None, m=0.0, fa
 
 
 def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=32, v_end=None, m=0.0,
-                               family=LONGITUDINAL):
+                               family=LONGITUDINAL, expansion=None):
     """(V̂_cr, status) for one case (traceable); see :func:`critical_voltage`.
 
     :func:`_first_root` over (0, V̂_lim] with step V̂_lim/``n_grid``: the chunked scan with Hermite
@@ -1077,9 +1271,11 @@ def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=32, v
     generators are formed once, as polynomials in V̂ (:func:`jaxdea.transfer.voltage_generators`,
     on the circle of radius ``v_end``), and each V̂ sums them (one critical voltage of the paper's
     tube 2.1 → 0.8× the time of the paper's laminate; V̂_cr within 1.1e-14 of forming them at each
-    V̂, measured; tests/test_core.py).
+    V̂, measured; tests/test_core.py). ``expansion``: the wall's expansion in V̂ if already formed
+    (:func:`critical_function`).
     """
-    ok, g, v_end = critical_function(tube, alpha, fluid, n_layers, order, v_end, m, family)
+    ok, g, v_end = critical_function(tube, alpha, fluid, n_layers, order, v_end, m, family,
+                                     expansion)
     roots = _first_root(g, v_end / n_grid, v_end)
     empty = (v_end == 0) & (roots.status == Status.NOT_FINITE)  # no range, so no root
     return invalid_where(ok, Roots(roots.omega, jnp.where(empty, Status.NO_ROOT, roots.status)))

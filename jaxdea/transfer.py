@@ -89,6 +89,8 @@ class Layers(NamedTuple):
 
 AUTO_SCHEME = "magnus6"
 """The scheme of the default, accurate discretisation (``n_layers=None``): sixth-order Magnus, graded."""
+DEFAULT_RTOL = 1e-8
+"""The relative accuracy of the roots that the default discretisation promises."""
 LAYER_COUNTS = (16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024)
 """The sublayer counts the accurate discretisation chooses from (few programs to compile)."""
 TRACED_LAYERS = LAYER_COUNTS[0]

@@ -4,7 +4,10 @@ chunk sizes and grids (``np.testing.assert_array_equal``, NaN compared as equal)
 What holds bit for bit (tested):
 
 * the same call twice in a process, and in a fresh process that compiles everything anew;
-* a point at any position inside a ``jax.vmap`` batch of other points (same batch size);
+* a point at any position inside a ``jax.vmap`` batch of other points (same batch size; the
+  batches here vary the tube too: a batch of ``frequencies`` or ``critical_voltage`` over α̂ alone
+  is continued along α̂, and there a point's last bits depend on its neighbours, equal to rounding,
+  tests/test_vmap_rules.py);
 * ``jaxdea.sweep`` of a grid with any ``chunk_size`` (points solved one after another,
   ``batch_size=1``, the CPU default), and the same point inside different grids.
 

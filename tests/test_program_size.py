@@ -203,7 +203,16 @@ BUDGETS = {  # public program: (call of one traced leaf x, x, equations allowed 
     "mode_shape": (lambda v: jd.mode_shape(TUBE.replace(voltage=v), ALPHA, 0.77), 0.1, 5048),
     "first_instability": (lambda e: jd.first_instability(TUBE.replace(eta=e), n_max=3, m_max=8).voltage,
                           0.85, 11469),
+    # a concrete call's program: the roots and the default's check on the wall of N/2 (6614 today)
+    "frequencies_checked": (lambda v: _checked(TUBE.replace(voltage=v), ALPHA), 0.1, 7275),
 }
+
+
+def _checked(tube, alpha):
+    layers = laminate(None, None, TUBE, ALPHA, 3)
+    order = roots.check_inputs(TUBE, ALPHA, None, None, None)
+    _, alpha, fluid, omega_max = roots.canonical(TUBE, alpha, None, None)
+    return roots.checked_frequencies_unchecked(tube, alpha, fluid, omega_max, 3, layers, order)
 SLOW = {"frequencies_acoustic", "dispersion_curve", "first_instability"}  # 9-15 s to trace each
 
 
