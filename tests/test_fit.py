@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea.fit import (
+from jaxdea.studies.fit import (
     NAMES,
     FitStatus,
     IdentifiabilityWarning,
@@ -143,7 +143,7 @@ def test_determinant_derivative_is_the_cofactor_sum_at_a_decoupled_root():
     """d det(a)[ȧ] = tr(adj(a) ȧ) at a singular 4×4 of the V = 0 structure (row Φ = (0, 0, 0, x),
     rank 3: the LU's zero pivot is not the last), the adjugate from NumPy minors; a regular matrix
     matches jnp.linalg.det's derivative, and the second derivative central differences."""
-    from jaxdea.dispersion import determinant
+    from jaxdea.physics.dispersion import determinant
 
     rng = np.random.default_rng(3)
     block = rng.standard_normal((3, 3))
@@ -179,7 +179,7 @@ def test_batched_jacobian_at_zero_voltage_equals_the_point_alone():
     row Φ = (0, 0, 0, x), so at a root its LU puts the near-zero pivot before the last, where
     ``jnp.linalg.det``'s derivative divides by it. In a batch of 8 (m = 1, 2, 3; the second
     branch) that gave a NaN row for (m, n) = (2, 3) while the point alone was finite; the
-    cofactor derivative of :func:`jaxdea.dispersion.determinant` gives the same row both ways."""
+    cofactor derivative of :func:`jaxdea.physics.dispersion.determinant` gives the same row both ways."""
     values = jnp.array([TRUTH[k] for k in NAMES[:5]] + [0.8793051947943465, 1.0386270426677653,
                                                         1.1771011315898126, TRUTH["gent"], 0.0,
                                                         1.0, 1.0])
@@ -451,7 +451,7 @@ def test_cli_peaks_are_the_synthetic_ones():
 @pytest.fixture(scope="module")
 def cli_run(tmp_path_factory):
     """``jaxdea fit peaks.csv --config fit.toml --out out`` once: (folder, exit status, stdout)."""
-    from jaxdea import cli
+    from jaxdea.apps import cli
 
     folder = tmp_path_factory.mktemp("fit_cli")
     jd.write_peaks(folder / "peaks.csv", cli_peaks())
@@ -497,7 +497,7 @@ def test_cli_fit_recovers_the_truth_and_writes_json_and_png(cli_run):
 def test_plot_shows_the_fitted_curves_and_the_residuals(cli_run, tmp_path):
     """The curve of each mode passes through the exact peaks at the ends of the voltage range, and
     every plotted point is a root of the fitted model (Newton from it stays there)."""
-    from jaxdea.fit import model_and_jacobian
+    from jaxdea.studies.fit import model_and_jacobian
 
     folder = cli_run[0]
     data = jd.read_peaks(folder / "peaks.csv")
@@ -533,7 +533,7 @@ def _cli(argv):
     import contextlib
     import io
 
-    from jaxdea import cli
+    from jaxdea.apps import cli
 
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
@@ -598,7 +598,7 @@ def test_cli_unknown_flag_and_missing_config_exit_2():
 
 
 def test_config_fluid_forms_and_key_errors():
-    from jaxdea.fit_io import parse_fit_config
+    from jaxdea.io.fit_io import parse_fit_config
 
     base = dict(free={"shear_modulus": [5e4, 2e5]}, fixed={"density": 1000.0})
     assert parse_fit_config(base).fluid is None
@@ -624,7 +624,8 @@ def test_config_fluid_forms_and_key_errors():
 
 
 def test_fit_help_documents_every_config_key(capsys):
-    from jaxdea import cli, fit_io
+    from jaxdea.apps import cli
+    from jaxdea.io import fit_io
 
     assert cli.main(["fit", "--help"]) == 0
     out = capsys.readouterr().out
@@ -700,7 +701,7 @@ EXAMPLES = __import__("pathlib").Path(__file__).parents[1] / "examples"
 
 
 def test_example_peaks_and_config_are_valid():
-    from jaxdea.fit_io import load_fit_config
+    from jaxdea.io.fit_io import load_fit_config
 
     config = load_fit_config(EXAMPLES / "fit.toml")
     peaks = jd.read_peaks(EXAMPLES / "peaks.csv")

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea.fit import FitStatus, fit
+from jaxdea.studies.fit import FitStatus, fit
 from jaxdea.units import VACUUM_PERMITTIVITY, Scales, tube_from_si
 
 SILICONE = dict(shear_modulus=50e3, density=1070.0, permittivity=2.8 * VACUUM_PERMITTIVITY,
@@ -243,10 +243,10 @@ def test_sigma_ten_times_too_small_is_a_poor_fit(exact):
 
 
 def test_a_parameter_on_a_bound_is_restarted_from_inside_and_the_lower_cost_kept():
-    """The restarts of :func:`jaxdea.fit._from_inside` on a model whose iteration stalls on the
+    """The restarts of :func:`jaxdea.studies.fit._from_inside` on a model whose iteration stalls on the
     lower bound from starts below 40 % of the range (cost 17.50) and reaches the interior minimum
     (17.13) from the others: the interior one is kept; where the bound is the minimum it stays."""
-    from jaxdea.fit import _from_inside, _Outcome, _Problem
+    from jaxdea.studies.fit import _from_inside, _Outcome, _Problem
 
     problem = _Problem(np.zeros(3), np.ones(3), np.ones(3), True, ("gent",), np.array([10.0]),
                        np.array([200.0]), np.ones(11), np.array([8]), 16, None, None)

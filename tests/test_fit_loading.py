@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea.fit import NAMES, FitStatus, fit, fitted_frequencies, mode_roots
+from jaxdea.studies.fit import NAMES, FitStatus, fit, fitted_frequencies, mode_roots
 from jaxdea.units import VACUUM_PERMITTIVITY, Scales, tube_from_si
 
 N_LAYERS = 12

@@ -7,11 +7,11 @@ The model of a measured peak at voltage V of order m, axial mode n and branch k 
 
 with Ω_k the k-th lowest positive root of order m (:func:`jaxdea.frequencies`, docs/theory/axisymmetric.md and
 docs/theory/order_m.md), refined by :func:`jaxdea.frequency` from the current root and converted to Hz
-(:mod:`jaxdea.units`). :func:`fit` minimises ½ Σ r_j², r_j = (f_model − f_data)_j/σ_j, over the free
+(:mod:`jaxdea.physics.units`). :func:`fit` minimises ½ Σ r_j², r_j = (f_model − f_data)_j/σ_j, over the free
 parameters θ mapped onto their bounds, θ = lo + (hi − lo)·sigmoid(u).
 
 Discretisation. By default the model is the library's accurate one (graded sixth-order Magnus
-sublayers, N from :func:`jaxdea.transfer.auto_layer_count` for the data's largest α̂, m and
+sublayers, N from :func:`jaxdea.physics.transfer.auto_layer_count` for the data's largest α̂, m and
 branch, roots to ≤ 1e-8 and in practice ~1e-12), chosen at the starts and checked again at the
 estimate. The laminate error is a systematic error of the model, and a weakly determined
 parameter absorbs it: the paper's midpoint laminate (N = 30, errors ~1e-6 relative) moved the
@@ -87,10 +87,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base_state import inner_stretch_traced
-from .params import Fluid, Tube, require_x64
-from .roots import frequencies, frequency
-from .transfer import Layers, laminate, validate_scheme
+from ..params import Fluid, Tube, require_x64
+from ..physics.base_state import inner_stretch_traced
+from ..physics.transfer import Layers, laminate, validate_scheme
+from ..solve.roots import frequencies, frequency
 
 NAMES = ("shear_modulus", "density", "permittivity", "inner_radius", "length", "eta", "lambda_i",
          "lambda_z", "gent", "pressure", "fluid_density", "fluid_speed")
@@ -1182,7 +1182,7 @@ def _fit_unlabelled(problem, theta0, modes, max_iterations, max_reassignments):
 
 
 def _discretisation(problem, thetas, reach, n_layers, scheme):
-    """The static discretisation of the model: :func:`jaxdea.transfer.laminate` of ``n_layers``,
+    """The static discretisation of the model: :func:`jaxdea.physics.transfer.laminate` of ``n_layers``,
     ``scheme``; for the accurate default the largest N over ``thetas`` at the largest n, m and
     branch count of ``reach`` = (n, m, roots), over the data's loadings (at V = 0 and, held by
     pressure, at the largest voltage too: λ_i grows with V)."""

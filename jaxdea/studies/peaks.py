@@ -11,12 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .files import atomic_write, read_text
+from ..files import atomic_write, read_text
 
 COLUMNS = ("voltage_V", "frequency_Hz", "sigma_Hz", "m", "n", "branch", "torsional",
            "pressure_Pa", "lambda_i", "lambda_z")
 """The columns of a peak table, in the order :func:`write_peaks` writes them: the labels, then the
-loading of each peak (:data:`jaxdea.fit.LOAD_COLUMNS`; joint fits over several loadings)."""
+loading of each peak (:data:`jaxdea.studies.fit.LOAD_COLUMNS`; joint fits over several loadings)."""
 LABELS = ("m", "n", "branch", "torsional")
 LABEL_LOW = dict(m=0, n=1, branch=0, torsional=0)
 LABEL_MAX = 2**31 - 1
