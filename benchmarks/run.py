@@ -656,7 +656,7 @@ def work_gewtool(cfg: dict) -> dict:
     from jaxdea import curves
     from jaxdea.compiled import compiler_options
     from jaxdea.params import canonical
-    from jaxdea.roots import Roots, _with_derivatives
+    from jaxdea.roots import Roots, attach_derivatives
     from jaxdea.transfer import Layers, laminate
 
     tube = jaxdea.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, eta=0.85)
@@ -696,7 +696,7 @@ def work_gewtool(cfg: dict) -> dict:
             start = time.perf_counter()
             jax.block_until_ready(call())
             best[k] = min(best[k], time.perf_counter() - start)
-    attach = jax.vmap(lambda w, s, x: _with_derivatives(Roots(w, s), (t, x, None, m), layers, 0,
+    attach = jax.vmap(lambda w, s, x: attach_derivatives(Roots(w, s), (t, x, None, m), layers, 0,
                                                         "omega").omega)
     attach_s = best_time(lambda: attach(curve.omega, curve.status, a), cfg["solve_repeats"],
                          cfg["min_time"])[0]

@@ -16,7 +16,7 @@ Batch: ``points`` α̂ in [0.01, 5] of the tube Tube(voltage=0, lambda_i=1, lamb
 * **continuation**: the fastest way the library has to the same answer: ``jaxdea.dispersion_curve``
   along the points for ``frequencies`` and ``frequency`` (its 4 roots against the one root of
   ``frequency``), the critical-voltage path of the figures (``jaxdea.curves.critical_path_unchecked``,
-  compiled by ``_solve_critical_path``) for ``critical_voltage``.
+  compiled by ``solve_critical_path``) for ``critical_voltage``.
 
 ``frequency`` starts Newton at 1.02 times the lowest root of each point. The last columns are the
 ratios of vmap to the continuation (best and median) and to the best of lax.map and sweep, and of
@@ -73,7 +73,7 @@ def workloads(alpha):
     def critical_path():  # the figures' path along α̂ (the public call's laminate)
         layers = laminate(None, None, tube, a, at_rest=True)
         tubes = jax.tree_util.tree_map(lambda v: jnp.full(a.shape, v), tube)
-        return curves._solve_critical_path(tubes, a, a, jnp.zeros(a.shape, bool), jnp.zeros(a.shape),
+        return curves.solve_critical_path(tubes, a, a, jnp.zeros(a.shape, bool), jnp.zeros(a.shape),
                                            layers, LONGITUDINAL)[0]
 
     def curve():

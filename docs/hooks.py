@@ -60,7 +60,7 @@ def api_markdown(init_file: Path) -> str:
     """One section per defining module, one mkdocstrings block per public name."""
     lines = []
     for module, names in public_names_by_module(init_file).items():
-        lines += [f"## {SECTION_TITLES.get(module, module)}", ""]
+        lines += [f"## {SECTION_TITLES.get(module.rsplit('.', 1)[-1], module)}", ""]
         for name in names:
             path = f"jaxdea.{module}" if name == module else f"jaxdea.{module}.{name}"
             lines += [f"::: {path}", "    options:", "      heading_level: 3", ""]

@@ -24,9 +24,10 @@ from .design import DesignResult, DesignStatus, design_for_frequency, maximise_t
 from .dispersion import characteristic
 from .explore import explore  # ipywidgets is imported on the first call only
 from .fit import FitResult, FitStatus, IdentifiabilityWarning, fit, fitted_frequencies
-from .fit_io import plot_fit, read_peaks, write_fit, write_peaks
+from .fit_io import plot_fit, write_fit
 from .modes import ModeShape, fluid_pressure, mode_shape
 from .params import Fluid, Tube, axial_wavenumber
+from .peaks import read_peaks, write_peaks
 from .roots import (
     Instability,
     Roots,

@@ -47,7 +47,7 @@ import numpy as np
 
 from .compiled import serializable
 from .params import Fluid, Tube, canonical, validate_layers, validate_roots
-from .roots import _order_inputs, follow_roots, solve_frequencies
+from .roots import follow_roots, order_inputs, solve_frequencies
 from .scalar import Status
 from .state_matrix import LONGITUDINAL
 from .transfer import Layers, is_graded, laminate, scheme_order, split_layers
@@ -107,7 +107,7 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
         >>> est = frequencies_with_error(Tube(), 0.445, rtol=1e-10)
         >>> est.omega, est.error
     """
-    order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     n_roots = validate_roots(n_roots)
     base = laminate(n_layers, scheme, *canonical(tube, alpha), n_roots, canonical(m))
     count, scheme = split_layers(base)

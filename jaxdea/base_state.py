@@ -70,7 +70,7 @@ def electric_displacement(tube: Tube, r):
     return as_float(tube.voltage) / (r * log_radius_ratio(geometry(tube)))
 
 
-def _w1(tube: Tube, r):
+def w1_at(tube: Tube, r):
     lam, lz = stretch(tube, r), as_float(tube.lambda_z)
     i1 = (lam * lz) ** -2 + lam**2 + lz**2
     w1, _ = jax.vmap(energy_derivatives, (0, None, None))(
@@ -82,7 +82,7 @@ def _w1(tube: Tube, r):
 def _elastic_integrand(tube: Tube, r):
     """2W_1(λ² − λ_r²)/r̂, the elastic part of the radial equilibrium integrand (docs/theory/axisymmetric.md
     1.1)."""
-    w1, lam = _w1(tube, r)
+    w1, lam = w1_at(tube, r)
     lam_r = 1.0 / (lam * as_float(tube.lambda_z))
     return 2.0 * w1 * (lam**2 - lam_r**2) / r
 
@@ -239,7 +239,7 @@ def base_state(tube: Tube, r) -> BaseState:
     p̂ = 2W_1λ_r² + D̂_r² − τ̂_rr, τ̂_rr(r̂) = −ΔP̂ + ∫_{r̂_i}^{r̂} [2W_1(λ² − λ_r²) − D̂_r²] dr̂/r̂.
     """
     r = jnp.asarray(r, jnp.float64)
-    w1, lam = _w1(tube, r)
+    w1, lam = w1_at(tube, r)
     lam_r = 1.0 / (lam * as_float(tube.lambda_z))
     d = electric_displacement(tube, r)
     width = r - as_float(tube.lambda_i)
@@ -300,7 +300,7 @@ def _voltage_factor(tube: Tube):
     )
 
 
-def _squared_voltage(tube: Tube, lambda_i, delta_p):
+def squared_voltage(tube: Tube, lambda_i, delta_p):
     """V̂²(λ_i) = (ΔP̂_el(λ_i) − ΔP̂)/E(λ_i) on the static response at fixed ΔP̂."""
     t = tube.replace(lambda_i=lambda_i, voltage=0.0)
     return (_elastic_integral(t, geometry(t).thickness) - delta_p) / _voltage_factor(t)
@@ -388,7 +388,7 @@ def pull_in_unchecked(tube: Tube, delta_p):
     (reverse-mode slopes, a jvp of a grad evaluated in four places, took 3.7 s to compile against
     2.4 s, measured)."""
     delta_p = as_float(delta_p)
-    v2 = lambda li: _squared_voltage(tube, li, delta_p)  # noqa: E731
+    v2 = lambda li: squared_voltage(tube, li, delta_p)  # noqa: E731
     slope = lambda li: value_and_slope(v2, li)[1]  # noqa: E731
 
     def solve():
@@ -424,7 +424,7 @@ def voltage_limit(tube: Tube):
     """
     tube = jax.lax.stop_gradient(tube)
     delta_p = pressure_difference_unchecked(tube.replace(voltage=0.0))
-    v2 = lambda li: _squared_voltage(tube, li, delta_p)  # noqa: E731
+    v2 = lambda li: squared_voltage(tube, li, delta_p)  # noqa: E731
     grid = _stretch_grid()
     vals = jax.vmap(v2)(grid)
     finite = jnp.isfinite(vals)

@@ -75,8 +75,8 @@ import numpy as np
 
 from .compiled import cached_jit, serializable
 from .dispersion import characteristic_on_wall
-from .params import Fluid, Tube, as_float, canonical, validate_positive
-from .roots import _guard_order, _order_inputs, guard, scan_step
+from .params import Fluid, Tube, as_float, canonical, guard, validate_positive
+from .roots import guard_order, order_inputs, scan_step
 from .state_matrix import LONGITUDINAL, ORDER_M
 from .transfer import discretize, laminate
 
@@ -234,7 +234,7 @@ def count_roots_unchecked(tube, alpha, omega_lo, omega_hi, fluid, n_layers: int,
     if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
         ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
     else:
-        ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
+        ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
     m_safe = jnp.where(ok, as_float(m), 0.0) if family == ORDER_M else 0
     ok &= jnp.isfinite(lo) & jnp.isfinite(hi) & (lo >= 0) & (hi > lo)
     lo, hi = jnp.where(ok, lo, 0.0), jnp.where(ok, hi, 1.0)
@@ -300,7 +300,7 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
     Examples:
         >>> count_roots(Tube(), 0.445, 0.5, 3.0)  # RootCount(count=2, status=0)
     """
-    order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_positive("omega_hi", omega_hi)
     lo, hi = (np.asarray(v, dtype=np.float64) if not isinstance(v, jax.core.Tracer) else None
               for v in (omega_lo, omega_hi))

@@ -124,15 +124,15 @@ from .roots import (
     VERIFY_ROUNDS,
     Roots,
     _concrete,
-    _order_inputs,
     _shortfall,
-    _with_derivatives,
+    attach_derivatives,
     critical_function,
     critical_voltage_unchecked,
     default_omega_max,
     inaccurate_where,
     invalid_where,
     newton_steps,
+    order_inputs,
     refined_layers,
     scan_roots,
     scan_step,
@@ -550,7 +550,7 @@ def path_unchecked(tubes, alphas, fluids, abscissa, starts, orders, n_roots, n_l
                    abscissa, ok, starts, n_roots, conservative)
 
 
-_solve_path = cached_jit(path_unchecked,
+solve_path = cached_jit(path_unchecked,
                          static_argnames=("n_roots", "n_layers", "order", "family", "decoupled"))
 
 
@@ -590,7 +590,7 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
     if fluid is not None and fluid.coupling == "paper" and fluid.bessel_order is None:
         raise ValueError("fluid.bessel_order must be set for a dispersion curve with the 'paper' "
                          "coupling (one Bessel order for every α̂ of the curve), got None")
-    order, family = _order_inputs(tube, None, fluid, n_layers, scheme, m, torsional)
+    order, family = order_inputs(tube, None, fluid, n_layers, scheme, m, torsional)
     a = validate_alpha(alpha, "alpha", tube, scalar=False)
     if a is not None and (a.ndim != 1 or a.size == 0):
         raise ValueError(f"alpha must be a non-empty 1-D array of axial wavenumbers, got shape {a.shape}")
@@ -612,7 +612,7 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
         # concrete inputs carry no tangents: the implicit derivatives would leave the values as
         # they are (tracing their attachment over the rows cost 0.4 ms a call, measured)
         return curve
-    with_derivatives = jax.vmap(lambda w, s, x: _with_derivatives(Roots(w, s), (tube, x, fluid, m),
+    with_derivatives = jax.vmap(lambda w, s, x: attach_derivatives(Roots(w, s), (tube, x, fluid, m),
                                                                   layers, order, "omega",
                                                                   family).omega)
     # a JAX array: a NumPy grid mapped here beside a traced m or tube failed JAX's check of the
@@ -709,7 +709,7 @@ def critical_path_unchecked(tubes, alphas, abscissa, starts, orders, n_layers, f
                    1, True)
 
 
-_solve_critical_path = cached_jit(critical_path_unchecked, static_argnames=("n_layers", "family"))
+solve_critical_path = cached_jit(critical_path_unchecked, static_argnames=("n_layers", "family"))
 
 
 def critical_voltages_along(tube, alpha, fluid, m=0.0, *, n_layers, family) -> Roots:

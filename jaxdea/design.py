@@ -66,10 +66,10 @@ import optax
 
 from .compiled import cached_jit, jit, serializable
 from .dispersion import characteristic, check_inputs, mode_family
-from .modes import ROOT_RTOL, root_distance
+from .modes import root_distance
 from .params import Fluid, Tube, as_float, canonical, mode_wavenumber, require_x64, validate_layers
 from .roots import first_instability, frequencies, solve_critical_voltage, solve_frequency
-from .scalar import Status, implicit_root, refuse_non_root
+from .scalar import ROOT_RTOL, Status, implicit_root, refuse_non_root
 from .state_matrix import LONGITUDINAL
 from .transfer import laminate, validate_scheme
 

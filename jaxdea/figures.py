@@ -52,9 +52,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import plotstyle
-from .base_state import _squared_voltage, pull_in
+from .base_state import pull_in, squared_voltage
 from .compiled import jit
-from .curves import _solve_critical_path, _solve_path
+from .curves import solve_critical_path, solve_path
 from .files import atomic_write, save_figure, write_together
 from .leaves import apply_parameters
 from .modes import mode_shape
@@ -193,7 +193,7 @@ def critical_curves(n_layers: int, curves: list, base: Tube = PAPER_TUBE) -> lis
     for members, lengths, values, abscissa, starts in _packed(curves):
         orders = values.pop("m", np.zeros(PATH_POINTS))
         tubes, alphas, _ = _points(base, None, {k: jnp.asarray(v) for k, v in values.items()})
-        voltage, *_ = _solve_critical_path(*_strong((tubes, alphas)), jnp.asarray(abscissa),
+        voltage, *_ = solve_critical_path(*_strong((tubes, alphas)), jnp.asarray(abscissa),
                                            jnp.asarray(starts), jnp.asarray(orders), n_layers, ORDER_M)
         voltage = np.asarray(voltage)[:, 0]
         for i, first, size in zip(members, np.cumsum([0] + lengths[:-1]), lengths, strict=True):
@@ -270,9 +270,9 @@ def solve_curves(n_layers: int, fluid: Fluid | None, curves: list, base: Tube = 
         args = (*_strong((tubes, alphas, fluids)), jnp.asarray(abscissa), jnp.asarray(starts),
                 jnp.asarray(orders), n_roots, n_layers, "n" if paper else 0)
         if m is None:
-            omega, status, _, restarted = _solve_path(*args, decoupled=False)
+            omega, status, _, restarted = solve_path(*args, decoupled=False)
         else:
-            omega, status, _, restarted = _solve_path(*args, jnp.float64(m), ORDER_M)
+            omega, status, _, restarted = solve_path(*args, jnp.float64(m), ORDER_M)
         omega, status, restarted, alphas = (np.asarray(x) for x in (omega, status, restarted, alphas))
         if n_roots == 1:
             omega, status, restarted = omega[:, 0], status[:, 0], restarted[:, 0]
@@ -1199,7 +1199,7 @@ def static_response(ctx: Context):
         tube = PAPER_TUBE
         lock = locking_stretch(tube)
         stretches = np.geomspace(0.6, lock, ctx.res.static_points)
-        v2 = jit(jax.vmap(lambda li, dp: _squared_voltage(tube, li, dp), (0, None)))
+        v2 = jit(jax.vmap(lambda li, dp: squared_voltage(tube, li, dp), (0, None)))
         curves = {}
         for dp in STATIC_PRESSURES:
             vsq = np.asarray(v2(jnp.asarray(stretches), dp))

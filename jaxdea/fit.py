@@ -595,7 +595,7 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
     """
     require_x64()
     if isinstance(data, (str, os.PathLike)):
-        from .fit_io import read_peaks  # the CSV reader imports this module
+        from .peaks import read_peaks
 
         data = read_peaks(data)
     problem, labels = _validate(data, free, fixed, fluid)

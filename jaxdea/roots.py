@@ -637,7 +637,7 @@ def one_point_at_a_time(solve, *args, along=None, vectorised=False):
     function). On other backends, whose vector units a batch fills, the batch is vectorised
     (``jax.vmap`` of ``solve``), as the sweep does there. ``jax.custom_batching.custom_vmap`` has
     no reverse mode: it holds the values only, inside the implicit derivatives' ``custom_jvp``
-    (:func:`_with_derivatives`). Concrete arguments call ``solve`` itself (its cached program).
+    (:func:`attach_derivatives`). Concrete arguments call ``solve`` itself (its cached program).
 
     ``along(in_batched)`` (optional, :func:`along_alpha`): a solver of the whole batch for the
     argument pattern ``in_batched`` (a pytree of bools per argument), or None where the batch is
@@ -702,7 +702,7 @@ def along_alpha(name, batchable=(1,), **static):
     return along
 
 
-def _with_derivatives(roots: Roots, params, n_layers, order, unknown="omega",
+def attach_derivatives(roots: Roots, params, n_layers, order, unknown="omega",
                       family=LONGITUDINAL) -> Roots:
     """``roots`` with implicit derivatives with respect to ``params`` = (tube, α̂, fluid[, m])."""
     if not traced((roots.omega, params)):  # concrete inputs carry no tangents: values as they are
@@ -755,7 +755,7 @@ def scan_roots(wall: Wall, fun, alpha, fluid, omega_max, n_roots: int, m=0.0,
     return invalid_where(ok, _scan_for_roots(fun, step, end, n_roots, next_point, continuous=not paper))
 
 
-def _guard_order(tube, alpha, fluid, m, family):
+def guard_order(tube, alpha, fluid, m, family):
     """:func:`~jaxdea.params.guard` and, off the axisymmetric family, an admissible traced m."""
     ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
     return ok & order_m_admissible(m, fluid, family), tube, alpha, fluid
@@ -764,7 +764,7 @@ def _guard_order(tube, alpha, fluid, m, family):
 def frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, order, m=0.0,
                           family=LONGITUDINAL) -> Roots:
     """The ``n_roots`` lowest roots for one case (traceable; ``order`` static, ``m`` traced)."""
-    ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
+    ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
     wall = discretize(tube, n_layers)
     fun = scanned_function(wall, alpha, fluid, order, m, family)
     return invalid_where(ok, scan_roots(wall, fun, alpha, fluid, omega_max, n_roots, m, family,
@@ -780,8 +780,8 @@ def growth_rates_unchecked(tube, alpha, fluid, s_max, n_roots, n_layers, order, 
     """The growth rates s = √(−Ω²) > 0 of one case, largest first (traceable): the roots of
     f(Ω² = −s²) in (0, s_max] by the same guaranteed scan as the frequencies (f is entire in Ω²,
     docs/theory/order_m.md §6), reversed; NaN-padded at the end. ``family``: ``ORDER_M`` (at m = 0 the
-    longitudinal modes) or ``TORSIONAL`` (:func:`_growth_family`)."""
-    ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
+    longitudinal modes) or ``TORSIONAL`` (:func:`growth_family`)."""
+    ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
     wall = discretize(tube, n_layers)
     of_w = scanned_function(wall, alpha, fluid, order, m, family, "omega_squared")
     fun = Scaled(lambda s: of_w.scaled(-s * s))
@@ -798,7 +798,7 @@ _solve_growth_rates = cached_jit(growth_rates_unchecked,
                                  static_argnames=("n_roots", "n_layers", "order", "family"))
 
 
-def _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional):
+def order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional):
     """Validate the public inputs with the order: (Bessel order, family)."""
     order = check_inputs(tube, alpha, fluid, n_layers, scheme)
     return order, mode_family(m, torsional, fluid)
@@ -826,8 +826,8 @@ def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3
     Examples:
         >>> growth_rates(Tube(voltage=0.1, lambda_i=0.95, lambda_z=1.2), 0.445, m=2)  # ≈ [0.7466, nan, nan]
     """
-    order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
-    family = _growth_family(family)
+    order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    family = growth_family(family)
     n_roots = validate_roots(n_roots)
     if s_max is not None:
         validate_positive("s_max", s_max)
@@ -837,10 +837,10 @@ def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3
         return _solve_growth_rates(tube, alpha, fluid, s_max, n_roots, layers, order, m, family)
 
     roots = one_point_at_a_time(solve, *detached((tube, alpha, fluid, s_max, m)))
-    return _with_derivatives(roots, (tube, alpha, fluid, m), layers, order, "growth", family).omega
+    return attach_derivatives(roots, (tube, alpha, fluid, m), layers, order, "growth", family).omega
 
 
-def _growth_family(family):
+def growth_family(family):
     """The family scanned for growth rates: the axisymmetric one in Ω² through the 8×8 path at m = 0
     (the 6×6 path is written in Ω)."""
     return ORDER_M if family == LONGITUDINAL else family
@@ -858,7 +858,7 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
         sublayers than it has, the value kept; :func:`jaxdea.transfer.checked_laminate`: where the
         geometry, α̂ or m are traced, N = 16 serves every point).
     """
-    order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     n_roots = validate_roots(n_roots)
     if omega_max is not None:
         validate_positive("omega_max", omega_max)
@@ -880,7 +880,7 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
                                       family)
 
         roots = one_point_at_a_time(solve, *values, detached(m), along=along)
-    return inaccurate_where(short, _with_derivatives(roots, (tube, alpha, fluid, m), layers, order,
+    return inaccurate_where(short, attach_derivatives(roots, (tube, alpha, fluid, m), layers, order,
                                                      "omega", family))
 
 
@@ -905,7 +905,7 @@ def newton_steps(tube, alpha, fluid, omegas, n_layers, order, m=0.0, family=LONG
     if family == LONGITUDINAL:
         ok, tube, alpha, fluid = guard(tube, alpha, fluid)
     else:
-        ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
+        ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
     _, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
     return jnp.where(ok, secant_steps(fun, omegas), jnp.nan)
 
@@ -1007,7 +1007,7 @@ def follow_roots(tube, alpha, fluid, guesses, n_layers, order, m=0.0, family=LON
     if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
         ok, tube, alpha, fluid = guard(tube, alpha, fluid)
     else:
-        ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
+        ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
     wall, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
     finite = jnp.isfinite(guesses) & ok
     start = jnp.where(finite, guesses, 1.0)
@@ -1078,7 +1078,7 @@ def _newton_from_guess(fun, guess, max_step):
 
 @cached_jit(static_argnames=("n_layers", "order", "family"))
 def _solve_frequency(tube, alpha, guess, fluid, n_layers, order, m=0.0, family=LONGITUDINAL):
-    ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
+    ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
     guess = as_float(guess)
     ok &= jnp.isfinite(guess) & (guess > 0)
     wall, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
@@ -1092,7 +1092,7 @@ def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
                     torsional: bool = False) -> Roots:
     """The root reached by safeguarded Newton from ``guess``, with its status (scalar Roots;
     INACCURATE as in :func:`solve_frequencies`)."""
-    order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_positive("guess", guess)
     tube, alpha, guess, fluid, m = canonical(tube, alpha, guess, fluid, m)
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, m=m)
@@ -1109,7 +1109,7 @@ def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
             return _solve_frequency(tube, alpha, guess, fluid, layers, order, m, family)
 
         roots = one_point_at_a_time(solve, *values, detached(m), along=along, vectorised=True)
-    return inaccurate_where(short, _with_derivatives(roots, (tube, alpha, fluid, m), layers, order,
+    return inaccurate_where(short, attach_derivatives(roots, (tube, alpha, fluid, m), layers, order,
                                                      "omega", family))
 
 
@@ -1161,7 +1161,7 @@ def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layer
         >>> group_velocity(t, 0.445, frequencies(t, 0.445)[0])  # ≈ 1.661
         >>> group_velocity(t, 0.445, 0.7)  # ValueError: omega = 0.7 is not a root (0.1 away)
     """
-    order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_range("omega", omega, "a finite real number > 0 (a root of the characteristic function)",
                    lambda v: v > 0)
     tube, alpha, omega, fluid, m = canonical(tube, alpha, omega, fluid, m)
@@ -1179,7 +1179,7 @@ def _group_velocity(tube, alpha, omega, fluid, n_layers, order, m=0.0, family=LO
     """(−f_α̂/f_Ω, the relative Newton distance |f/f_Ω|/|Ω| of ``omega``): NaN velocity for invalid
     inputs and where the distance exceeds ROOT_RTOL (``omega`` no root). f, f_Ω and f_α̂ come from
     one reverse pass."""
-    ok, tube, alpha, fluid = _guard_order(tube, alpha, fluid, m, family)
+    ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
     omega = as_float(omega)
     ok &= jnp.isfinite(omega) & (omega > 0)
     omega = jnp.where(ok, omega, 1.0)
@@ -1200,7 +1200,7 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
                            torsional: bool = False):
     """(V̂_cr, status): the smallest V̂ > 0 with f(Ω = 0; V̂) = 0 (see :func:`critical_voltage`;
     INACCURATE as in :func:`solve_frequencies`)."""
-    order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, m=m, at_rest=True)
     values = detached((tube, alpha, fluid))
@@ -1214,7 +1214,7 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
             return _solve_critical_voltage(tube, alpha, fluid, layers, order, m=m, family=family)
 
         roots = Roots(*one_point_at_a_time(solve, *values, detached(m), along=along))
-    return inaccurate_where(short, _with_derivatives(roots, (tube, alpha, fluid, m), layers, order,
+    return inaccurate_where(short, attach_derivatives(roots, (tube, alpha, fluid, m), layers, order,
                                                      "voltage", family))
 
 
@@ -1225,7 +1225,7 @@ def critical_function(tube, alpha, fluid, n_layers, order, v_end=None, m=0.0, fa
     formed from its expansion in V̂ (``expansion``: already formed for this tube, or None); on a
     Magnus wall the generators are polynomials in V̂, formed here once
     (:func:`critical_voltage_unchecked`)."""
-    ok, tube, alpha, fluid = _guard_order(tube.replace(voltage=0.0), alpha, fluid, m, family)
+    ok, tube, alpha, fluid = guard_order(tube.replace(voltage=0.0), alpha, fluid, m, family)
     v_end = voltage_limit(tube) if v_end is None else as_float(v_end)
 
     expansion = voltage_expansion(tube, n_layers) if expansion is None else expansion
@@ -1315,7 +1315,7 @@ def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
     """
     check_inputs(tube, None, fluid, n_layers, scheme)
     family = mode_family(m, False, fluid)
-    n_max = _validate_max("n_max", n_max, 1)
+    n_max = validate_max("n_max", n_max, 1)
     layers, short = checked_laminate(n_layers, scheme, canonical(tube),
                                      mode_wavenumber(canonical(tube), n_max), m=canonical(m),
                                      at_rest=True)
@@ -1325,7 +1325,7 @@ def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
                                                       family))
 
 
-def _validate_max(name, value, low):
+def validate_max(name, value, low):
     if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < low:
         raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
     return int(value)
@@ -1338,7 +1338,7 @@ def _critical_voltages(tube, n_max, n_layers, m=0.0, family=LONGITUDINAL):
     def one(alpha):
         values = jax.lax.stop_gradient((tube, alpha))
         roots = Roots(*critical_voltage_unchecked(*values, None, n_layers, 0, m=m, family=family))
-        return _with_derivatives(roots, (tube, alpha, None, m), n_layers, 0, "voltage", family)
+        return attach_derivatives(roots, (tube, alpha, None, m), n_layers, 0, "voltage", family)
 
     return jax.lax.map(one, alphas)
 
@@ -1439,8 +1439,8 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
         >>> float(first.voltage), int(first.m), int(first.n)  # ≈ (0.0293, 2, 1)
     """
     check_inputs(tube, None, fluid, n_layers, scheme)
-    n_max = _validate_max("n_max", n_max, 1)
-    m_max = _validate_max("m_max", m_max, 0)
+    n_max = validate_max("n_max", n_max, 1)
+    m_max = validate_max("m_max", m_max, 0)
     tube = canonical(tube)
     layers, short = checked_laminate(n_layers, scheme, tube, mode_wavenumber(tube, n_max), m=m_max,
                                      at_rest=True)
@@ -1455,7 +1455,7 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
     alpha = mode_wavenumber(tube, jnp.maximum(n, 1).astype(jnp.float64))
     root = Roots(jnp.where(found & ~at_zero, voltage.ravel()[first], jnp.nan),
                  jnp.where(found, Status.CONVERGED, Status.NO_ROOT).astype(jnp.int32))
-    root = _with_derivatives(root, (tube, alpha, None, jnp.maximum(m, 0).astype(jnp.float64)),
+    root = attach_derivatives(root, (tube, alpha, None, jnp.maximum(m, 0).astype(jnp.float64)),
                              layers, 0, "voltage", ORDER_M)  # NaN (at V̂ = 0): a zero tangent
     root = inaccurate_where(short, root)  # N from the worst (m_max, n_max)
     return Instability(jnp.where(at_zero, 0.0, root.omega), m, n, root.status, voltage)

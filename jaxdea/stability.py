@@ -20,10 +20,10 @@ from .dispersion import check_inputs
 from .params import Fluid, Tube, canonical, mode_wavenumber
 from .roots import (
     Roots,
-    _validate_max,
-    _with_derivatives,
+    attach_derivatives,
     growth_rates_unchecked,
     map_orders_and_modes,
+    validate_max,
 )
 from .scalar import Status
 from .state_matrix import ORDER_M
@@ -98,8 +98,8 @@ def stability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = 
         >>> bool(s.stable), int(s.m), int(s.n)  # (False, 2, 1): ovalisation grows fastest
     """
     order = check_inputs(tube, None, fluid, n_layers, scheme)
-    n_max = _validate_max("n_max", n_max, 1)
-    m_max = _validate_max("m_max", m_max, 0)
+    n_max = validate_max("n_max", n_max, 1)
+    m_max = validate_max("m_max", m_max, 0)
     if fluid is not None and fluid.coupling == "paper" and m_max > 0:
         raise ValueError(f"m_max must be 0 with the 'paper' coupling (an axisymmetric model), got "
                          f"{m_max}")
@@ -115,7 +115,7 @@ def stability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = 
     alpha = mode_wavenumber(tube, jnp.maximum(n, 1).astype(jnp.float64))
     root = Roots(jnp.where(unstable, flat[fastest], jnp.nan),
                  jnp.where(unstable, Status.CONVERGED, Status.NO_ROOT).astype(jnp.int32))
-    root = _with_derivatives(root, (tube, alpha, fluid, jnp.maximum(m, 0).astype(jnp.float64)),
+    root = attach_derivatives(root, (tube, alpha, fluid, jnp.maximum(m, 0).astype(jnp.float64)),
                              layers, order, "growth", ORDER_M)
     return Stability(~unstable & ~invalid, m, n, root.omega,
                      jnp.where(invalid, Status.INVALID, Status.CONVERGED).astype(jnp.int32),

@@ -48,6 +48,7 @@ from .params import (
     Fluid,
     Tube,
     as_float,
+    guard,
     real_value,
     require_x64,
     validate_fluid,
@@ -55,7 +56,7 @@ from .params import (
     validate_positive,
     validate_roots,
 )
-from .roots import _growth_family, frequencies_unchecked, growth_rates_unchecked, guard
+from .roots import frequencies_unchecked, growth_family, growth_rates_unchecked
 from .scalar import Status
 from .state_matrix import LONGITUDINAL, ORDER_M
 from .transfer import AUTO_SCHEME, discretize, is_graded, laminate, split_layers, validate_scheme
@@ -397,7 +398,7 @@ def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_
     growth = ()
     if n_growth:  # the scan in Ω² = −s² (the 8×8 path at m = 0: docs/theory/order_m.md §6)
         growth = (growth_rates_unchecked(*point, None, n_growth, n_layers, nu, as_float(m),
-                                         _growth_family(family)).omega,)
+                                         growth_family(family)).omega,)
     if jac_names is None:
         return roots.omega, roots.status, alpha_point, *growth
     held = {k: v for k, v in values.items() if k == "n"}  # α̂ of mode n follows the tube

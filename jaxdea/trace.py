@@ -91,7 +91,7 @@ from .params import (
     validate_real,
     validate_tube,
 )
-from .roots import _order_inputs, scan_step
+from .roots import order_inputs, scan_step
 from .state_matrix import LONGITUDINAL, ORDER_M
 from .transfer import Layers, discretize, laminate
 
@@ -468,7 +468,7 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
         >>> k = int(branch.n_points)  # 24 points, status REACHED_STOP, last Ω(2.0) ≈ 3.8956
         >>> alphas, omegas = branch.parameter[:k], branch.omega[:k]
     """
-    order, family = _order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
     if not isinstance(along, str):
         raise ValueError(f"along must be a parameter name (str), got {along!r}")
     try:

@@ -52,7 +52,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base_state import _w1, base_state, geometry, pressure_difference_unchecked
+from .base_state import base_state, geometry, pressure_difference_unchecked, w1_at
 from .compiled import jit
 from .moduli import Coefficients, closed_form_coefficients, coefficients, push_forward_moduli
 from .params import Tube, admissible, as_float
@@ -303,7 +303,7 @@ def grading_length(tube: Tube, geo=None):
     λ_z^{-1/2}, where I_1 is smallest), a boundary layer of thickness W_1/|W_1'| = d_0/c (1.6e-3 of
     a 0.52 wall at 99 % of locking, G = 4); far from locking it is long (≈ G) and ℓ = r̂_i."""
     geo = geometry(tube) if geo is None else geo
-    w1, dw1 = jax.jvp(lambda r: _w1(tube, r)[0], (geo.r_inner,), (jnp.ones_like(geo.r_inner),))
+    w1, dw1 = jax.jvp(lambda r: w1_at(tube, r)[0], (geo.r_inner,), (jnp.ones_like(geo.r_inner),))
     slope = jnp.abs(dw1)
     safe = jnp.where(slope > 0, slope, 1.0)
     locking = jnp.where(slope > 0, jnp.abs(w1) / safe, jnp.inf)

@@ -269,7 +269,7 @@ def test_static_response_without_pull_in():
     li, v, status = jd.pull_in(tube, 0.0)
     assert int(status) == int(jd.Status.NO_ROOT) and np.isnan(float(v))
     grid = jnp.asarray(np.geomspace(0.5, 20.0, 200))
-    v2 = np.asarray(jax.jit(jax.vmap(lambda x: bs._squared_voltage(tube, x, 0.0)))(grid))
+    v2 = np.asarray(jax.jit(jax.vmap(lambda x: bs.squared_voltage(tube, x, 0.0)))(grid))
     assert np.all(np.diff(v2) > 0)
     sup = np.log(1 / 0.85) * (0.85**-2 - 1.0) / 2.0
     assert v2[-1] < sup and abs(v2[-1] / sup - 1) < 0.01
@@ -731,8 +731,8 @@ def test_pull_in_of_a_softening_wall(monkeypatch):
     pull = jax.jit(bs.pull_in_unchecked)
     li, v, status = pull(tube, dp0)
     assert int(status) == 0 and 1.2 < float(li) < 2.5 and float(v) > 0.1
-    slope = jax.jit(jax.grad(lambda x: bs._squared_voltage(tube, x, dp0)))(li)
-    curvature = jax.jit(jax.grad(jax.grad(lambda x: bs._squared_voltage(tube, x, dp0))))(li)
+    slope = jax.jit(jax.grad(lambda x: bs.squared_voltage(tube, x, dp0)))(li)
+    curvature = jax.jit(jax.grad(jax.grad(lambda x: bs.squared_voltage(tube, x, dp0))))(li)
     assert abs(float(slope)) < 1e-12 * abs(float(curvature)) and float(curvature) < 0
     np.testing.assert_allclose(jax.jit(bs.voltage_limit)(tube), v, rtol=1e-14)
     grad = jax.jit(jax.grad(lambda p: pull(tube, p)[0]))(dp0)

@@ -354,7 +354,7 @@ def test_empty_tube_paths_run_on_the_acoustic_program_and_equal_the_empty_tube()
     program of its own is compiled, and every root equals jd.frequencies of the empty tube
     (1e-11: the fluid's column scale D_0 > 0 is taken out by the orthonormalisation)."""
     from jaxdea import figures
-    from jaxdea.curves import _solve_path
+    from jaxdea.curves import solve_path
 
     tube = figures.PAPER_TUBE.replace(lambda_i=0.9)
     n_layers = 12
@@ -363,9 +363,9 @@ def test_empty_tube_paths_run_on_the_acoustic_program_and_equal_the_empty_tube()
     curves = [(dict(voltage=voltages, lambda_i=0.9, n=2.0), voltages),
               (dict(voltage=0.01, lambda_i=0.9, n=modes), modes)]
     figures.solve_curves(n_layers, jd.Fluid(), curves[:1])  # the acoustic coupling's program
-    programs = _solve_path._cache_size()
+    programs = solve_path._cache_size()
     solved = figures.solve_curves(n_layers, None, curves)
-    assert _solve_path._cache_size() == programs
+    assert solve_path._cache_size() == programs
     for (values, _), sol in zip(curves, solved, strict=True):
         points = {k: np.broadcast_to(v, len(sol.omega)) for k, v in values.items()}
         reference = [float(jd.frequencies(tube.replace(voltage=float(v)), jd.axial_wavenumber(tube, float(n)),

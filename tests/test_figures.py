@@ -296,7 +296,7 @@ def test_the_library_never_sets_a_matplotlib_backend():
 
     import matplotlib
 
-    for path in sorted((Path(figures.__file__).parent).glob("*.py")):
+    for path in sorted(Path(jd.__file__).parent.rglob("*.py")):
         code = path.read_text(encoding="utf-8")
         assert not re.search(r"matplotlib\.use\(|import matplotlib\.pyplot|from matplotlib import pyplot",
                              code), path.name
