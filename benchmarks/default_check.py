@@ -17,7 +17,7 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 import jaxdea as jd  # noqa: E402
-from jaxdea import curves, roots  # noqa: E402
+from jaxdea.solve import curves, roots  # noqa: E402
 
 jd.configure()
 CHECKED = roots._concrete  # the library's test: a concrete call is checked

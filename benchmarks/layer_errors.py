@@ -9,7 +9,7 @@ m = 0, 2 on three walls): the 8 lowest roots at N = 4, 6, 8, 12 against N = 192 
 magnus6), per root. The table gives, for the K lowest roots, N* (the N at which the largest
 relative error crosses 1e-8: interpolated in log error between the measured N, extrapolated as
 N^-6 beyond 12; "–" where a coarse N missed a root) and the N of today's rule
-(:func:`jaxdea.transfer.required_layers` before rounding up). A run takes 10–20 min on the
+(:func:`jaxdea.physics.transfer.required_layers` before rounding up). A run takes 10–20 min on the
 2-core machine, most of it compiling the 5 N × 3 families.
 """
 
@@ -26,7 +26,7 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 import jaxdea as jd  # noqa: E402
-from jaxdea.transfer import Layers, point_lengths, required_layers  # noqa: E402
+from jaxdea.physics.transfer import Layers, point_lengths, required_layers  # noqa: E402
 
 jd.configure()
 

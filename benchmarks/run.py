@@ -113,10 +113,10 @@ def _omegas(batch):
 # ---------------------------------------------------------------------------------------- workers
 def naive_characteristic(tube, n_layers, alpha):
     """vmap-able det(B A S) with A from ``jax.scipy.linalg.expm`` per sublayer (no normalisation):
-    ``jaxdea.transfer.transfer_matrix(..., method="expm")`` and the fluid-free initial basis."""
+    ``jaxdea.physics.transfer.transfer_matrix(..., method="expm")`` and the fluid-free initial basis."""
     import jax.numpy as jnp
 
-    from jaxdea import transfer
+    from jaxdea.physics import transfer
 
     def f(om):
         wall = transfer.discretize(tube, n_layers)
@@ -269,7 +269,7 @@ def work_explore(cfg: dict) -> dict:
     (acoustic) and m = 2, and a λ_i move, which solves ``first_instability`` again (m ≤ 4, n ≤ 3).
     Best of the repeats; the paper's tube, 45 α̂ × 3 branches, the default discretisation."""
     jax, jaxdea = _jax()
-    from jaxdea.explore import explorer_data
+    from jaxdea.apps.explore import explorer_data
 
     tube = jaxdea.Tube(voltage=0.1, **PAPER_TUBE)
     app = jaxdea.explore(tube)
@@ -563,8 +563,8 @@ def work_defaults(cfg: dict) -> dict:
     jax, jaxdea = _jax()
     import numpy as np
 
-    from jaxdea import roots as R
-    from jaxdea.transfer import Layers, laminate
+    from jaxdea.physics.transfer import Layers, laminate
+    from jaxdea.solve import roots as R
 
     paper = jaxdea.Tube(voltage=0.0, **PAPER_TUBE)
     alpha1 = float(jaxdea.axial_wavenumber(paper, 1))
@@ -653,11 +653,11 @@ def work_gewtool(cfg: dict) -> dict:
     sys.path.insert(0, os.path.join(ROOT, "tests"))
     import exact_cylinder
 
-    from jaxdea import curves
     from jaxdea.compiled import compiler_options
     from jaxdea.params import canonical
-    from jaxdea.roots import Roots, attach_derivatives
-    from jaxdea.transfer import Layers, laminate
+    from jaxdea.physics.transfer import Layers, laminate
+    from jaxdea.solve import curves
+    from jaxdea.solve.roots import Roots, attach_derivatives
 
     tube = jaxdea.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, eta=0.85)
     alpha = np.linspace(0.01, 5.0, 200)

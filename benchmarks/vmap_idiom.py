@@ -7,15 +7,15 @@ Batch: ``points`` α̂ in [0.01, 5] of the tube Tube(voltage=0, lambda_i=1, lamb
 (the calls of one round run one after another, so that a changing load hits them alike):
 
 * **vmap**: ``jax.jit(jax.vmap(...))`` of the public function, what a user writes (a batch over
-  α̂ alone is continued along α̂ by :func:`jaxdea.curves.frequencies_along` and
-  :func:`jaxdea.curves.critical_voltages_along`);
+  α̂ alone is continued along α̂ by :func:`jaxdea.solve.curves.frequencies_along` and
+  :func:`jaxdea.solve.curves.critical_voltages_along`);
 * **vectorised**: ``jax.jit(jax.vmap(...))`` of the solver's program itself, every while loop
   vectorised lane by lane;
 * **lax.map**: ``jax.jit`` of ``jax.lax.map`` of the public function, one point after another;
 * **sweep** (``frequencies``): ``jaxdea.sweep`` of the same points;
 * **continuation**: the fastest way the library has to the same answer: ``jaxdea.dispersion_curve``
   along the points for ``frequencies`` and ``frequency`` (its 4 roots against the one root of
-  ``frequency``), the critical-voltage path of the figures (``jaxdea.curves.critical_path_unchecked``,
+  ``frequency``), the critical-voltage path of the figures (``jaxdea.solve.curves.critical_path_unchecked``,
   compiled by ``solve_critical_path``) for ``critical_voltage``.
 
 ``frequency`` starts Newton at 1.02 times the lowest root of each point. The last columns are the
@@ -36,10 +36,10 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 import jaxdea as jd  # noqa: E402
-from jaxdea import curves, roots  # noqa: E402
 from jaxdea.params import canonical  # noqa: E402
-from jaxdea.state_matrix import LONGITUDINAL  # noqa: E402
-from jaxdea.transfer import laminate  # noqa: E402
+from jaxdea.physics.state_matrix import LONGITUDINAL  # noqa: E402
+from jaxdea.physics.transfer import laminate  # noqa: E402
+from jaxdea.solve import curves, roots  # noqa: E402
 
 jd.configure()  # the disk cache and XLA's loop threshold, as the CLI runs
 

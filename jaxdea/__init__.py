@@ -9,26 +9,24 @@ cache and XLA's loop threshold (:mod:`jaxdea.compiled`).
 from importlib import metadata as _metadata
 
 from . import compiled, units
-from .accuracy import Estimate, frequencies_with_error
-from .base_state import (
+from .apps.explore import explore  # ipywidgets is imported on the first call only
+from .compiled import Configuration, configure
+from .io.fit_io import plot_fit, write_fit
+from .numerics.scalar import Status
+from .params import Fluid, Tube, axial_wavenumber
+from .physics.base_state import (
     inner_stretch,
     pressure_difference,
     pull_in,
     thickness_ratio,
     with_thickness_ratio,
 )
-from .compiled import Configuration, configure
-from .counting import CountStatus, RootCount, count_roots
-from .curves import Curve, dispersion_curve
-from .design import DesignResult, DesignStatus, design_for_frequency, maximise_tunability, tunability
-from .dispersion import characteristic
-from .explore import explore  # ipywidgets is imported on the first call only
-from .fit import FitResult, FitStatus, IdentifiabilityWarning, fit, fitted_frequencies
-from .fit_io import plot_fit, write_fit
-from .modes import ModeShape, fluid_pressure, mode_shape
-from .params import Fluid, Tube, axial_wavenumber
-from .peaks import read_peaks, write_peaks
-from .roots import (
+from .physics.dispersion import characteristic
+from .solve.accuracy import Estimate, frequencies_with_error
+from .solve.counting import CountStatus, RootCount, count_roots
+from .solve.curves import Curve, dispersion_curve
+from .solve.modes import ModeShape, fluid_pressure, mode_shape
+from .solve.roots import (
     Instability,
     Roots,
     critical_voltage,
@@ -44,10 +42,12 @@ from .roots import (
     solve_frequencies,
     solve_frequency,
 )
-from .scalar import Status
-from .stability import Stability, stability
-from .sweeps import SweepResult, sweep
-from .trace import Branch, BranchEnd, trace_branch
+from .solve.stability import Stability, stability
+from .solve.trace import Branch, BranchEnd, trace_branch
+from .studies.design import DesignResult, DesignStatus, design_for_frequency, maximise_tunability, tunability
+from .studies.fit import FitResult, FitStatus, IdentifiabilityWarning, fit, fitted_frequencies
+from .studies.peaks import read_peaks, write_peaks
+from .studies.sweeps import SweepResult, sweep
 
 __all__ = [
     "Branch",

@@ -1,7 +1,7 @@
-"""``python -m jaxdea``: the ``jaxdea`` command line (see :mod:`jaxdea.cli`)."""
+"""``python -m jaxdea``: the ``jaxdea`` command line (see :mod:`jaxdea.apps.cli`)."""
 
 import sys
 
-from .cli import main
+from .apps.cli import main
 
 sys.exit(main())

@@ -469,7 +469,7 @@ def validate_layers(n_layers) -> None:
     if n_layers is None:
         return
     if hasattr(n_layers, "count") and hasattr(n_layers, "scheme"):
-        n_layers = n_layers.count  # a resolved discretisation (jaxdea.transfer.Layers)
+        n_layers = n_layers.count  # a resolved discretisation (jaxdea.physics.transfer.Layers)
     if not isinstance(n_layers, (int, np.integer)) or isinstance(n_layers, bool) or n_layers < 1:
         raise ValueError(f"n_layers must be None or an integer >= 1, got {n_layers!r}")
     if n_layers > MAX_LAYERS:

@@ -35,7 +35,7 @@ import jax.numpy as jnp  # noqa: E402
 import jaxdea as jd  # noqa: E402
 
 jd.configure()  # opt in: compiled programs cached on disk, XLA's loop threshold
-from jaxdea.fit import NAMES, dimensionless, fit, mode_roots  # noqa: E402
+from jaxdea.studies.fit import NAMES, dimensionless, fit, mode_roots  # noqa: E402
 from jaxdea.units import VACUUM_PERMITTIVITY, Scales, tube_from_si  # noqa: E402
 
 FAST = os.environ.get("JAXDEA_NOTEBOOK_FAST") == "1"

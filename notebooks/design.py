@@ -38,7 +38,7 @@ jax.config.update("jax_enable_x64", True)  # jaxdea refuses to compute in float3
 import jaxdea as jd  # noqa: E402
 
 jd.configure()  # opt in: compiled programs cached on disk, XLA's loop threshold
-from jaxdea import design  # noqa: E402
+from jaxdea.studies import design  # noqa: E402
 
 FAST = os.environ.get("JAXDEA_NOTEBOOK_FAST") == "1"
 tube = jd.Tube(lambda_i=1.1, lambda_z=1.2, eta=0.85)  # the paper's tube, inflated; G = 97.2

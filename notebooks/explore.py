@@ -32,7 +32,7 @@ jax.config.update("jax_enable_x64", True)  # jaxdea refuses to compute in float3
 import jaxdea as jd  # noqa: E402
 
 jd.configure()  # opt in: compiled programs cached on disk, XLA's loop threshold
-from jaxdea.explore import explorer_data  # noqa: E402
+from jaxdea.apps.explore import explorer_data  # noqa: E402
 
 FAST = os.environ.get("JAXDEA_NOTEBOOK_FAST") == "1"
 tube = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2, eta=0.85)  # the paper's tube
@@ -43,7 +43,7 @@ app
 # ## What the app shows
 # The paper's tube at V̂ = 0.1 is past its first instability: ring buckling (m = 2, n = 1) sets in at
 # V̂ ≈ 0.0293, a tenth of the axisymmetric critical voltage, so the plots are shaded. The arrays
-# drawn come from the pure function `jaxdea.explore.explorer_data`, the same curve as
+# drawn come from the pure function `jaxdea.apps.explore.explorer_data`, the same curve as
 # `dispersion_curve` on the app's grid (the α̂ grid with the axial modes' α̂_n inserted).
 
 # %%

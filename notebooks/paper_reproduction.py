@@ -28,7 +28,7 @@ jax.config.update("jax_enable_x64", True)
 import jaxdea as jd  # noqa: E402
 
 jd.configure()  # opt in: compiled programs cached on disk, XLA's loop threshold
-from jaxdea import figures  # noqa: E402
+from jaxdea.apps import figures  # noqa: E402
 
 FAST = os.environ.get("JAXDEA_NOTEBOOK_FAST") == "1"
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea.accuracy import frequencies_with_error
+from jaxdea.solve.accuracy import frequencies_with_error
 
 
 @pytest.mark.slow
@@ -111,7 +111,7 @@ def test_magnus_levels_give_estimates_and_reach_rtol():
 def test_richardson_eliminates_the_leading_term_of_each_order(order):
     """Levels Ω + c N^-p + d N^-(p+2) at N, 2N, 4N: R_last = Ω + O(N^-(p+2)) exactly as the formula
     says, and the estimate |R_last − R_prev| is 2^(p+2) − 1 times R_last's error."""
-    from jaxdea.accuracy import _richardson
+    from jaxdea.solve.accuracy import _richardson
 
     n, omega, c, d = 1.0, 1.7, 0.3, 0.11
     levels = [np.array([omega + c * m**-order + d * m ** -(order + 2)]) for m in (n, 2 * n, 4 * n)]

@@ -1,5 +1,5 @@
 """The default, accurate discretisation (``n_layers=None``): graded sixth-order Magnus with N chosen
-from the case (jaxdea.transfer.laminate) gives every root to <= 1e-8 relative.
+from the case (jaxdea.physics.transfer.laminate) gives every root to <= 1e-8 relative.
 
 References are independent of the default's N: the exact incompressible cylinder (tests/exact_cylinder
 values), or the same scheme on a 4x finer graded wall (error 4^6 = 4096 times smaller), or the
@@ -15,9 +15,7 @@ from conftest import fd_derivative
 from exact_cylinder import EXACT_K, EXACT_OMEGA
 
 import jaxdea as jd
-from jaxdea import roots as R
-from jaxdea.roots import Roots, inaccurate_where
-from jaxdea.transfer import (
+from jaxdea.physics.transfer import (
     LAYER_COUNTS,
     TRACED_LAYERS,
     Layers,
@@ -28,6 +26,8 @@ from jaxdea.transfer import (
     laminate,
     wall_lengths,
 )
+from jaxdea.solve import roots as R
+from jaxdea.solve.roots import Roots, inaccurate_where
 
 PAPER = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2, eta=0.85)
 LOCKING_G4 = jd.Tube(voltage=0.05, lambda_i=0.35890249, lambda_z=1.2, eta=0.75, gent=4.0)

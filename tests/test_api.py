@@ -10,8 +10,8 @@ import pytest
 from conftest import fd_derivative
 
 import jaxdea as jd
-from jaxdea import roots as roots_module
-from jaxdea.scalar import Status
+from jaxdea.numerics.scalar import Status
+from jaxdea.solve import roots as roots_module
 
 PAPER = dict(lambda_z=1.2, eta=0.85)
 TUBE = jd.Tube(voltage=0.1, lambda_i=0.9, **PAPER)
@@ -207,7 +207,7 @@ def test_alpha_past_the_thickness_limit_raises():
     """α̂ = 1e6 returned NaN (status NOT_FINITE) for concrete inputs: α̂ĥ must stay within
     ALPHA_THICKNESS_MAX = 150 (ĥ the deformed wall thickness), a ValueError naming alpha and the
     limit of this tube; α̂ĥ = 150 itself is accepted (tests/test_core.py solves there)."""
-    from jaxdea.dispersion import check_inputs
+    from jaxdea.physics.dispersion import check_inputs
 
     limit = 150.0 / float(jd.thickness_ratio(TUBE))
     message = rf"alpha must be <= 150/ĥ = {limit:.6g} for this tube \(α̂ĥ <= 150"
@@ -262,13 +262,13 @@ def test_group_velocity_of_a_traced_non_root_is_nan():
 
 def test_group_velocity_tolerance_is_the_newton_distance():
     """The root's neighbours are accepted or refused by their relative Newton distance |f/f_Ω|/|Ω|
-    (that of jaxdea.modes.root_distance, here ≈ the relative offset) against ROOT_RTOL = 1e-4:
+    (that of jaxdea.solve.modes.root_distance, here ≈ the relative offset) against ROOT_RTOL = 1e-4:
     1e-7 and 5e-5 off pass (with the velocity of the branch nearby), 2e-4 and 1e-2 off are
     refused, concretely and under jit."""
-    from jaxdea.modes import root_distance
+    from jaxdea.numerics.scalar import ROOT_RTOL
     from jaxdea.params import canonical
-    from jaxdea.scalar import ROOT_RTOL
-    from jaxdea.transfer import laminate
+    from jaxdea.physics.transfer import laminate
+    from jaxdea.solve.modes import root_distance
 
     root = float(jd.frequencies(TUBE, ALPHA, n_roots=1)[0])
     at_root = float(jd.group_velocity(TUBE, ALPHA, root))
@@ -295,7 +295,7 @@ def test_group_velocity_of_order_m_refuses_a_non_root():
     """The order-m path (m = 1) checks the same distance: its root passes, 1e-2 off raises, and
     the compiled program behind it (what runs traced) gives NaN there."""
     from jaxdea.params import canonical
-    from jaxdea.transfer import laminate
+    from jaxdea.physics.transfer import laminate
 
     root = float(jd.frequencies(TUBE, ALPHA, n_roots=1, m=1)[0])
     assert np.isfinite(float(jd.group_velocity(TUBE, ALPHA, root, m=1)))
@@ -449,7 +449,7 @@ def test_first_root_zooms_in_a_few_chunks():
 def test_hermite_extremum_of_a_cubic():
     """For a cubic f the Hermite interpolant is f itself, so its stationary point is f's: the roots
     of f' = 3x² − 2 are ±√(2/3); an interval with no sign change of f' gives the midpoint."""
-    from jaxdea.scalar import hermite_extremum
+    from jaxdea.numerics.scalar import hermite_extremum
 
     f, df = (lambda x: x**3 - 2.0 * x + 0.3), (lambda x: 3.0 * x**2 - 2.0)
     for a, b, want in [(0.1, 1.4, np.sqrt(2 / 3)), (-2.0, 0.3, -np.sqrt(2 / 3)), (1.0, 2.0, 1.5)]:
@@ -472,7 +472,7 @@ def test_newton_stops_once_its_step_is_below_the_float_spacing():
     """Every evaluated point becomes a bracket end, so a converged Newton step (below one ulp at x)
     proposes x itself, a bracket end: that must end the solve, not start bisecting a bracket of
     width ~1e-12 down to 1e-15 (which took 30–40 evaluations per root before)."""
-    from jaxdea.scalar import bracketed_root
+    from jaxdea.numerics.scalar import bracketed_root
 
     f, calls = _counted(lambda x: x * x - 2.0)
     x, status = jax.jit(lambda: bracketed_root(f, 1.0, 2.0, -1.0, 2.0))()
@@ -486,7 +486,7 @@ def test_bracket_starts_at_the_hermite_cubic_root():
     a cubic f that is its root, so one evaluation ends the solve (its Newton step is below the
     tolerance); for sin x − 1/2 on 1/16-period brackets the cubic's root is within the interpolation
     bound h⁴ max|f⁽⁴⁾|/(384 min|f'|) of π/6 (the secant point misses it by 40–130×)."""
-    from jaxdea.scalar import bracketed_root, hermite_root
+    from jaxdea.numerics.scalar import bracketed_root, hermite_root
 
     cubic = lambda x: (x - 1.3) * (x * x + 0.5)  # noqa: E731  one real root, 1.3
     f, calls = _counted(cubic)

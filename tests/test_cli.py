@@ -1,5 +1,5 @@
 """Command line interface: ``jaxdea sweep CONFIG``, ``jaxdea figures``, ``jaxdea table``, their help,
-and the validation of sweep configurations (jaxdea.config)."""
+and the validation of sweep configurations (jaxdea.io.config)."""
 
 import argparse
 import contextlib
@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea import cli, config
+from jaxdea.apps import cli
+from jaxdea.io import config
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -488,14 +489,14 @@ def test_figures_into_a_file_fails_fast_in_a_fresh_process(tmp_path):
 
 @pytest.fixture
 def fake_figures(monkeypatch):
-    """A stand-in for jaxdea.figures (the figures themselves are tested with that module)."""
+    """A stand-in for jaxdea.apps.figures (the figures themselves are tested with that module)."""
     calls = []
 
     def make_figures(out, quick=False, progress=True):
         calls.append(dict(out=out, quick=quick, progress=progress))
         return [out / "fig2.png", out / "fig2.csv"]
 
-    monkeypatch.setitem(sys.modules, "jaxdea.figures",
+    monkeypatch.setitem(sys.modules, "jaxdea.apps.figures",
                         types.SimpleNamespace(make_figures=make_figures))
     return calls
 
@@ -553,7 +554,7 @@ def test_help_says_what_jaxdea_does_and_that_only_the_square_of_the_voltage_matt
 
 def test_quiet_keeps_the_fit_report(monkeypatch, capsys, tmp_path):
     """--quiet drops progress, not results: the fit's table of estimates is still printed."""
-    from jaxdea import fit_io
+    from jaxdea.io import fit_io
 
     report = "parameter  estimate  95 % interval"
     monkeypatch.setattr(fit_io, "run_fit", lambda data, config, out: (None, report, [tmp_path / "x.json"]))
@@ -706,7 +707,7 @@ def test_an_interrupted_sweep_saves_the_solved_points_apart(previous_run, monkey
     import os
     import signal
 
-    from jaxdea.sweeps import SweepInterrupted
+    from jaxdea.studies.sweeps import SweepInterrupted
 
     config_path, before = previous_run
     capsys.readouterr()
@@ -747,7 +748,7 @@ def test_an_interrupt_before_any_point_or_while_writing_changes_nothing(previous
                                                                         capsys):
     """Ctrl-C before a point is solved, or while the outputs are written: no file changes, no
     temporary is left, one line, exit status 130."""
-    from jaxdea.sweeps import SweepInterrupted
+    from jaxdea.studies.sweeps import SweepInterrupted
 
     config_path, before = previous_run
     folder = config_path.parent

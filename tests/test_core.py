@@ -10,13 +10,14 @@ from conftest import fd_derivative
 from scipy import integrate, special
 
 import jaxdea as jd
-from jaxdea import base_state as bs
-from jaxdea import bessel, transfer
-from jaxdea.bessel import RANGE, _switch, coupling_log_factor, coupling_pair
-from jaxdea.dispersion import characteristic_and_scale, reference_determinant
-from jaxdea.moduli import closed_form_coefficients, coefficients, push_forward_moduli
-from jaxdea.state_matrix import state_matrix
-from jaxdea.transfer import discretize, layer_exponentials
+from jaxdea.numerics import bessel
+from jaxdea.numerics.bessel import RANGE, _switch, coupling_log_factor, coupling_pair
+from jaxdea.physics import base_state as bs
+from jaxdea.physics import transfer
+from jaxdea.physics.dispersion import characteristic_and_scale, reference_determinant
+from jaxdea.physics.moduli import closed_form_coefficients, coefficients, push_forward_moduli
+from jaxdea.physics.state_matrix import state_matrix
+from jaxdea.physics.transfer import discretize, layer_exponentials
 
 PAPER = dict(lambda_z=1.2, eta=0.85)
 
@@ -373,9 +374,9 @@ def test_value_and_slope_on_wall_equals_forward_mode(case):
     """value_and_slope_on_wall (the continuation's lanes) gives the value of characteristic_on_wall
     ("adaptive", to rounding; the expm reference to 1e-12) and its forward-mode slope, through the
     coupled 6×6 (8×8, 2×2) propagation or, without voltage, the decoupled 4×4 one."""
-    from jaxdea.dispersion import characteristic_on_wall, electric_decoupled, value_and_slope_on_wall
-    from jaxdea.scalar import value_and_slope
-    from jaxdea.state_matrix import LONGITUDINAL, ORDER_M, TORSIONAL
+    from jaxdea.numerics.scalar import value_and_slope
+    from jaxdea.physics.dispersion import characteristic_on_wall, electric_decoupled, value_and_slope_on_wall
+    from jaxdea.physics.state_matrix import LONGITUDINAL, ORDER_M, TORSIONAL
 
     tube, fluid, order, layers, m, family = jd.Tube(voltage=0.15, lambda_i=0.95, **PAPER), None, 0, \
         transfer.Layers(16, "magnus6", graded=True), 0.0, LONGITUDINAL
@@ -436,13 +437,13 @@ def test_lane_generators_give_the_walls_values(case):
     """The curves' lanes take the generators as polynomials in α̂ and the electric block's column
     once per α̂ (lane_generators, electric_column): (f, f') and the scan's (f, ℓ) with its slopes
     equal those formed from the wall at every evaluation, to rounding."""
-    from jaxdea.dispersion import (
+    from jaxdea.numerics.scalar import value_and_slope
+    from jaxdea.physics.dispersion import (
         generator_polynomials,
         lane_generators,
         scale_and_slope_on_wall,
         value_and_slope_on_wall,
     )
-    from jaxdea.scalar import value_and_slope
 
     wall, fluid, _, alpha = _scanned_case(case)
     omegas = jnp.linspace(0.05, 6.0, 25)
@@ -466,8 +467,8 @@ def test_scale_and_slope_on_wall_equals_forward_mode(case):
     """The scan's (f, ℓ) with the carried slope (scale_and_slope_on_wall, ℓ' = tr(QᵀZ)) equals
     characteristic_and_scale ("adaptive") and its forward-mode slope; decoupled=True on a wall that
     does not decouple gives NaN, never a wrong value."""
-    from jaxdea.dispersion import scale_and_slope_on_wall
-    from jaxdea.scalar import value_and_slope
+    from jaxdea.numerics.scalar import value_and_slope
+    from jaxdea.physics.dispersion import scale_and_slope_on_wall
 
     wall, fluid, order, alpha = _scanned_case(case)
     omegas = jnp.linspace(0.0, 6.0, 25)
@@ -493,7 +494,7 @@ def test_carried_slope_is_forward_mode_on_a_thick_wall():
     wall without differentiating Gram–Schmidt (the scan's and the corrector lanes') equals forward
     mode through the propagation, near the roots too (it lost every digit there before its
     components along earlier columns were removed at each sublayer)."""
-    from jaxdea.dispersion import scale_and_slope_on_wall
+    from jaxdea.physics.dispersion import scale_and_slope_on_wall
 
     tube = jd.Tube(eta=0.3)
     alpha = 150.0 / float(jd.thickness_ratio(tube))
@@ -577,7 +578,7 @@ def test_mode_shape_satisfies_boundary_conditions():
                                0.0, atol=1e-10)
     np.testing.assert_allclose(y[2:5, -1], 0.0, atol=1e-8)
     assert np.isclose(float(jnp.max(jnp.abs(y[:2]))), 1.0)
-    from jaxdea.transfer import laminate, transfer_matrix
+    from jaxdea.physics.transfer import laminate, transfer_matrix
     wall = discretize(tube, laminate(None, None, tube, alpha))  # the default discretisation
     a = transfer_matrix(wall, omega, alpha)
     np.testing.assert_allclose(a @ y[:, 0], y[:, -1], atol=1e-8)
@@ -586,7 +587,7 @@ def test_mode_shape_satisfies_boundary_conditions():
 def test_wall_coefficients_tensor_route_equals_closed_route():
     """The default closed forms (W_1, W_11 by autodiff) and the full tensor push-forward of the
     autodiff Hessian give the same sublayer coefficients on a Gent wall near its locking limit."""
-    from jaxdea.transfer import layer_coefficients
+    from jaxdea.physics.transfer import layer_coefficients
 
     tube = jd.Tube(voltage=0.3, lambda_i=1.6, lambda_z=1.5, eta=0.7, gent=6.0)
     r = jnp.linspace(1.6, float(bs.geometry(tube).r_outer), 7)
@@ -623,7 +624,7 @@ def test_voltage_generators_equal_the_direct_ones(layers, m):
     """The at-rest generators of a Magnus wall as polynomials in V̂ (voltage_generators) equal those
     formed at each V̂ from the wall (wall_generators, at_rest), on a Gent wall near locking, at
     voltages inside and beyond the radius of the expansion's circle."""
-    from jaxdea.state_matrix import LONGITUDINAL, ORDER_M
+    from jaxdea.physics.state_matrix import LONGITUDINAL, ORDER_M
 
     tube = jd.Tube(voltage=0.0, lambda_i=1.6, lambda_z=1.5, eta=0.7, gent=6.0)
     family = LONGITUDINAL if m == 0 else ORDER_M
@@ -645,8 +646,8 @@ def test_alpha_generators_equal_the_direct_ones(layers, what):
     of each sublayer's largest entry (7e-16 to 1.1e-15 measured), for every scheme, family and block,
     on the paper's tube and on a thick wall up to α̂ = 30 (its default N = 192, where the terms of
     degree 10 in α̂ are largest)."""
-    from jaxdea.dispersion import ELECTRIC, MECHANICAL
-    from jaxdea.state_matrix import ORDER_M
+    from jaxdea.physics.dispersion import ELECTRIC, MECHANICAL
+    from jaxdea.physics.state_matrix import ORDER_M
 
     kwargs = {"longitudinal": {}, "mechanical": dict(block=tuple(MECHANICAL)),
               "electric": dict(at_rest=True, block=tuple(ELECTRIC)),
@@ -673,10 +674,10 @@ def test_alpha_generators_equal_the_direct_ones(layers, what):
 def test_critical_voltage_equals_the_direct_search(m):
     """The critical-voltage search with the generators' expansion in V̂ (the Magnus schemes) finds
     the V̂_cr of the same search forming every generator from the wall at each V̂, to 1e-13."""
-    from jaxdea.base_state import voltage_limit
-    from jaxdea.dispersion import characteristic_of_w, characteristic_on_wall
-    from jaxdea.roots import _first_root, critical_voltage_unchecked
-    from jaxdea.state_matrix import LONGITUDINAL, ORDER_M
+    from jaxdea.physics.base_state import voltage_limit
+    from jaxdea.physics.dispersion import characteristic_of_w, characteristic_on_wall
+    from jaxdea.physics.state_matrix import LONGITUDINAL, ORDER_M
+    from jaxdea.solve.roots import _first_root, critical_voltage_unchecked
 
     family = LONGITUDINAL if m == 0 else ORDER_M
     for tube in (jd.Tube(voltage=0.0, lambda_i=0.9, **PAPER),
@@ -706,7 +707,7 @@ def test_critical_voltage_equals_the_direct_search(m):
 
 def test_bracketed_root_with_given_end_slopes():
     """bracketed_root with the caller's end slopes gives the root it finds by evaluating them."""
-    from jaxdea.scalar import bracketed_root
+    from jaxdea.numerics.scalar import bracketed_root
 
     fun = lambda x: jnp.cos(x) - x  # noqa: E731
     lo, hi = 0.2, 1.4
@@ -723,7 +724,7 @@ def test_pull_in_of_a_softening_wall(monkeypatch):
     pull-in maximum at fixed λ_z, unlike Gent and neo-Hookean walls: pull_in (Newton on the slope)
     finds dV̂²/dλ_i = 0 there, with implicit derivatives equal to central differences, and
     voltage_limit (golden-section search on values only) reaches the same voltage."""
-    from jaxdea import materials
+    from jaxdea.physics import materials
 
     monkeypatch.setitem(materials.ENERGIES, "soft", lambda i1, g: jnp.sqrt(i1 - 2.0) - 1.0)
     tube = jd.Tube(lambda_z=1.2, eta=0.6, material="soft", lambda_i=1.0)

@@ -1,4 +1,4 @@
-"""Argument-principle root counts (jaxdea.counting) against frequencies, sign changes and synthetic
+"""Argument-principle root counts (jaxdea.solve.counting) against frequencies, sign changes and synthetic
 functions with known zeros, in every regime where a scan could miss roots.
 
 Compilation dominates: the counts share three static configurations (empty tube, acoustic fluid,
@@ -13,8 +13,11 @@ from scipy import special
 from scipy.optimize import brentq
 
 import jaxdea as jd
-from jaxdea.bessel import coupling_pair
-from jaxdea.counting import (
+from jaxdea.numerics.bessel import coupling_pair
+from jaxdea.params import canonical, gent_limit_excess
+from jaxdea.physics.dispersion import OUTER_ROWS, characteristic_and_scale, initial_basis
+from jaxdea.physics.transfer import discretize, transfer_matrix
+from jaxdea.solve.counting import (
     LANES,
     CountStatus,
     RootCount,
@@ -22,9 +25,6 @@ from jaxdea.counting import (
     _phase_count,
     count_roots,
 )
-from jaxdea.dispersion import OUTER_ROWS, characteristic_and_scale, initial_basis
-from jaxdea.params import canonical, gent_limit_excess
-from jaxdea.transfer import discretize, transfer_matrix
 
 PAPER = dict(lambda_z=1.2, eta=0.85)
 N_ROOTS = 24  # one compiled scan per fluid model; larger than every count below

@@ -1,4 +1,4 @@
-"""Dispersion curves by certified continuation (jaxdea.curves): the same roots as jd.frequencies at
+"""Dispersion curves by certified continuation (jaxdea.solve.curves): the same roots as jd.frequencies at
 every α̂, continuation where it is safe, the scan where a check fails."""
 
 import exact_cylinder
@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea.curves import PRIOR_AGE, _aged, _extrapolate, _refresh, _track
-from jaxdea.dispersion import value_and_slope_on_wall
-from jaxdea.scalar import iterate_lanes, lanes_from_slots
-from jaxdea.transfer import discretize
+from jaxdea.numerics.scalar import iterate_lanes, lanes_from_slots
+from jaxdea.physics.dispersion import value_and_slope_on_wall
+from jaxdea.physics.transfer import discretize
+from jaxdea.solve.curves import PRIOR_AGE, _aged, _extrapolate, _refresh, _track
 
 
 def per_alpha(tube, alphas, fluid, n_roots, n_layers):
@@ -320,7 +320,7 @@ def test_paths_along_voltage_and_speed_ratio_equal_the_scan_at_every_point():
     """Curves along V̂ (to V̂_cr, abscissa t with V̂ = V̂_cr(1 − (1 − t)²)), along ĉ_f (log abscissa)
     and along α̂ through fractional n, packed into one padded path of the figures: each point equals
     jd.frequencies there (1e-10), most points are continued, the padding stays out."""
-    from jaxdea import figures
+    from jaxdea.apps import figures
 
     tube = figures.PAPER_TUBE.replace(lambda_i=0.9)
     fluid = jd.Fluid(density_ratio=0.13, speed_ratio=0.27)
@@ -353,8 +353,8 @@ def test_empty_tube_paths_run_on_the_acoustic_program_and_equal_the_empty_tube()
     """The figures solve the empty tube as a massless acoustic fluid (figures.MASSLESS_FLUID): no
     program of its own is compiled, and every root equals jd.frequencies of the empty tube
     (1e-11: the fluid's column scale D_0 > 0 is taken out by the orthonormalisation)."""
-    from jaxdea import figures
-    from jaxdea.curves import solve_path
+    from jaxdea.apps import figures
+    from jaxdea.solve.curves import solve_path
 
     tube = figures.PAPER_TUBE.replace(lambda_i=0.9)
     n_layers = 12
@@ -378,7 +378,7 @@ def test_empty_tube_paths_run_on_the_acoustic_program_and_equal_the_empty_tube()
 def test_path_marks_a_root_that_changes_branch():
     """Past V̂_cr the lowest root of mode n = 1 is imaginary: along V̂ beyond it the lowest real root
     is another branch's, found by the scan and marked as a jump (the step before it continues)."""
-    from jaxdea import figures
+    from jaxdea.apps import figures
 
     tube = figures.PAPER_TUBE.replace(lambda_i=1.1)
     n_layers = 12
@@ -397,7 +397,7 @@ def test_path_marks_a_root_that_changes_branch():
 def test_paper_coupling_path_takes_the_order_of_each_mode():
     """The paper's coupling along whole n takes ν = n at each point (every point scanned): the roots
     of jd.frequencies with Fluid(coupling="paper") (ν = n by default) there."""
-    from jaxdea import figures
+    from jaxdea.apps import figures
 
     fluid = jd.Fluid(density_ratio=0.13, speed_ratio=0.27, coupling="paper")
     modes = np.arange(1.0, 5.0)
@@ -411,7 +411,7 @@ def test_paper_coupling_path_takes_the_order_of_each_mode():
 def test_critical_voltages_along_a_path_equal_the_search_at_every_point():
     """V̂_cr by continuation along λ_i (m = 0 and 2) and along fractional n (m = 1): each point is
     jd.critical_voltage there (1e-11); only the start of each curve is searched from V̂ = 0."""
-    from jaxdea import figures
+    from jaxdea.apps import figures
 
     n_layers = 12
     stretches = np.linspace(0.9, 1.3, 9)
@@ -437,9 +437,9 @@ def test_static_propagation_equals_the_checked_one():
     """dispersion_curve compiles one propagation, chosen from the concrete voltage (V̂ = 0: the
     decoupled 4×4 one, lanes and scan; else the 6×6 one): the roots and scanned steps of the program
     that checks the wall at every point and compiles both."""
-    from jaxdea.curves import curve_unchecked
     from jaxdea.params import canonical
-    from jaxdea.transfer import laminate
+    from jaxdea.physics.transfer import laminate
+    from jaxdea.solve.curves import curve_unchecked
 
     alphas = np.linspace(0.05, 4.0, 24)
     layers = laminate(8, "magnus6")

@@ -1,4 +1,4 @@
-"""Design optimisation (jaxdea.design): bad inputs, the tunability and its exact gradient against
+"""Design optimisation (jaxdea.studies.design): bad inputs, the tunability and its exact gradient against
 central finite differences, the stability bound (the first instability over every order m and
 axial mode n) and convergence of both example problems from several starts, each optimum checked
 by a direct root solve (frequencies) and by first_instability."""
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea import design
+from jaxdea.studies import design
 from jaxdea.units import VACUUM_PERMITTIVITY, Scales, tube_from_si, tube_to_si
 
 TUBE = jd.Tube(lambda_i=1.1, lambda_z=1.2, eta=0.85)  # the paper's tube, inflated

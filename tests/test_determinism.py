@@ -20,9 +20,9 @@ What does not (XLA on CPU; measured, checked to agree to RTOL = 1e-13, README "N
   which products end up in the same fusion as their sums depends on the shapes (a batch dimension
   changes the fusion and vectorisation decisions); reductions over small axes (``jnp.sum``,
   ``jnp.dot``, ``jnp.linalg.norm``) are also vectorised in a shape-dependent order. The quadrature
-  of the base state (jaxdea/base_state.py) sums in a fixed order; the remaining differences
+  of the base state (jaxdea/physics/base_state.py) sums in a fixed order; the remaining differences
   come from the fusion of the state matrix into the sublayer exponential and from the Gram–Schmidt
-  dot products (jaxdea/transfer.py).
+  dot products (jaxdea/physics/transfer.py).
 
 The default run checks each property on the configurations the other tests compile (n_layers = 30,
 n_roots = 2 or 3, sweeps in chunks of 4); the rest is marked slow.

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea.explore import explorer_data, explorer_grid, judge_stability, stability_status, unstable_alphas
+from jaxdea.apps.explore import explorer_data, explorer_grid, judge_stability, stability_status, unstable_alphas
 
 pytest.importorskip("ipywidgets")
 
@@ -197,7 +197,7 @@ def test_default_view_is_not_squeezed_by_a_far_branch(app):
 def test_explorer_keeps_the_matplotlib_backend():
     code = ("import matplotlib; matplotlib.use('agg'); import jax; jax.config.update('jax_enable_x64', True)\n"
             "import jaxdea\n"
-            "from jaxdea.explore import _interactive_canvas\n"
+            "from jaxdea.apps.explore import _interactive_canvas\n"
             "from matplotlib.figure import Figure\n"
             "canvas = _interactive_canvas(Figure())\n"
             "print(matplotlib.get_backend(), canvas is not None)\n")

@@ -25,23 +25,23 @@ pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parent.parent
 # the CLI after its imports: "ready" on stdout, an optional file-size limit and, with "chunks", a
-# line "chunk" on stdout after each chunk of the sweep is solved; then jaxdea.cli.main
+# line "chunk" on stdout after each chunk of the sweep is solved; then jaxdea.apps.cli.main
 DRIVER = """\
 import resource, signal, sys
-import jaxdea.cli, jaxdea.sweeps
+import jaxdea.apps.cli, jaxdea.studies.sweeps
 limit, report = int(sys.argv[1]), sys.argv[2] == "chunks"
 if limit:
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     resource.setrlimit(resource.RLIMIT_FSIZE, (limit, resource.getrlimit(resource.RLIMIT_FSIZE)[1]))
 if report:
-    solve = jaxdea.sweeps._solve_chunk
+    solve = jaxdea.studies.sweeps._solve_chunk
     def reported(*args):
         out = solve(*args)
         print("chunk", flush=True)
         return out
-    jaxdea.sweeps._solve_chunk = reported
+    jaxdea.studies.sweeps._solve_chunk = reported
 print("ready", flush=True)
-sys.exit(jaxdea.cli.main(sys.argv[3:]))
+sys.exit(jaxdea.apps.cli.main(sys.argv[3:]))
 """
 OUTPUTS = ("grid.csv", "grid.npz", "grid.png")
 

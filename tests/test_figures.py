@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea import figures
+from jaxdea.apps import figures
 from jaxdea.params import gent_limit_excess
 
 EXPECTED = ["static_response", "fig2_voltage_empty", "fig3_modes_empty", "fig4_modes_critical_empty",

@@ -18,8 +18,8 @@ import pytest
 
 import jaxdea as jd
 from jaxdea import files
-from jaxdea.fit import FitResult, FitStatus
-from jaxdea.sweeps import SweepResult
+from jaxdea.studies.fit import FitResult, FitStatus
+from jaxdea.studies.sweeps import SweepResult
 
 
 def sweep_result(scale=1.0):
@@ -44,13 +44,13 @@ PEAKS = {"voltage_V": np.array([1e3, 2e3]), "frequency_Hz": np.array([40.0, 41.5
 
 
 def _plot_sweep(result, path):
-    from jaxdea.cli import plot_sweep
+    from jaxdea.apps.cli import plot_sweep
 
     plot_sweep(result, "alpha", path)
 
 
 def _table(scale, path):
-    from jaxdea.figures import Table
+    from jaxdea.apps.figures import Table
 
     table = Table("fig")
     for k in range(40):

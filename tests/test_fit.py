@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea.fit import (
+from jaxdea.studies.fit import (
     NAMES,
     FitStatus,
     IdentifiabilityWarning,
@@ -389,7 +389,7 @@ def test_cli_peaks_are_the_synthetic_ones():
 @pytest.fixture(scope="module")
 def cli_run(tmp_path_factory):
     """``jaxdea fit peaks.csv --config fit.toml --out out`` once: (folder, exit status, stdout)."""
-    from jaxdea import cli
+    from jaxdea.apps import cli
 
     folder = tmp_path_factory.mktemp("fit_cli")
     jd.write_peaks(folder / "peaks.csv", cli_peaks())
@@ -435,7 +435,7 @@ def test_cli_fit_recovers_the_truth_and_writes_json_and_png(cli_run):
 def test_plot_shows_the_fitted_curves_and_the_residuals(cli_run, tmp_path):
     """The curve of each mode passes through the exact peaks at the ends of the voltage range, and
     every plotted point is a root of the fitted model (Newton from it stays there)."""
-    from jaxdea.fit import model_and_jacobian
+    from jaxdea.studies.fit import model_and_jacobian
 
     folder = cli_run[0]
     data = jd.read_peaks(folder / "peaks.csv")
@@ -470,7 +470,7 @@ def _cli(argv):
     import contextlib
     import io
 
-    from jaxdea import cli
+    from jaxdea.apps import cli
 
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
@@ -535,7 +535,7 @@ def test_cli_unknown_flag_and_missing_config_exit_2():
 
 
 def test_config_fluid_forms_and_key_errors():
-    from jaxdea.fit_io import parse_fit_config
+    from jaxdea.io.fit_io import parse_fit_config
 
     base = dict(free={"shear_modulus": [5e4, 2e5]}, fixed={"density": 1000.0})
     assert parse_fit_config(base).fluid is None
@@ -561,7 +561,8 @@ def test_config_fluid_forms_and_key_errors():
 
 
 def test_fit_help_documents_every_config_key(capsys):
-    from jaxdea import cli, fit_io
+    from jaxdea.apps import cli
+    from jaxdea.io import fit_io
 
     assert cli.main(["fit", "--help"]) == 0
     out = capsys.readouterr().out
@@ -605,7 +606,7 @@ EXAMPLES = __import__("pathlib").Path(__file__).parents[1] / "examples"
 
 
 def test_example_peaks_and_config_are_valid():
-    from jaxdea.fit_io import load_fit_config
+    from jaxdea.io.fit_io import load_fit_config
 
     config = load_fit_config(EXAMPLES / "fit.toml")
     peaks = jd.read_peaks(EXAMPLES / "peaks.csv")

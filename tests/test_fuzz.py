@@ -37,7 +37,7 @@ from hypothesis import strategies as st
 import jaxdea as jd
 from jaxdea import units
 from jaxdea.params import ALPHA_MIN, GENT_MIN, TINY
-from jaxdea.transfer import TRACED_LAYERS, laminate
+from jaxdea.physics.transfer import TRACED_LAYERS, laminate
 
 SMALL = 6
 LARGE = int(os.environ.get("JAXDEA_FUZZ_EXAMPLES", "1000"))  # examples per entry point, -m slow
@@ -1402,9 +1402,9 @@ def test_compiled_characteristic_and_group_velocity_give_nan_for_invalid_values(
     is validated) give NaN for invalid values (a past-locking stretch, η > 1, α̂ below ALPHA_MIN,
     G below GENT_MIN, a non-finite Ω, ...), never a finite number; the group velocity is taken at
     a root (a non-root gives NaN too: tests/test_api.py)."""
-    from jaxdea.dispersion import _characteristic
     from jaxdea.params import canonical
-    from jaxdea.roots import _group_velocity
+    from jaxdea.physics.dispersion import _characteristic
+    from jaxdea.solve.roots import _group_velocity
 
     f, g = [], []
     for li, eta, gent, rho, alpha, omega, root in _traced_rows():

@@ -5,13 +5,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import fd_derivative
 
 import jaxdea as jd
-from jaxdea import roots
-from jaxdea.scalar import Status
-from jaxdea.state_matrix import ORDER_M
-
-from conftest import fd_derivative
+from jaxdea.numerics.scalar import Status
+from jaxdea.physics.state_matrix import ORDER_M
+from jaxdea.solve import roots
 
 PAPER = jd.Tube(voltage=0.0, lambda_i=0.9, lambda_z=1.2, eta=0.85)  # G = 97.2 (default)
 OVAL = jd.Tube(voltage=0.0, lambda_i=0.95, lambda_z=1.2, eta=0.85)

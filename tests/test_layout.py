@@ -128,11 +128,25 @@ def test_no_private_name_crosses_a_folder():
     assert not crossing, "private names imported across folders: " + "; ".join(crossing)
 
 
+def test_units_keeps_its_public_path():
+    """``jaxdea.units`` (README, docs/howto/units.md) is the moved module's names, the same objects."""
+    import jaxdea
+    import jaxdea.physics.units as moved
+    import jaxdea.units as public
+
+    assert jaxdea.units is public
+    for name in ("Scales", "tube_from_si", "tube_to_si", "fluid_from_si", "fluid_to_si",
+                 "VACUUM_PERMITTIVITY"):
+        assert getattr(public, name) is getattr(moved, name), name
+
+
 def test_names_are_imported_from_the_module_that_defines_them():
     """``guard`` from params, not through roots: a re-export by accident ties two modules that need
-    not know each other. The package's __init__ is the one re-exporter."""
+    not know each other. The package's __init__ and the facade jaxdea.units re-export."""
     borrowed = []
     for name, tree in MODULES.items():
+        if name in ENTRY_POINTS:
+            continue
         for target, imported, line in imports(name, tree):
             if (imported and target in MODULES and not is_package(target)
                     and imported not in defined(MODULES[target])):

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea import config
+from jaxdea.io import config
 from jaxdea.units import VACUUM_PERMITTIVITY, Scales, tube_from_si, tube_to_si
 
 VHB = Scales(20e3, 960.0, 4.7 * VACUUM_PERMITTIVITY, 5e-3)  # the worked example of jaxdea.units

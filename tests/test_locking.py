@@ -10,14 +10,14 @@ r̂_i) at 90 %, 99 % and 99.9 % of locking, in compression (λ_i < λ_z^{-1/2}) 
 
 import warnings
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 from scipy import integrate
 
-import jax
-import jax.numpy as jnp
 import jaxdea as jd
-from jaxdea import base_state as bs
+from jaxdea.physics import base_state as bs
 
 LAMBDA_Z, ETA, GENT, VOLTAGE = 1.2, 0.75, 4.0, 0.05
 FRACTIONS = (0.9, 0.99, 0.999)
@@ -136,7 +136,7 @@ def test_pressure_difference_large_gent(gent):
 # ------------------------------------------------------------------------------ error estimates
 def _estimate_of(levels, order=2):
     """(value, error, asymptotic) of frequencies_with_error's last three levels."""
-    from jaxdea.accuracy import _asymptotic, _conservative_error, _richardson
+    from jaxdea.solve.accuracy import _asymptotic, _conservative_error, _richardson
 
     levels = [np.array([x]) for x in levels]
     value, error = _richardson(levels, order)
@@ -149,7 +149,7 @@ def _estimate_of(levels, order=2):
 def test_asymptotic_levels_keep_the_richardson_estimate(order):
     """Levels Ω + c N^-p + d N^-(p+2) (observed order within ORDER_SLACK of p): the estimate is
     |R_last − R_prev| as before, above the true error (by 2^(p+2) − 1)."""
-    from jaxdea.accuracy import _richardson
+    from jaxdea.solve.accuracy import _richardson
 
     omega, c, d = 2.3, -0.4, 0.3
     levels = [omega + c * n**-order + d * n ** -(order + 2) for n in (4, 8, 16)]
@@ -179,7 +179,7 @@ def test_preasymptotic_levels_get_a_conservative_bound(width):
 def test_levels_of_another_order_get_a_conservative_bound(power):
     """Levels Ω + c N^-q with q ≠ 2: not asymptotic, and the error bounds the true error, where
     |R_last − R_prev| = |d₂||4 − ρ|/3 alone does not for ratios ρ = 2^q < 2 (q = 0.5)."""
-    from jaxdea.accuracy import _richardson
+    from jaxdea.solve.accuracy import _richardson
 
     omega, c = 0.212, 0.05
     levels = [omega + c * n**-power for n in (30, 60, 120)]
@@ -238,10 +238,10 @@ def test_default_levels_near_locking_converge_at_sixth_order():
     est = jd.frequencies_with_error(tube, alpha, fluid, n_roots=3)
     assert est.n_layers[0] == 96 and np.all(est.status == jd.Status.CONVERGED)
     assert np.all(est.error < 1e-8 * est.omega)
-    from jaxdea.accuracy import _follow
-    from jaxdea.dispersion import check_inputs
     from jaxdea.params import canonical
-    from jaxdea.transfer import Layers
+    from jaxdea.physics.dispersion import check_inputs
+    from jaxdea.physics.transfer import Layers
+    from jaxdea.solve.accuracy import _follow
 
     order = check_inputs(tube, alpha, fluid, None, None)
     fine, status = _follow(*canonical(tube, alpha, fluid), jnp.asarray(est.omega),

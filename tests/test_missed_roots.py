@@ -16,18 +16,18 @@ from scipy.special import jnp_zeros, jvp
 import jaxdea
 import jaxdea as jd
 from jaxdea import Fluid, Status, Tube
-from jaxdea.bessel import RANGE, coupling_pair
-from jaxdea.counting import CountStatus, count_roots_unchecked
-from jaxdea.dispersion import reference_determinant
+from jaxdea.numerics.bessel import RANGE, coupling_pair
 from jaxdea.params import gent_limit_excess
-from jaxdea.roots import (
+from jaxdea.physics.dispersion import reference_determinant
+from jaxdea.physics.transfer import discretize, laminate
+from jaxdea.solve import roots
+from jaxdea.solve.counting import CountStatus, count_roots_unchecked
+from jaxdea.solve.roots import (
     bessel_derivative_zeros,
     coupling_poles,
     critical_voltage_unchecked,
     frequencies_unchecked,
 )
-from jaxdea import roots
-from jaxdea.transfer import discretize, laminate
 
 PAPER_TUBE = Tube(lambda_i=1.8252549, lambda_z=1.2, eta=0.85, gent=2.0, voltage=0.1)
 PAPER_FLUID = Fluid(density_ratio=0.13, speed_ratio=0.27, coupling="paper")

@@ -1,4 +1,4 @@
-"""Mode shapes and the acoustic pressure field in the cavity (jaxdea.modes, theory.md §3–4).
+"""Mode shapes and the acoustic pressure field in the cavity (jaxdea.solve.modes, theory.md §3–4).
 
 All fluid cases share one compiled root finder and one compiled mode solver (same static
 configuration, new float values): the float leaves of Tube/Fluid and α̂, Ω are traced.
@@ -14,11 +14,11 @@ import pytest
 from scipy import special
 
 import jaxdea as jd
-from jaxdea import modes
-from jaxdea.bessel import _switch, coupling_log_factor, coupling_pair
-from jaxdea.modes import fluid_pressure
+from jaxdea.numerics.bessel import _switch, coupling_log_factor, coupling_pair
 from jaxdea.params import canonical
-from jaxdea.transfer import discretize
+from jaxdea.physics.transfer import discretize
+from jaxdea.solve import modes
+from jaxdea.solve.modes import fluid_pressure
 
 TUBE = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
 N_POINTS = 401  # fine enough for 4th-order finite differences of p̂*(r̂) (h = r̂_i/400)

@@ -14,16 +14,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from exact_cylinder_m import EXACT_TABLE, roots_m
 from scipy.optimize import brentq
 from scipy.special import iv, ivp, jv, jvp, yv
 
-from exact_cylinder_m import EXACT_TABLE, roots_m
-
 import jaxdea as jd
-from jaxdea import dispersion as dp
-from jaxdea import state_matrix as sm
-from jaxdea import transfer as tr
-from jaxdea.bessel import coupling_pair
+from jaxdea.numerics.bessel import coupling_pair
+from jaxdea.physics import dispersion as dp
+from jaxdea.physics import state_matrix as sm
+from jaxdea.physics import transfer as tr
 
 ETA = 0.85
 R_I, R_O = 1.0, 1.0 / ETA  # unstretched tube

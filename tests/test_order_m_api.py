@@ -12,17 +12,17 @@ import pytest
 import scipy.special as sp
 
 import jaxdea as jd
-from jaxdea.accuracy import frequencies_with_error
-from jaxdea.cli import LABELS, SYMBOLS, plot_sweep
-from jaxdea.config import parse_config
-from jaxdea.counting import CountStatus, count_roots
-from jaxdea.curves import dispersion_curve
-from jaxdea.modes import fluid_pressure, mode_shape
+from jaxdea.apps.cli import LABELS, SYMBOLS, plot_sweep
+from jaxdea.io.config import parse_config
 from jaxdea.params import canonical
-from jaxdea.state_matrix import state_matrix_m
-from jaxdea.sweeps import sweep
-from jaxdea.trace import BranchEnd, trace_branch
-from jaxdea.transfer import discretize
+from jaxdea.physics.state_matrix import state_matrix_m
+from jaxdea.physics.transfer import discretize
+from jaxdea.solve.accuracy import frequencies_with_error
+from jaxdea.solve.counting import CountStatus, count_roots
+from jaxdea.solve.curves import dispersion_curve
+from jaxdea.solve.modes import fluid_pressure, mode_shape
+from jaxdea.solve.trace import BranchEnd, trace_branch
+from jaxdea.studies.sweeps import sweep
 
 jax.config.update("jax_enable_x64", True)
 

@@ -1,4 +1,4 @@
-"""The fast order-m propagation (jaxdea.transfer.propagate_balanced_of_w): balanced generators
+"""The fast order-m propagation (jaxdea.physics.transfer.propagate_balanced_of_w): balanced generators
 D⁻¹GD, the Paterson–Stockmeyer powers as polynomials in w, and generators formed once per batch.
 Every result is checked against the plain propagation with ``jax.scipy.linalg.expm`` per sublayer
 (the reference) and against the full transfer matrix."""
@@ -10,9 +10,9 @@ import pytest
 from conftest import fd_derivative
 
 import jaxdea as jd
-from jaxdea import dispersion as dp
-from jaxdea import transfer as tr
-from jaxdea.state_matrix import ORDER_M
+from jaxdea.physics import dispersion as dp
+from jaxdea.physics import transfer as tr
+from jaxdea.physics.state_matrix import ORDER_M
 
 TUBE = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
 FLUID = jd.Fluid(density_ratio=0.5, speed_ratio=0.6)

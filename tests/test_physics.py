@@ -25,8 +25,8 @@ import pytest
 from scipy.optimize import brentq
 
 import jaxdea as jd
-from jaxdea.dispersion import PHI, S, T, U, W, initial_basis
-from jaxdea.transfer import discretize, transfer_matrix
+from jaxdea.physics.dispersion import PHI, S, T, U, W, initial_basis
+from jaxdea.physics.transfer import discretize, transfer_matrix
 
 N_ROOTS = 3
 SQRT3 = math.sqrt(3.0)
@@ -161,7 +161,7 @@ def test_gent_limit_is_neo_hookean():
     """G → ∞ equals neo-Hookean: Ω(G) − Ω(∞) = O(1/G), and G = inf is the neo-Hookean energy.
 
     * ``material="neo_hookean"`` vs ``gent=inf``: the roots are functions of the discretised wall
-      only (base state, moduli, P̂_i: :func:`jaxdea.transfer.discretize`), so the walls are compared
+      only (base state, moduli, P̂_i: :func:`jaxdea.physics.transfer.discretize`), so the walls are compared
       leaf by leaf (same energy, different code path: rounding, 1e-13), which avoids a further
       ~15 s compile of the root solver for the static ``material``.
     * O(1/G) law, quantitatively: [Ω(G) − Ω(∞)]·G/Ω is the same at G = 97.2 and G = 1e9 up to the

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea import bessel, roots
-from jaxdea.transfer import discretize, laminate
+from jaxdea.numerics import bessel
+from jaxdea.physics.transfer import discretize, laminate
+from jaxdea.solve import roots
 
 TUBE = jd.Tube(lambda_z=1.2, eta=0.85, gent=97.2, length_ratio=10.0, lambda_i=0.9, voltage=0.1)
 
@@ -118,8 +119,8 @@ def test_scanned_slope_is_forward_mode(case):
     """The scan's (f, ℓ) and their carried slopes (f' = D det(B Q)[B Z] − f tr(QᵀZ), ℓ' = tr(QᵀZ),
     no derivative of Gram–Schmidt) equal characteristic_and_scale(_of_w) ("adaptive") and its
     forward-mode derivative in x: Ω, or w = Ω² itself for "omega_squared"."""
-    from jaxdea.dispersion import characteristic_and_scale, characteristic_and_scale_of_w
-    from jaxdea.scalar import value_and_slope
+    from jaxdea.numerics.scalar import value_and_slope
+    from jaxdea.physics.dispersion import characteristic_and_scale, characteristic_and_scale_of_w
 
     alpha, fluid, m, family, variable = 0.445, None, 0.0, "longitudinal", "omega"
     x = jnp.linspace(0.0, 6.0, 25)
@@ -154,9 +155,14 @@ def test_scanned_slope_is_forward_mode(case):
 def test_critical_slope_is_forward_mode(m, family):
     """g(V̂) = f(Ω = 0; V̂) of the critical-voltage search with its carried slope equals
     characteristic_at_rest on the wall at V̂ and its forward-mode derivative in V̂."""
-    from jaxdea.dispersion import characteristic_at_rest
-    from jaxdea.scalar import value_and_slope
-    from jaxdea.transfer import voltage_expansion, voltage_exponentials, voltage_generators, wall_at_voltage
+    from jaxdea.numerics.scalar import value_and_slope
+    from jaxdea.physics.dispersion import characteristic_at_rest
+    from jaxdea.physics.transfer import (
+        voltage_expansion,
+        voltage_exponentials,
+        voltage_generators,
+        wall_at_voltage,
+    )
 
     alpha, layers = 0.445, laminate(None, None, TUBE, 0.445, 3, m)
     v = jnp.linspace(0.0, 0.3, 7)

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea import sweeps as sweep_module
-from jaxdea.sweeps import sweep
+from jaxdea.studies import sweeps as sweep_module
+from jaxdea.studies.sweeps import sweep
 
 CACHE = os.path.join(os.path.dirname(os.path.dirname(__file__)), ".jax_cache", "xla")
 TUBE = jd.Tube(lambda_i=1.1, lambda_z=1.2, eta=0.85)  # the configuration of test_sweep (shared compilation)
@@ -39,7 +39,7 @@ def test_sharded_sweep_is_bit_identical_to_one_device():
         jax.config.update("jax_compilation_cache_dir", {CACHE!r})
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
         import jaxdea as jd
-        from jaxdea import sweeps
+        from jaxdea.studies import sweeps
         assert len(jax.devices()) == 2, jax.devices()
         grid = dict(voltage=np.array([0.0, 0.1, 0.2]), n=np.array([1, 2, 5]), chunk_size=4, progress=False)
         tube = jd.Tube(lambda_i=1.1, lambda_z=1.2, eta=0.85)

@@ -1,4 +1,4 @@
-"""Higher-order propagation schemes (jaxdea.transfer.SCHEMES): Magnus expansions of order 4 and 6
+"""Higher-order propagation schemes (jaxdea.physics.transfer.SCHEMES): Magnus expansions of order 4 and 6
 converge to the continuous wall, the limit of the paper's midpoint laminate, at their order."""
 
 import jax
@@ -8,9 +8,9 @@ import pytest
 from conftest import fd_derivative
 
 import jaxdea as jd
-from jaxdea.dispersion import characteristic_and_scale, characteristic_on_wall, reference_determinant
-from jaxdea.scalar import value_and_slope
-from jaxdea.transfer import discretize, laminate, layer_generator
+from jaxdea.numerics.scalar import value_and_slope
+from jaxdea.physics.dispersion import characteristic_and_scale, characteristic_on_wall, reference_determinant
+from jaxdea.physics.transfer import discretize, laminate, layer_generator
 
 TUBE = jd.Tube(lambda_z=1.2, lambda_i=1.1, voltage=0.1, eta=0.8)
 FLUID = jd.Fluid(density_ratio=0.5, speed_ratio=0.6)
@@ -74,10 +74,10 @@ def test_magnus_generator_reduces_to_the_midpoint_one_for_a_homogeneous_layer():
 
 def _direct_generator(step, coef, radius, omega, alpha):
     """The scheme's generator from the state matrices at Ω itself (the formulas of
-    jaxdea.transfer.layer_generator written out, with no polynomial in Ω²)."""
+    jaxdea.physics.transfer.layer_generator written out, with no polynomial in Ω²)."""
     from math import sqrt
 
-    from jaxdea.state_matrix import state_matrix
+    from jaxdea.physics.state_matrix import state_matrix
 
     m = jax.vmap(state_matrix, (0, 0, None, None))(coef, radius, omega, alpha)
     comm = lambda a, b: a @ b - b @ a  # noqa: E731
@@ -93,7 +93,7 @@ def _direct_generator(step, coef, radius, omega, alpha):
 
 @pytest.mark.parametrize("scheme", ["midpoint", "magnus4", "magnus6"])
 def test_generator_polynomial_in_omega_squared_equals_the_direct_formula(scheme):
-    """G(Ω) formed once per α̂ as a polynomial in Ω² (jaxdea.transfer.generator_coefficients)
+    """G(Ω) formed once per α̂ as a polynomial in Ω² (jaxdea.physics.transfer.generator_coefficients)
     equals the scheme's formula evaluated on M(Ω) at every node, for real Ω up to 40 and complex Ω
     (root counting), on a stretched tube under voltage, to rounding."""
     wall = discretize(TUBE, laminate(4, scheme))

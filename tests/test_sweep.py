@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea import sweeps as sweep_module
-from jaxdea.sweeps import SweepResult, sweep
+from jaxdea.studies import sweeps as sweep_module
+from jaxdea.studies.sweeps import SweepResult, sweep
 
 TUBE = jd.Tube(lambda_i=1.1, lambda_z=1.2, eta=0.85)
 VOLTAGES = np.array([0.0, 0.1, 0.2])
@@ -198,7 +198,7 @@ def test_hundred_thousand_points_in_bounded_memory():
         import resource, numpy as np, jax
         jax.config.update("jax_enable_x64", True)
         import jaxdea as jd
-        from jaxdea.sweeps import sweep
+        from jaxdea.studies.sweeps import sweep
         run = lambda m: sweep(jd.Tube(), voltage=np.linspace(0, 0.1, m), alpha=np.linspace(0.1, 2, 100),
                               n_roots=1, n_layers=2, chunk_size=256, progress=False)
         small = run(10)

@@ -1,4 +1,4 @@
-"""Branch tracing (jaxdea.trace): synthetic curves with known turning points and veerings, the real
+"""Branch tracing (jaxdea.solve.trace): synthetic curves with known turning points and veerings, the real
 tube against independent root solves, the critical voltage as a zero-frequency event, batching
 without recompilation, and bad inputs.
 
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea import trace as trace_module
-from jaxdea.trace import BranchEnd, continue_branch, trace_branch
+from jaxdea.solve import trace as trace_module
+from jaxdea.solve.trace import BranchEnd, continue_branch, trace_branch
 
 PAPER = dict(lambda_z=1.2, eta=0.85)
 TUBE = jd.Tube(voltage=0.1, lambda_i=0.9, **PAPER)

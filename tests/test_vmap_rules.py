@@ -1,5 +1,5 @@
-"""``jax.vmap`` of the solvers (jaxdea.roots.one_point_at_a_time): on the CPU a batch over α̂ alone
-is continued along α̂ (jaxdea.curves.frequencies_along, critical_voltages_along: continuation where
+"""``jax.vmap`` of the solvers (jaxdea.solve.roots.one_point_at_a_time): on the CPU a batch over α̂ alone
+is continued along α̂ (jaxdea.solve.curves.frequencies_along, critical_voltages_along: continuation where
 the batch is ordered, the scan of each point where not), any other batch is mapped one point after
 another; the values equal the points solved alone (to rounding, the standard of
 tests/test_determinism.py), statuses equal, and implicit derivatives pass through the vmapped call
@@ -14,8 +14,8 @@ import pytest
 from conftest import fd_derivative
 
 import jaxdea as jd
-from jaxdea import roots
-from jaxdea.scalar import Status
+from jaxdea.numerics.scalar import Status
+from jaxdea.solve import roots
 
 TUBE = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
 ALPHA = np.array([0.2, 0.7, 1.5, 3.0])
@@ -71,7 +71,7 @@ def test_a_batch_over_alpha_alone_is_continued_any_other_is_mapped(monkeypatch):
 
 def test_a_batch_of_frequency_over_alpha_and_guess_takes_the_curves_lanes(monkeypatch):
     """frequency: a batch over α̂, the guess or both (tube and fluid shared) goes to
-    jaxdea.curves.frequency_along; with the tube batched too it is vectorised as before (a while
+    jaxdea.solve.curves.frequency_along; with the tube batched too it is vectorised as before (a while
     loop over the batch, no scan of its length). Traced only."""
     calls = []
     engine = roots.BATCH_ENGINES["frequency"]

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea.sweeps import SweepResult
+from jaxdea.studies.sweeps import SweepResult
 from jaxdea.units import VACUUM_PERMITTIVITY, Scales
 
 xr = pytest.importorskip("xarray")

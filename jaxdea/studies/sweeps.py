@@ -1,6 +1,6 @@
 """Sweeps: the K lowest frequencies (and optionally their derivatives) over a grid of parameters.
 
-A grid is the Cartesian product of 1-D axes named after the parameters of :mod:`jaxdea.leaves`
+A grid is the Cartesian product of 1-D axes named after the parameters of :mod:`jaxdea.physics.leaves`
 (any Tube or Fluid float field, ``thickness_ratio`` h/R_i, and ``alpha`` α̂ or ``n`` the axial mode
 number). Its points are solved in fixed-size chunks by one jit-compiled, vmapped program: memory is
 bounded by the chunk (plus the result arrays), and every chunk reuses the same compilation. Points
@@ -21,7 +21,7 @@ dΩ/dλ_i at fixed h/R_i, with η following). On a grid over ``n`` the wavenumbe
 
 A result is written as CSV, NPZ or netCDF (:meth:`SweepResult.to_xarray`, extra ``jaxdea[xarray]``);
 with scales (:meth:`SweepResult.with_units`) the outputs also carry SI values: f in Hz, V in volts,
-lengths in m (:data:`SI_QUANTITIES`, converted by :mod:`jaxdea.units`).
+lengths in m (:data:`SI_QUANTITIES`, converted by :mod:`jaxdea.physics.units`).
 """
 
 from __future__ import annotations
@@ -38,12 +38,10 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
-from .base_state import inner_stretch_traced
-from .compiled import cached_jit
-from .dispersion import characteristic_on_wall, mode_family
-from .files import atomic_write
-from .leaves import FLUID_LEAVES, TUBE_LEAVES, apply_parameters, check_names, get_parameter
-from .params import (
+from ..compiled import cached_jit
+from ..files import atomic_write
+from ..numerics.scalar import Status
+from ..params import (
     MAX_ROOTS,
     Fluid,
     Tube,
@@ -56,11 +54,13 @@ from .params import (
     validate_positive,
     validate_roots,
 )
-from .roots import frequencies_unchecked, growth_family, growth_rates_unchecked
-from .scalar import Status
-from .state_matrix import LONGITUDINAL, ORDER_M
-from .transfer import AUTO_SCHEME, discretize, is_graded, laminate, split_layers, validate_scheme
-from .units import Scales, fluid_from_si, fluid_to_si
+from ..physics.base_state import inner_stretch_traced
+from ..physics.dispersion import characteristic_on_wall, mode_family
+from ..physics.leaves import FLUID_LEAVES, TUBE_LEAVES, apply_parameters, check_names, get_parameter
+from ..physics.state_matrix import LONGITUDINAL, ORDER_M
+from ..physics.transfer import AUTO_SCHEME, discretize, is_graded, laminate, split_layers, validate_scheme
+from ..physics.units import Scales, fluid_from_si, fluid_to_si
+from ..solve.roots import frequencies_unchecked, growth_family, growth_rates_unchecked
 
 SENSITIVITY = ("voltage", "lambda_i", "lambda_z", "density_ratio", "speed_ratio", "thickness_ratio",
                "gent")
@@ -186,7 +186,7 @@ class SweepResult:
 
     @property
     def scales(self) -> Scales | None:
-        """The :class:`jaxdea.units.Scales` of the SI outputs (:meth:`with_units`), or None."""
+        """The :class:`jaxdea.physics.units.Scales` of the SI outputs (:meth:`with_units`), or None."""
         units = self.settings.get("units")
         return None if units is None else Scales(**units)
 
@@ -196,11 +196,11 @@ class SweepResult:
         axis in :data:`SI_QUANTITIES` (``voltage_V``, ``thickness_m``, ...).
 
         Raises:
-            ValueError: ``scales`` is no :class:`jaxdea.units.Scales` or has a value that is not
+            ValueError: ``scales`` is no :class:`jaxdea.physics.units.Scales` or has a value that is not
                 finite and > 0 (naming it).
         """
         if not isinstance(scales, Scales):
-            raise ValueError(f"scales must be a jaxdea.units.Scales, got {type(scales).__name__}")
+            raise ValueError(f"scales must be a jaxdea.physics.units.Scales, got {type(scales).__name__}")
         units = {}
         for name in SCALE_FIELDS:
             value = real_value(name, getattr(scales, name))
@@ -575,7 +575,7 @@ class SweepInterrupted(KeyboardInterrupt):
 
 def _grid_layers(n_layers, scheme, tube, fluid, grids, n_roots, m):
     """The static discretisation of a sweep: with ``n_layers=None`` the accurate discretisation's N
-    (:func:`jaxdea.transfer.laminate`) for the worst point of the grid (largest α̂ĥ, ĥ/r̂_i, m and
+    (:func:`jaxdea.physics.transfer.laminate`) for the worst point of the grid (largest α̂ĥ, ĥ/r̂_i, m and
     closeness to locking)."""
     if n_layers is not None or scheme not in (None, AUTO_SCHEME):
         return laminate(n_layers, scheme)
@@ -637,7 +637,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
             (no static state) a point is NaN, status INVALID. Not with an axis ``lambda_i`` or
             ``thickness_ratio`` (the deformed wall depends on λ_i: give ``eta``) or ``jacobian``.
         **axes: ``name=values`` grid axes (1-D arrays, or scalars for a fixed value) over the names
-            of :mod:`jaxdea.leaves`; exactly one of ``alpha`` / ``n`` is required.
+            of :mod:`jaxdea.physics.leaves`; exactly one of ``alpha`` / ``n`` is required.
 
     Returns:
         An instance of :class:`SweepResult` with Ω of shape (*grid_shape, n_roots) in the order of ``axes``.
@@ -818,7 +818,7 @@ def _check_pressure(delta_p, axes, jac_names):
 
 @cached_jit(static_argnames=("names",))
 def _held_stretch_points(tube, names, columns, delta_p):
-    """λ_i of every point (vmapped :func:`jaxdea.base_state.inner_stretch`; NaN past pull-in)."""
+    """λ_i of every point (vmapped :func:`jaxdea.physics.base_state.inner_stretch`; NaN past pull-in)."""
     def one(vals):
         point = apply_parameters(tube, 1.0, None, dict(zip(names, vals, strict=True)))[0]
         return inner_stretch_traced(point.replace(lambda_i=1.0), delta_p)[0]
@@ -837,7 +837,7 @@ def _held_stretch(tube, names, grids, delta_p):
 
 def _orders(m, torsional, fluid):
     """(the axis ``m`` as a float64 array or None, the static family) of sweep's ``m``: a scalar is
-    a fixed order (its family from :func:`jaxdea.dispersion.mode_family`), a 1-D array an axis of
+    a fixed order (its family from :func:`jaxdea.physics.dispersion.mode_family`), a 1-D array an axis of
     the order-m family (traced m; each value validated by ``mode_family``)."""
     if np.ndim(m) == 0:
         return None, mode_family(m, torsional, fluid)

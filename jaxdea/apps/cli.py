@@ -1,7 +1,7 @@
 """Command line: ``jaxdea sweep CONFIG`` (user-defined sweeps to CSV/NPZ and a plot), ``jaxdea figures``
 (the paper's figures), ``jaxdea table`` (the lowest frequencies of the paper's tube) and ``jaxdea fit
 DATA.csv --config fit.toml`` (material and geometry from measured resonances: a summary, JSON and a
-plot; :mod:`jaxdea.fit_io`).
+plot; :mod:`jaxdea.io.fit_io`).
 
 :func:`main` takes the arguments as a list and returns the exit status (0: done, 2: any error,
 reported in one line on stderr without a traceback; 130: Ctrl-C, 143: SIGTERM, also one line).
@@ -23,7 +23,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from .files import save_figure, write_together
+from ..files import save_figure, write_together
 from .plotstyle import LABELS, OMEGA_LABEL, SYMBOLS  # axis labels: the style of every figure
 
 TABLE_HELP = """Lowest three frequencies Ω of the paper's tube (η = 0.85, λ_z = 1.2, G = 97.2) for
@@ -73,7 +73,7 @@ def table_stability(rows, n_layers=30, m_max=4, n_max=3):
 
 def row_notes(voltage, first, v_cr) -> str:
     """What a table row must say about its state: past the first instability (the rule of
-    :func:`jaxdea.plotstyle.past_first_instability`), and whether its lowest root has gone imaginary."""
+    :func:`jaxdea.apps.plotstyle.past_first_instability`), and whether its lowest root has gone imaginary."""
     from .plotstyle import past_first_instability
 
     notes = []
@@ -175,7 +175,7 @@ def _draw_sweep(result, x_name, path, title):
 def _si_axes(ax, result, x_name):
     """With units (``result.scales``): f in Hz on the right and, for an axis with a linear SI
     counterpart (V, m, kg/m³, m/s), its SI values on top."""
-    from .sweeps import SI_QUANTITIES
+    from ..studies.sweeps import SI_QUANTITIES
 
     scales = result.scales
     if scales is None:
@@ -230,9 +230,9 @@ def _writable_folder(out):
 
 
 def _sweep(args):
-    from . import Fluid, Status, Tube, sweep
-    from .config import SUFFIXES, load_config
-    from .sweeps import SweepInterrupted
+    from .. import Fluid, Status, Tube, sweep
+    from ..io.config import SUFFIXES, load_config
+    from ..studies.sweeps import SweepInterrupted
 
     try:
         cfg = load_config(args.config)
@@ -283,7 +283,7 @@ def _sweep(args):
 def _write_sweep(result, cfg, out, name):
     """Write the outputs of a sweep (the formats of ``cfg`` and the plot) as NAME.* into ``out``,
     all of them or none (:func:`jaxdea.files.write_together`); their paths."""
-    from .config import SUFFIXES
+    from ..io.config import SUFFIXES
 
     if cfg.scales is not None:
         result = result.with_units(cfg.scales)
@@ -300,7 +300,7 @@ def _write_sweep(result, cfg, out, name):
 
 
 def _fit(args):
-    from .fit_io import run_fit
+    from ..io.fit_io import run_fit
 
     try:
         _, report, paths = run_fit(args.data, args.config, args.out)
@@ -313,7 +313,7 @@ def _fit(args):
 
 
 def _figures(args):
-    from jaxdea.figures import make_figures
+    from jaxdea.apps.figures import make_figures
 
     problem = _writable_folder(args.out)
     if problem:
@@ -361,7 +361,7 @@ compiles anew."""
 
 
 def _cache(args):
-    from . import compiled
+    from .. import compiled
 
     if os.environ.get("JAXDEA_CACHE_DIR", "").lower() == "off":
         print("the cache is off (JAXDEA_CACHE_DIR=off)")
@@ -399,7 +399,7 @@ def build_parser():
                        "printed)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    from .config import FORMAT
+    from ..io.config import FORMAT
 
     sweep = sub.add_parser(
         "sweep", parents=[quiet], formatter_class=formatter, description=SWEEP_HELP,
@@ -438,7 +438,7 @@ def build_parser():
                        help="info: where the cache is and its size; clear: delete it")
     cache.set_defaults(run=_cache)
 
-    from .fit_io import FORMAT as FIT_FORMAT
+    from ..io.fit_io import FORMAT as FIT_FORMAT
 
     fit = sub.add_parser(
         "fit", parents=[quiet], formatter_class=formatter,
@@ -492,7 +492,7 @@ def main(argv=None):
         return 0 if exc.code is None else int(exc.code)
     jax.config.update("jax_enable_x64", True)
     if args.command != "cache":
-        from . import compiled
+        from .. import compiled
 
         compiled.configure()  # the on-disk program cache and XLA's loop threshold
     received = []

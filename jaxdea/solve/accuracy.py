@@ -20,7 +20,7 @@ V̂_cr is amplified by ≈ V̂_cr/(2(V̂_cr − V̂)) in Ω, and the levels see 
 the estimate grows accordingly; if V̂ lies above V̂_cr of some level the root vanishes there and
 the status says so (NO_ROOT / MAX_ITER) instead of extrapolating across the instability.
 
-The Magnus schemes (``scheme="magnus4"``, ``"magnus6"``, :mod:`jaxdea.transfer`) are symmetric
+The Magnus schemes (``scheme="magnus4"``, ``"magnus6"``, :mod:`jaxdea.physics.transfer`) are symmetric
 too, with expansions in N⁻⁴, N⁻⁶, … and N⁻⁶, N⁻⁸, …: their levels are combined as
 R_j = (2^p Ω_{j+1} − Ω_j)/(2^p − 1) with p = 4, 6 (error O(N⁻⁶), O(N⁻⁸)).
 
@@ -45,12 +45,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .compiled import serializable
-from .params import Fluid, Tube, canonical, validate_layers, validate_roots
+from ..compiled import serializable
+from ..numerics.scalar import Status
+from ..params import Fluid, Tube, canonical, validate_layers, validate_roots
+from ..physics.state_matrix import LONGITUDINAL
+from ..physics.transfer import Layers, is_graded, laminate, scheme_order, split_layers
 from .roots import follow_roots, order_inputs, solve_frequencies
-from .scalar import Status
-from .state_matrix import LONGITUDINAL
-from .transfer import Layers, is_graded, laminate, scheme_order, split_layers
 
 
 @serializable

@@ -22,10 +22,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .curves import dispersion_curve
-from .modes import mode_shape
-from .params import Fluid, Tube, axial_wavenumber
-from .roots import first_instability, growth_rates, phase_velocity
+from ..params import Fluid, Tube, axial_wavenumber
+from ..solve.curves import dispersion_curve
+from ..solve.modes import mode_shape
+from ..solve.roots import first_instability, growth_rates, phase_velocity
 
 ALPHAS = np.linspace(0.05, 3.0, 40)
 """The default α̂ grid of the explorer (the axial modes' α̂_n are added to it)."""

@@ -9,7 +9,7 @@ instead (:func:`cutoff_steps`). Each grid interval [a, b] is classified with the
 autodiff slopes at its ends (Hermite data):
 
 * a sign change of f → one root, refined by safeguarded Newton from the root of the Hermite cubic
-  of the interval (:func:`jaxdea.scalar.hermite_root`);
+  of the interval (:func:`jaxdea.numerics.scalar.hermite_root`);
 * no sign change, but f heads towards zero at a and away from it at b (f_a f'_a < 0 < f_b f'_b) →
   f has an extremum inside, located by Illinois regula falsi on f'; if f changes
   sign there, the interval holds a pair of roots, each refined in its half.
@@ -20,7 +20,7 @@ found (tested down to relative gaps of 1e-9). The limits are stated in the READM
 
 The function scanned and refined is the characteristic determinant itself, det(B A S) times a
 constant (:func:`scanned_function`), not its normalised value f = det(B Q_N) of
-:mod:`jaxdea.dispersion`: the normalisation divides by the volume of A S, which nearly vanishes
+:mod:`jaxdea.physics.dispersion`: the normalisation divides by the volume of A S, which nearly vanishes
 where A S is nearly rank-deficient, and f then turns sign in a near-jump (at the inner-face waves
 of a wall with large α̂ĥ, whose solution decays across it; next to the poles of the paper's
 coupling). A jump next to a second root within one step hides the pair from the classification;
@@ -30,7 +30,7 @@ uniform in the phase of the coupling near each pole Ω_k of B̂_ν (closed form,
 which splits a pair straddling it into two sign changes (:func:`pole_steps`).
 
 Derivatives. Every returned root carries implicit-function derivatives dΩ/dθ = −(∂f/∂θ)/(∂f/∂Ω)
-(:func:`jaxdea.scalar.attach_implicit`, the one mechanism of every solver of the package: a
+(:func:`jaxdea.numerics.scalar.attach_implicit`, the one mechanism of every solver of the package: a
 ``jax.custom_jvp`` around the values of the solver), never derivatives of the iterations: the
 solver is compiled once for values, and differentiating compiles only f and its derivatives.
 """
@@ -42,22 +42,22 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base_state import voltage_limit
-from .bessel import NODES, RANGE
-from .compiled import cached_jit, serializable
-from .dispersion import (
-    at_rest_value_and_slope,
-    carried_jvp,
-    characteristic_of_w,
-    characteristic_on_wall,
-    check_inputs,
-    mode_family,
-    order_m_admissible,
-    problem_function,
-    scale_and_slope_of_w,
-    scale_and_slope_on_wall,
+from ..compiled import cached_jit, serializable
+from ..numerics.bessel import NODES, RANGE
+from ..numerics.scalar import (
+    ROOT_RTOL,
+    Status,
+    hermite_extremum,
+    hermite_root,
+    lanes_from_slots,
+    newton_distance,
+    refuse_non_root,
+    run_lanes,
+    start_lanes,
+    value_and_slope,
+    with_implicit_derivatives,
 )
-from .params import (
+from ..params import (
     Fluid,
     Tube,
     as_float,
@@ -73,21 +73,21 @@ from .params import (
     validate_range,
     validate_roots,
 )
-from .scalar import (
-    ROOT_RTOL,
-    Status,
-    hermite_extremum,
-    hermite_root,
-    lanes_from_slots,
-    newton_distance,
-    refuse_non_root,
-    run_lanes,
-    start_lanes,
-    value_and_slope,
-    with_implicit_derivatives,
+from ..physics.base_state import voltage_limit
+from ..physics.dispersion import (
+    at_rest_value_and_slope,
+    carried_jvp,
+    characteristic_of_w,
+    characteristic_on_wall,
+    check_inputs,
+    mode_family,
+    order_m_admissible,
+    problem_function,
+    scale_and_slope_of_w,
+    scale_and_slope_on_wall,
 )
-from .state_matrix import LONGITUDINAL, ORDER_M
-from .transfer import (
+from ..physics.state_matrix import LONGITUDINAL, ORDER_M
+from ..physics.transfer import (
     AUTO_SCHEME,
     DEFAULT_RTOL,
     LAYER_COUNTS,
@@ -179,7 +179,7 @@ def cutoff_steps(wall: Wall, alpha, fluid: Fluid | None, step, family: str = LON
 def bessel_derivative_zeros(order: int) -> np.ndarray:
     """The zeros j'_{ν,k} of J'_ν in [0, RANGE − ν), ascending (NumPy, computed once per ν).
 
-    Where :func:`jaxdea.bessel.coupling_pair` is finite (x + ν < RANGE). J'_ν(x) =
+    Where :func:`jaxdea.numerics.bessel.coupling_pair` is finite (x + ν < RANGE). J'_ν(x) =
     (1/2π)∫₀^{2π} sin(νt − x sin t) sin t dt and J''_ν(x) = −(1/2π)∫₀^{2π} cos(νt − x sin t) sin²t dt
     by the trapezoidal rule on 2·NODES points (exact to rounding there), sign changes on a grid of
     ``BESSEL_GRID`` from x = ν, 4 bisections (to 0.06), then Newton steps kept inside the bracket
@@ -230,7 +230,7 @@ def _zeros_table() -> np.ndarray:
 
 def coupling_poles(wall: Wall, alpha, fluid: Fluid, order):
     """(Ω_k, w_k): the poles Ω_k = ĉ_f sqrt(α̂² + (j'_{ν,k}/r̂_i)²) of the paper's coupling B̂_ν, where
-    D_ν(s) = 0 at s = χ̂²r̂_i² = j'²_{ν,k} (:func:`jaxdea.bessel.coupling_pair`), and their widths
+    D_ν(s) = 0 at s = χ̂²r̂_i² = j'²_{ν,k} (:func:`jaxdea.numerics.bessel.coupling_pair`), and their widths
     w_k = |L/(dD_ν/dΩ)| = ρ̂_f ĉ_f² Ω_k x_k²/(r̂_i (x_k² − ν²)) (x_k = j'_{ν,k}; the factor x²/(x² − ν²)
     is 1 for ν = 0), with L = Ω²ρ̂_f r̂_i N_ν: by Bessel's equation J''_ν = −(1 − ν²/x²)J_ν where
     J'_ν = 0, and dx/dΩ = r̂_i²Ω/(ĉ_f² x). ``order``: an int, or a traced ν (:data:`TRACED_ORDERS`;
@@ -289,7 +289,7 @@ def scanned_function(wall: Wall, alpha, fluid: Fluid | None, order: int, m=0.0,
     """g = det(B A S)·e^{−ℓ₀}: the characteristic determinant, unnormalised, that the scan classifies.
 
     det(B A S) = f e^ℓ with f = det(B Q_N) and ℓ the log-volume of the propagated basis
-    (:func:`jaxdea.dispersion.characteristic_and_scale`); ℓ₀ is ℓ at Ω = 0, a constant that
+    (:func:`jaxdea.physics.dispersion.characteristic_and_scale`); ℓ₀ is ℓ at Ω = 0, a constant that
     keeps g in floating-point range (ℓ − ℓ₀ is clipped to ±``SCALE_EXPONENT_MAX``). g has the
     zeros and the sign of f, and it is entire in Ω. f is not: where A S is nearly rank-deficient
     (at the inner-face waves of a wall with large α̂ĥ, whose solution decays across it, and next to
@@ -300,16 +300,16 @@ def scanned_function(wall: Wall, alpha, fluid: Fluid | None, order: int, m=0.0,
     classification misses; g has the ordinary simple root there. ``variable``: ``"omega"`` (g(Ω))
     or ``"omega_squared"`` (g(w), w = Ω² of either sign; order m and torsional families only).
     ``decoupled`` (static, longitudinal): the 4×4 mechanical propagation of a wall whose electric
-    block decouples (NaN where it does not, :func:`jaxdea.dispersion.value_and_slope_on_wall`).
-    ``generators``: the wall's generators at α̂ if already formed (:func:`jaxdea.dispersion.lane_generators`).
+    block decouples (NaN where it does not, :func:`jaxdea.physics.dispersion.value_and_slope_on_wall`).
+    ``generators``: the wall's generators at α̂ if already formed (:func:`jaxdea.physics.dispersion.lane_generators`).
 
     Returns a :class:`Scaled` (x ↦ (f, ℓ)): the scan takes ℓ₀ from its own first point, x = 0,
     instead of a separate evaluation of f at 0 (:func:`_scan_for_roots`). Its forward-mode slope
     is the carried one, f' = D det(B Q_N)[B Z] − f tr(Q_NᵀZ), ℓ' = tr(Q_NᵀZ)
-    (:func:`jaxdea.dispersion.scale_and_slope_on_wall` on the 6×6 path,
-    :func:`jaxdea.dispersion.scale_and_slope_of_w`): the same (f, ℓ) and slopes as forward mode
+    (:func:`jaxdea.physics.dispersion.scale_and_slope_on_wall` on the 6×6 path,
+    :func:`jaxdea.physics.dispersion.scale_and_slope_of_w`): the same (f, ℓ) and slopes as forward mode
     through the propagation, without differentiating its Gram–Schmidt (first call, CPU seconds,
-    measured with :data:`jaxdea.transfer.TANGENT_UNROLL` = 1: m = 2 12.4 → 9.0, empty 5.7 → 5.0,
+    measured with :data:`jaxdea.physics.transfer.TANGENT_UNROLL` = 1: m = 2 12.4 → 9.0, empty 5.7 → 5.0,
     acoustic 9.0 → 8.1).
     """
     if family == LONGITUDINAL and variable == "omega":
@@ -406,13 +406,13 @@ def _scan_for_roots(fun, step, omega_end, n_roots: int, next_point=None,
 
     Rounds: chunks are scanned until the candidate intervals found could hold the roots still
     needed (a sign change one, a hidden pair two), then all of them are refined together by one
-    call of :func:`~jaxdea.scalar.run_lanes` (a lane per root, ``n_roots + 1`` lanes); only if
+    call of :func:`~jaxdea.numerics.scalar.run_lanes` (a lane per root, ``n_roots + 1`` lanes); only if
     hidden pairs held no roots does a further round scan on. f and f' are evaluated at exactly two
     places (the grid chunk and the lanes), which keeps the compiled program small.
 
     Consistency (``continuous``, static: f continuous in Ω, every coupling but the paper's, whose
     poles change its sign): f changes sign at each simple root, so sign f'(Ω_k) = (−1)^k sign f(0)
-    for the k-th candidate (the check of :mod:`jaxdea.curves`). A root found with the other slope
+    for the k-th candidate (the check of :mod:`jaxdea.solve.curves`). A root found with the other slope
     sign means an odd number of roots below it was not found (or a lane took another root of its
     interval than the one it bracketed): it and all above it are then SUSPECT (NaN), never
     CONVERGED with a wrong index. Where f(0) = 0 the check is off.
@@ -610,7 +610,7 @@ def _residual(x, tube, alpha, fluid, m, n_layers, order, unknown, family=LONGITU
 
 
 class Residual(NamedTuple):
-    """The characteristic function as residual(x, params) of :func:`jaxdea.scalar.attach_implicit`:
+    """The characteristic function as residual(x, params) of :func:`jaxdea.numerics.scalar.attach_implicit`:
     :func:`_residual` with params = (tube, α̂, fluid, m); compared by value, so the tangent
     program of each (N, order, unknown, family) compiles once."""
 
@@ -683,7 +683,7 @@ def _mapped_over_batches(solve, along=None, vectorised=False):
 BATCH_ENGINES = {}
 """Solvers of a whole batch of α̂ with every other argument shared, by the name of the solver whose
 points they solve (``"frequencies"``, ``"critical_voltage"``): ``engine(*args, **static)`` of that
-solver's arguments, α̂ of shape (M,). :mod:`jaxdea.curves` holds the continuation along α̂ and
+solver's arguments, α̂ of shape (M,). :mod:`jaxdea.solve.curves` holds the continuation along α̂ and
 registers them (it imports this module, so this module cannot import it); :func:`along_alpha`
 looks them up when a batch is traced."""
 
@@ -715,7 +715,7 @@ def attach_derivatives(roots: Roots, params, n_layers, order, unknown="omega",
 
 def _problem(tube, alpha, fluid, n_layers, order, m=0.0, family=LONGITUDINAL):
     """(wall, f) with f(Ω) the characteristic function of one case, for the solvers (values and
-    forward-mode slopes: the adaptive exponential); :func:`jaxdea.dispersion.problem_function`."""
+    forward-mode slopes: the adaptive exponential); :func:`jaxdea.physics.dispersion.problem_function`."""
     return problem_function(tube, alpha, fluid, n_layers, order, m, family)
 
 
@@ -726,7 +726,7 @@ def invalid_where(ok, roots: Roots) -> Roots:
 
 
 def inaccurate_where(short, roots: Roots) -> Roots:
-    """INACCURATE where ``short`` (:func:`jaxdea.transfer.checked_laminate`: the default
+    """INACCURATE where ``short`` (:func:`jaxdea.physics.transfer.checked_laminate`: the default
     discretisation has fewer sublayers than its rule asks for at the point) and the root converged;
     the values are kept. ``short`` None: ``roots`` as they are."""
     if short is None:
@@ -855,7 +855,7 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
         An instance of :class:`Roots` (omega ascending, NaN-padded; status CONVERGED, NO_ROOT,
         NOT_FINITE, SUSPECT where a root's slope sign says that a root below it was not found, or
         INACCURATE: a root of the default discretisation at a point for which its rule asks more
-        sublayers than it has, the value kept; :func:`jaxdea.transfer.checked_laminate`: where the
+        sublayers than it has, the value kept; :func:`jaxdea.physics.transfer.checked_laminate`: where the
         geometry, α̂ or m are traced, N = 16 serves every point).
     """
     order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
@@ -865,7 +865,7 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
     tube, alpha, fluid, omega_max, m = canonical(tube, alpha, fluid, omega_max, m)
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, n_roots, m)
     values = detached((tube, alpha, fluid, omega_max))
-    along = None  # a batch over α̂ alone: continued along α̂ (jaxdea.curves), not the paper's coupling
+    along = None  # a batch over α̂ alone: continued along α̂ (jaxdea.solve.curves), not the paper's coupling
     if fluid is None or fluid.coupling == "acoustic":
         along = along_alpha("frequencies", n_roots=n_roots, n_layers=layers, order=order,
                             family=family, decoupled=_decoupled(tube, family))
@@ -941,7 +941,7 @@ _solve_checked_frequencies = cached_jit(checked_frequencies_unchecked,
 def _shortfall(roots: Roots, steps):
     """Per root, estimated error / (DEFAULT_RTOL·Ω) of the default discretisation's roots.
 
-    The graded sixth-order Magnus roots converge as Ω_N = Ω + c N⁻⁶ + … (:mod:`jaxdea.accuracy`),
+    The graded sixth-order Magnus roots converge as Ω_N = Ω + c N⁻⁶ + … (:mod:`jaxdea.solve.accuracy`),
     so Ω_{N/2} − Ω_N ≈ (2⁶ − 1)(Ω_N − Ω): one Newton step on the wall of N/2 sublayers from each
     root (``steps``, :func:`newton_steps`) gives Ω_{N/2} − Ω_N to first order, and error ≈
     |step|/63. A step that is not finite gives ratio ∞; a root that did not converge, 0."""
@@ -966,7 +966,7 @@ def refined_layers(layers: Layers, ratio):
 def _verified(layers, tube, alpha, fluid, omega_max, n_roots, order, m, family):
     """(layers, roots, short): the roots of the default discretisation, checked as they are solved.
 
-    The rule of :func:`jaxdea.transfer.required_layers` sees the wall's lengths, α̂, K and m but
+    The rule of :func:`jaxdea.physics.transfer.required_layers` sees the wall's lengths, α̂, K and m but
     not the state: a thick inflated wall (η = 0.4, λ_i = 1.3, G = 10) needs N = 38 for its 8th root
     where the rule gives 24 (1.2e-7 off; benchmarks/layer_errors_results.md). So a concrete call
     estimates the error of its roots (:func:`_shortfall`) and, where it exceeds DEFAULT_RTOL,
@@ -990,7 +990,7 @@ def _verified(layers, tube, alpha, fluid, omega_max, n_roots, order, m, family):
 
 
 def _decoupled(tube, family):
-    """The propagation of a continuation along α̂ (:func:`jaxdea.curves.curve_unchecked`): the 4×4
+    """The propagation of a continuation along α̂ (:func:`jaxdea.solve.curves.curve_unchecked`): the 4×4
     one (True) for a concrete V̂ = 0 of the axisymmetric family, the 6×6 one (False) for another or
     a traced V̂, each point's choice (None) off that family."""
     if family != LONGITUDINAL:
@@ -1026,7 +1026,7 @@ def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
     """The ``n_roots`` lowest frequencies Ω in (0, omega_max], ascending, NaN-padded.
 
     Every root in the range is found, including close pairs and roots near Ω = 0 (scan with Hermite
-    classification, see :mod:`jaxdea.roots`); derivatives are implicit. ``omega_max=None`` searches up
+    classification, see :mod:`jaxdea.solve.roots`); derivatives are implicit. ``omega_max=None`` searches up
     to (n_roots + 1) thickness-mode spacings above α̂-scaled wave speeds. Use
     :func:`solve_frequencies` for the status of each root.
 
@@ -1039,14 +1039,14 @@ def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
         omega_max: upper end of the search (None: automatic).
         n_layers: sublayers N (static), or None (default): the accurate discretisation, graded
             sixth-order Magnus sublayers with N chosen from the case for roots to ≤ 1e-8 relative
-            (:func:`jaxdea.transfer.laminate`; N = 16 for the paper's tube and wherever the
+            (:func:`jaxdea.physics.transfer.laminate`; N = 16 for the paper's tube and wherever the
             geometry or α̂ are traced, more for thick walls at large α̂ĥ or a face near Gent
             locking).
         scheme: None (default: the midpoint laminate with an ``n_layers``, the graded
             ``"magnus6"`` above without), ``"midpoint"`` (the paper's laminate, error O(N⁻²);
             ``scheme="midpoint", n_layers=30`` reproduces the paper), ``"magnus4"`` or
             ``"magnus6"`` (equal sublayers, errors O(N⁻⁴), O(N⁻⁶); static, see
-            :mod:`jaxdea.transfer`).
+            :mod:`jaxdea.physics.transfer`).
         m: circumferential order (int >= 0; docs/theory/order_m.md): 0 the axisymmetric longitudinal modes,
             1 bending, 2, 3, … ovalisation and higher ring modes. May be traced (one program
             for every m >= 1 or a traced m).
@@ -1097,7 +1097,7 @@ def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
     tube, alpha, guess, fluid, m = canonical(tube, alpha, guess, fluid, m)
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, m=m)
     values = detached((tube, alpha, guess, fluid))
-    along = None  # a batch over α̂ and the guess alone: the curves' lanes (jaxdea.curves), any other
+    along = None  # a batch over α̂ and the guess alone: the curves' lanes (jaxdea.solve.curves), any other
     if fluid is None or fluid.coupling == "acoustic":  # vectorised as before
         along = along_alpha("frequency", (1, 2), n_layers=layers, order=order, family=family,
                             decoupled=_decoupled(tube, family))
@@ -1204,7 +1204,7 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, m=m, at_rest=True)
     values = detached((tube, alpha, fluid))
-    # a batch over α̂ alone: continued along α̂ (jaxdea.curves); fluids (which do not change V̂_cr) mapped
+    # a batch over α̂ alone: continued along α̂ (jaxdea.solve.curves); fluids (which do not change V̂_cr) mapped
     along = along_alpha("critical_voltage", n_layers=layers, family=family) if fluid is None else None
     if family == LONGITUDINAL:
         solve = functools.partial(_solve_critical_voltage, n_layers=layers, order=order)
@@ -1268,7 +1268,7 @@ def critical_voltage_unchecked(tube, alpha, fluid, n_layers, order, n_grid=32, v
     ``v_end`` (optional) searches (0, v_end] instead of (0, V̂_lim] with the pull-in limit V̂_lim of
     :func:`voltage_limit` (values only: about 0.25 s of the first call's compilation, measured); a
     root above ``v_end`` is reported as NO_ROOT. On a Magnus wall (the default) the sublayer
-    generators are formed once, as polynomials in V̂ (:func:`jaxdea.transfer.voltage_generators`,
+    generators are formed once, as polynomials in V̂ (:func:`jaxdea.physics.transfer.voltage_generators`,
     on the circle of radius ``v_end``), and each V̂ sums them (one critical voltage of the paper's
     tube 2.1 → 0.8× the time of the paper's laminate; V̂_cr within 1.1e-14 of forming them at each
     V̂, measured; tests/test_core.py). ``expansion``: the wall's expansion in V̂ if already formed
@@ -1293,7 +1293,7 @@ def critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None, n_layers: in
     (0, V̂_lim] with Hermite classification, then zooming on the first candidate (:func:`_first_root`,
     to rounding); implicit derivatives. V̂_lim is
     the pull-in limit: the largest voltage of the static response of the tube held at its zero-voltage
-    pressure difference (:func:`jaxdea.base_state.voltage_limit`). Fluids do not change V̂_cr (their
+    pressure difference (:func:`jaxdea.physics.base_state.voltage_limit`). Fluids do not change V̂_cr (their
     terms vanish like Ω²). NaN (status NO_ROOT) if no root below V̂_lim. ``n_layers``,
     ``scheme``, ``m`` and ``torsional`` as in :func:`frequencies`. The tube's first instability
     over every order and axial mode is :func:`first_instability`: for the paper's tube m = 2

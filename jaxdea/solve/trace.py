@@ -1,7 +1,7 @@
 """Branch tracing: pseudo-arclength continuation of one dispersion branch Ω(s) along a parameter s.
 
 A branch is a connected curve of the zero set of f(s, Ω) = 0, with f the characteristic function of
-:mod:`jaxdea.dispersion` and s any named parameter of :mod:`jaxdea.leaves` (α̂, V̂, λ_i, h/R_i, ρ̂_f,
+:mod:`jaxdea.physics.dispersion` and s any named parameter of :mod:`jaxdea.physics.leaves` (α̂, V̂, λ_i, h/R_i, ρ̂_f,
 …). Following a curve instead of re-solving at every s keeps the identity of a mode through
 veerings, where two branches come within a tiny gap and "the k-th root" jumps from one to the other.
 
@@ -77,10 +77,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .compiled import cached_jit, serializable
-from .dispersion import characteristic_on_wall, order_m_admissible
-from .leaves import FLUID_LEAVES, check_names, get_parameter, set_parameter
-from .params import (
+from ..compiled import cached_jit, serializable
+from ..params import (
     Fluid,
     Tube,
     as_float,
@@ -91,9 +89,11 @@ from .params import (
     validate_real,
     validate_tube,
 )
+from ..physics.dispersion import characteristic_on_wall, order_m_admissible
+from ..physics.leaves import FLUID_LEAVES, check_names, get_parameter, set_parameter
+from ..physics.state_matrix import LONGITUDINAL, ORDER_M
+from ..physics.transfer import Layers, discretize, laminate
 from .roots import order_inputs, scan_step
-from .state_matrix import LONGITUDINAL, ORDER_M
-from .transfer import Layers, discretize, laminate
 
 DEFAULT_MAX_STEP = 0.1  # scaled arclength: at least ten points between the start and ``stop``
 MIN_STEP = 1e-10  # scaled arclength below which the trace gives up
@@ -425,9 +425,9 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
 
     The branch is the curve f(Ω; s) = 0 through (s_0, Ω_0), with f the characteristic function of
     the tube (:func:`jaxdea.characteristic`, N = ``n_layers``) whose parameter ``along`` is set to s
-    (:func:`jaxdea.leaves.set_parameter`; s_0 is its present value). ``omega`` is first corrected by
+    (:func:`jaxdea.physics.leaves.set_parameter`; s_0 is its present value). ``omega`` is first corrected by
     Newton at fixed s_0; the trace then goes by pseudo-arclength continuation (module docstring of
-    :mod:`jaxdea.trace`: predictor x + h t with t = σ rot(∇f)/|∇f|, corrector Newton on
+    :mod:`jaxdea.solve.trace`: predictor x + h t with t = σ rot(∇f)/|∇f|, corrector Newton on
     {f = 0, t·(x − x_p) = 0}) towards ``stop`` and ends at the first event: s = stop (landed on
     exactly), a turning point (f = f_Ω = 0), Ω = 0 (f(s*, 0) = 0, e.g. the critical voltage), a
     step below MIN_STEP, a non-finite f, or full buffers. The identity of the mode is kept through
@@ -443,7 +443,7 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
         omega: a root Ω_0 > 0 of the branch at s_0 (e.g. from :func:`jaxdea.frequencies`).
         fluid: a :class:`~jaxdea.Fluid` or None. The paper coupling's Bessel order is static: it
             stays that of the start (pass ``bessel_order`` explicitly to trace along α̂).
-        along: the parameter s, any name of :data:`jaxdea.leaves.NAMES` except ``"n"`` (static).
+        along: the parameter s, any name of :data:`jaxdea.physics.leaves.NAMES` except ``"n"`` (static).
         stop: where to stop (a value of s; the trace may go up or down).
         max_points: buffer length, ≥ 2 (static).
         max_step: largest step of the scaled arclength, in which the range s_0 → stop has length 1

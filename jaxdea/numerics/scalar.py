@@ -12,8 +12,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .compiled import jit
-
+from ..compiled import jit
 
 ROOT_RTOL = 1e-4
 """Largest relative distance |f/f'|/|Ω| of an ``omega`` passed as a root (mode shapes, group
@@ -74,7 +73,7 @@ def attach_implicit(residual, x, params):
 
     ``residual(y, params)`` is scalar in y (an array ``x`` holds independent roots of one
     ``params``, a pytree) and hashable: the tangent program is compiled once per residual (a
-    value-equal object such as :class:`jaxdea.roots.Residual` hits the cache across calls). The
+    value-equal object such as :class:`jaxdea.solve.roots.Residual` hits the cache across calls). The
     iterations that found ``x`` are never differentiated; first and higher derivatives work in
     forward and reverse mode (the rule re-attaches x, so differentiating it sees dx/dθ too)."""
     del residual, params
@@ -313,7 +312,7 @@ def iterate_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200, with_slope=False)
 
     IDLE lanes are evaluated too, at their x (their fx, dfx then hold f, f' there).
     ``with_slope`` (static): ``fun`` returns (f(x), f'(x)) itself (e.g.
-    :func:`jaxdea.dispersion.value_and_slope_on_wall`) instead of f alone, differentiated forward.
+    :func:`jaxdea.physics.dispersion.value_and_slope_on_wall`) instead of f alone, differentiated forward.
 
     Returns:
         the final lanes: status MAX_ITER where a lane was still running; x, fx, dfx the last

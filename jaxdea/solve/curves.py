@@ -1,7 +1,7 @@
 """Dispersion curves by continuation: the K lowest roots along a grid of α̂, each step certified.
 
 :func:`jaxdea.frequencies` isolates the roots of every α̂ by a guaranteed scan of f(Ω) from Ω = 0
-(:mod:`jaxdea.roots`), which costs tens of evaluations per root. Along a curve the roots of the
+(:mod:`jaxdea.solve.roots`), which costs tens of evaluations per root. Along a curve the roots of the
 next α̂ are close to a polynomial extrapolation of the previous ones, and Newton from there needs
 one to three evaluations. :func:`dispersion_curve` follows the K lowest roots that way and checks every step;
 a step that fails a check is solved by the scan instead, so the result is that of ``frequencies``
@@ -14,7 +14,7 @@ Step j (α̂_j, after accepted roots at up to HISTORY = 12 earlier α̂):
    scan: the tangent line, see below). On the benchmark's unstretched curve (200 α̂ in 0.01–5,
    4 roots) the fixed quintic (m = 6) left 67 of the 200 predictions more than 3e-9 off and the
    adaptive order 2 (measured against the converged roots).
-2. Corrector: K Newton lanes from p_k (:func:`jaxdea.scalar.iterate_lanes`, FREE lanes: steps
+2. Corrector: K Newton lanes from p_k (:func:`jaxdea.numerics.scalar.iterate_lanes`, FREE lanes: steps
    capped at ρ_k = ¼ of the distance from p_k to its neighbours p_{k±1}, with p_0 = 0; a lane that
    brackets a sign change finishes by safeguarded Newton), and one lane that evaluates f(0). Each
    lane starts with the curvature K_k = |f''/(2f')| its branch had at one of the last
@@ -36,7 +36,7 @@ Step j (α̂_j, after accepted roots at up to HISTORY = 12 earlier α̂):
    sign), one that came down from above, or a lane that jumped to a neighbouring branch, all fail
    the test. A step that fails is tried again in two halves (the midpoint, accepted by the same
    checks, joins the history); if a half fails too, the scan of
-   :func:`jaxdea.roots.scan_roots` solves the step.
+   :func:`jaxdea.solve.roots.scan_roots` solves the step.
 
 What the checks cannot see is an even number of new roots in one gap within one step: two roots
 entering through Ω = 0, or two coming down into the same gap, between consecutive α̂. Roots of a
@@ -62,12 +62,12 @@ Cost: a step costs 1 evaluation of (f, f') on K + 1 lanes where the prediction i
 or more 32-point chunks plus the lanes. The evaluations are the whole cost on the CPU: with a
 polynomial in place of f the 200 steps of the benchmark's curve took 0.85 ms (predictor, checks,
 history, loops), so the time is ≈ (evaluations) × (one evaluation) plus the scan of the first α̂
-(≈ 4 ms there). The lanes take (f, f') from :func:`jaxdea.dispersion.value_and_slope_on_wall`:
+(≈ 4 ms there). The lanes take (f, f') from :func:`jaxdea.physics.dispersion.value_and_slope_on_wall`:
 the slope without differentiating Gram–Schmidt, and at V̂ = 0 through the 4×4 mechanical block
 alone (the electric one decouples); one (f, f') of the 5 lanes on that wall (N = 16) costs
 ≈ 0.05–0.07 ms instead of 0.3 by forward mode through the 6×6 propagation. The generators of a
 curve's wall (one tube) are formed once, as polynomials in α̂
-(:func:`jaxdea.dispersion.generator_polynomials`): forming them at every step from the state
+(:func:`jaxdea.physics.dispersion.generator_polynomials`): forming them at every step from the state
 matrices cost about as much as the lanes' evaluations there (the benchmark's curve 24.5–25.8 →
 18.6–19.9 ms, measured side by side).
 :func:`dispersion_curve` compiles one of the two propagations, chosen from the concrete V̂
@@ -87,7 +87,7 @@ anyway, and loop in Python (or use :func:`jaxdea.sweep`) otherwise.
 
 The other way round, ``jax.vmap`` of :func:`jaxdea.frequencies` or :func:`jaxdea.critical_voltage`
 over α̂ alone (the tube and the rest shared) is a curve: their batching rule
-(:func:`jaxdea.roots.one_point_at_a_time`) hands the batch to :func:`frequencies_along` or
+(:func:`jaxdea.solve.roots.one_point_at_a_time`) hands the batch to :func:`frequencies_along` or
 :func:`critical_voltages_along`, which continue along it where it is ordered and scan each point
 where it is not; every point gets the roots it gets alone, to rounding.
 """
@@ -98,16 +98,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base_state import voltage_limit
-from .compiled import cached_jit, serializable
-from .dispersion import (
-    characteristic_on_wall,
-    generator_polynomials,
-    lane_generators,
-    order_m_admissible,
-    value_and_slope_on_wall,
-)
-from .params import (
+from ..compiled import cached_jit, serializable
+from ..numerics.scalar import Status, iterate_lanes, lanes_from_slots, start_lanes, value_and_slope
+from ..params import (
     ALPHA_MIN,
     Fluid,
     Tube,
@@ -119,6 +112,16 @@ from .params import (
     validate_alpha,
     validate_roots,
 )
+from ..physics.base_state import voltage_limit
+from ..physics.dispersion import (
+    characteristic_on_wall,
+    generator_polynomials,
+    lane_generators,
+    order_m_admissible,
+    value_and_slope_on_wall,
+)
+from ..physics.state_matrix import LONGITUDINAL, ORDER_M
+from ..physics.transfer import AUTO_SCHEME, Layers, checked_laminate, discretize, is_graded, voltage_expansion
 from .roots import (
     BATCH_ENGINES,
     VERIFY_ROUNDS,
@@ -138,9 +141,6 @@ from .roots import (
     scan_step,
     scanned_function,
 )
-from .scalar import Status, iterate_lanes, lanes_from_slots, start_lanes, value_and_slope
-from .state_matrix import LONGITUDINAL, ORDER_M
-from .transfer import AUTO_SCHEME, Layers, checked_laminate, discretize, is_graded, voltage_expansion
 
 HISTORY = 12  # rows of the predictor (its order chosen per branch, :func:`_extrapolate`)
 SHARE_OF_GAP = 0.25  # a lane may move at most this share of the distance to its neighbours
@@ -231,7 +231,7 @@ def _room(pred):
 
 def _track(fun, pred, curvature=None):
     """(Ω, accepted, K): K corrector lanes from ``pred`` (with prior curvatures ``curvature``, see
-    :func:`jaxdea.scalar.iterate_lanes`; ``fun`` gives (f, f')) and the checks of the module
+    :func:`jaxdea.numerics.scalar.iterate_lanes`; ``fun`` gives (f, f')) and the checks of the module
     docstring; K holds the curvature each lane measured (NaN where it finished on its prior)."""
     k = pred.shape[0]
     room = _room(pred)
@@ -258,9 +258,9 @@ def _omega_problem(problem, n_roots, m_safe, family, decoupled=None, polys=None,
     fluid, Bessel order) at abscissa s near the point x of a path: (f, f') for the corrector lanes,
     f itself (the tangent's differences) and the guaranteed scan. ``decoupled`` (static,
     longitudinal): True where every wall is known to decouple (V̂ = 0): lanes and scan then take
-    the 4×4 propagation alone (:func:`jaxdea.dispersion.value_and_slope_on_wall`); False: the 6×6
+    the 4×4 propagation alone (:func:`jaxdea.physics.dispersion.value_and_slope_on_wall`); False: the 6×6
     one alone; None: checked at each point (both compiled). ``polys``: the lanes' generators as
-    polynomials in α̂ (:func:`jaxdea.dispersion.generator_polynomials`), where every point has the
+    polynomials in α̂ (:func:`jaxdea.physics.dispersion.generator_polynomials`), where every point has the
     same wall (a dispersion curve of one tube); None: formed from each point's wall. ``omega_max``:
     the scan's search range, as in :func:`jaxdea.frequencies` (None: automatic)."""
     def value(x, s, om):
@@ -277,7 +277,7 @@ def _omega_problem(problem, n_roots, m_safe, family, decoupled=None, polys=None,
 
     def search(x, s):
         # the unnormalised determinant and, for the paper's coupling, points at its poles
-        # (:func:`jaxdea.roots.scanned_function`, :func:`jaxdea.roots.pole_steps`)
+        # (:func:`jaxdea.solve.roots.scanned_function`, :func:`jaxdea.solve.roots.pole_steps`)
         # (on a decoupled wall the 4×4 propagation: the first α̂'s scan 4× cheaper)
         wall, a, fluid, order = problem(x, s)
         generators = None if polys is None else lane_generators(polys, a)
@@ -410,7 +410,7 @@ def _along_alpha(tube, alpha, fluid, n_roots, n_layers, order, m, family, decoup
                  omega_max=None, bounded=False):
     """(α̂, Ω, status, scanned) of :func:`curve_unchecked`, with a fresh start (a scan) at every
     point where ``fresh`` (a scalar) is True; ``bounded`` (static): the roots of a step inside the
-    search range ``omega_max`` (None: :func:`jaxdea.roots.default_omega_max`) or that step is
+    search range ``omega_max`` (None: :func:`jaxdea.solve.roots.default_omega_max`) or that step is
     scanned, as the frequencies are (:func:`frequencies_along`)."""
     ok_tube, tube, _, fluid = guard(tube, 1.0, fluid)
     ok_tube, m_safe = _family_order(ok_tube, m, fluid, family)
@@ -443,7 +443,7 @@ def frequencies_along(tube, alpha, fluid, omega_max, m=0.0, *, n_roots, n_layers
                       decoupled) -> Roots:
     """The roots of :func:`jaxdea.frequencies` at every α̂ of a batch (M,) of one tube and fluid
     (traceable): ``jax.vmap`` of ``frequencies`` over α̂ alone comes here
-    (:func:`jaxdea.roots.along_alpha`).
+    (:func:`jaxdea.solve.roots.along_alpha`).
 
     Where the batch is ordered (:func:`ordered`, checked in the program) it is a dispersion curve:
     the continuation of the module docstring, with one more check, that the roots of a step lie
@@ -460,13 +460,13 @@ def frequency_along(tube, alpha, guess, fluid, m=0.0, *, n_layers, order, family
                     decoupled) -> Roots:
     """The roots of :func:`jaxdea.frequency` at every (α̂, guess) of a batch (M,) of one tube and
     fluid (traceable): ``jax.vmap`` of ``frequency`` over α̂ and the guess (either or both) comes
-    here (:func:`jaxdea.roots.along_alpha`).
+    here (:func:`jaxdea.solve.roots.along_alpha`).
 
     The same safeguarded Newton from each guess as a point alone, the points' lanes side by side
     (vectorised, as the points take alike few iterations), but each (f, f') from the lanes of a
     curve: the generators formed once as polynomials in α̂ of the one wall, the 4×4 propagation at
     V̂ = 0 (``decoupled``) and f' carried through the propagation instead of forward mode
-    (:func:`jaxdea.dispersion.value_and_slope_on_wall`). Equal to the points alone to the Newton
+    (:func:`jaxdea.physics.dispersion.value_and_slope_on_wall`). Equal to the points alone to the Newton
     tolerance (tests/test_vmap_rules.py)."""
     alpha, guess = jnp.broadcast_arrays(as_float(alpha), as_float(guess))
     ok, tube, _, fluid = guard(tube, 1.0, fluid)
@@ -626,7 +626,7 @@ CHECKED_POINTS = 9
 
 
 def sampled_newton_steps(tube, alphas, fluid, omegas, n_layers, order, m=0.0, family=LONGITUDINAL):
-    """:func:`jaxdea.roots.newton_steps` at each (α̂, its roots) of a curve's sampled points."""
+    """:func:`jaxdea.solve.roots.newton_steps` at each (α̂, its roots) of a curve's sampled points."""
     return jax.vmap(lambda a, w: newton_steps(tube, a, fluid, w, n_layers, order, m, family))(
         alphas, omegas)
 
@@ -636,7 +636,7 @@ _sampled_steps = cached_jit(sampled_newton_steps, static_argnames=("n_layers", "
 
 def _checked_curve(curve, layers, values, n_roots, order, m, family):
     """(curve, short): a concrete default curve checked like the points of
-    :func:`jaxdea.solve_frequencies` (:func:`jaxdea.roots._verified`), at CHECKED_POINTS of its
+    :func:`jaxdea.solve_frequencies` (:func:`jaxdea.solve.roots._verified`), at CHECKED_POINTS of its
     points (the error varies smoothly along α̂): one Newton step per root on the wall of N/2
     sublayers estimates its error; where some exceed 1e-8 the curve is solved again on the finer
     N they ask for; a root index still short at a checked point is INACCURATE along the curve."""
@@ -671,13 +671,13 @@ def critical_path_unchecked(tubes, alphas, abscissa, starts, orders, n_layers, f
     (fluids do not change V̂_cr).
 
     The continuation of :func:`path_unchecked` in the unknown V̂ instead of Ω: V̂_cr is the first
-    zero of g(V̂) = f(Ω = 0; V̂) in (0, V̂_lim] (:func:`jaxdea.roots.critical_function`), so the checks
+    zero of g(V̂) = f(Ω = 0; V̂) in (0, V̂_lim] (:func:`jaxdea.solve.roots.critical_function`), so the checks
     of the module docstring with K = 1 (sign g'(V̂_cr) = −sign g(0): no zero missed below it) hold
     it; g is NaN above the pull-in limit V̂_lim, so a continued V̂_cr never passes it. A step that
-    fails the checks is solved by the search of :func:`jaxdea.roots.critical_voltage_unchecked`.
+    fails the checks is solved by the search of :func:`jaxdea.solve.roots.critical_voltage_unchecked`.
     ``formed`` (optional, a path whose points share one tube): (the wall's expansion in V̂, the
-    pull-in limit V̂_lim) of that tube (:func:`jaxdea.transfer.voltage_expansion`,
-    :func:`jaxdea.base_state.voltage_limit`), formed once instead of at every evaluation.
+    pull-in limit V̂_lim) of that tube (:func:`jaxdea.physics.transfer.voltage_expansion`,
+    :func:`jaxdea.physics.base_state.voltage_limit`), formed once instead of at every evaluation.
     Returns (V̂_cr (M, 1), status, scanned, restarted), as :func:`path_unchecked`."""
     orders = as_float(orders)
     ok, tubes, alphas, _ = jax.vmap(guard)(tubes.replace(voltage=jnp.zeros_like(abscissa)),
@@ -715,7 +715,7 @@ solve_critical_path = cached_jit(critical_path_unchecked, static_argnames=("n_la
 def critical_voltages_along(tube, alpha, fluid, m=0.0, *, n_layers, family) -> Roots:
     """(V̂_cr, status) of :func:`jaxdea.critical_voltage` at every α̂ of a batch (M,) of one tube
     (traceable): ``jax.vmap`` of ``critical_voltage`` over α̂ alone comes here, fluid-free
-    (:func:`jaxdea.roots.along_alpha`). :func:`critical_path_unchecked` along α̂ where the batch is
+    (:func:`jaxdea.solve.roots.along_alpha`). :func:`critical_path_unchecked` along α̂ where the batch is
     ordered (:func:`ordered`, checked in the program); elsewhere every α̂ starts anew with the
     search of a point alone. The tube's expansion in V̂ and its pull-in limit are formed once."""
     del fluid  # None: a batch with a fluid is mapped (solve_critical_voltage)

@@ -126,7 +126,7 @@ def torsion_switch(m):
     At m = 0 every entry of those rows outside the (V, Q) block vanishes and so does every (V, Q)
     column entry outside them (docs/theory/order_m.md §3), so zeroing the rows leaves V and Q constant across
     the wall and the longitudinal 6×6 block untouched: the order-m family at m = 0 is the
-    longitudinal family (times a constant factor, :func:`jaxdea.dispersion.outer_conditions`).
+    longitudinal family (times a constant factor, :func:`jaxdea.physics.dispersion.outer_conditions`).
     """
     on = jnp.where(jnp.asarray(m) == 0, 0.0, 1.0)
     return jnp.ones(8).at[jnp.asarray(TORSION_ROWS)].set(on)

@@ -3,9 +3,9 @@
 :func:`parse_config` is pure (a dict in, a :class:`SweepConfig` out) and checks every key and value
 before anything is computed; an error is a ValueError that names the offending key (``tube.eta``,
 ``axes.voltage.num``, ``fluid.coupling``, ``units.density``, …) and what is allowed there. With a
-``[units]`` table (the scales of :class:`jaxdea.units.Scales`) parameters may also be given in SI
-units under the names of :data:`jaxdea.sweeps.SI_QUANTITIES` (``voltage_V``, ``wavelength_m``, …),
-converted by :mod:`jaxdea.units`, and the outputs carry SI values. :func:`load_config` reads the
+``[units]`` table (the scales of :class:`jaxdea.physics.units.Scales`) parameters may also be given in SI
+units under the names of :data:`jaxdea.studies.sweeps.SI_QUANTITIES` (``voltage_V``, ``wavelength_m``, …),
+converted by :mod:`jaxdea.physics.units`, and the outputs carry SI values. :func:`load_config` reads the
 file (by its suffix: ``.toml`` with :mod:`tomllib`, ``.json`` with :mod:`json`). :data:`FORMAT` lists
 the keys (it is the reference printed by ``jaxdea sweep --help``); ``examples/sweep.toml`` is an
 example.
@@ -20,12 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .files import load_document
-from .leaves import FLUID_LEAVES, NAMES, TUBE_LEAVES
-from .params import COUPLINGS, MATERIALS, MAX_LAYERS, MAX_ROOTS
-from .sweeps import MAX_POINTS, SENSITIVITY, SI_QUANTITIES, check_size
-from .transfer import SCHEMES
-from .units import VACUUM_PERMITTIVITY, Scales
+from ..files import load_document
+from ..params import COUPLINGS, MATERIALS, MAX_LAYERS, MAX_ROOTS
+from ..physics.leaves import FLUID_LEAVES, NAMES, TUBE_LEAVES
+from ..physics.transfer import SCHEMES
+from ..physics.units import VACUUM_PERMITTIVITY, Scales
+from ..studies.sweeps import MAX_POINTS, SENSITIVITY, SI_QUANTITIES, check_size
 
 TOP_KEYS = ("tube", "fluid", "axes", "solver", "output", "units")
 TUBE_KEYS = (*TUBE_LEAVES, "thickness_ratio", "material", "delta_p")
@@ -156,7 +156,7 @@ class SweepConfig:
 
     @property
     def scales(self) -> Scales | None:
-        """The :class:`jaxdea.units.Scales` of ``[units]``, or None."""
+        """The :class:`jaxdea.physics.units.Scales` of ``[units]``, or None."""
         return None if self.units is None else Scales(**self.units)
 
     def sweep_arguments(self) -> dict:
@@ -256,7 +256,7 @@ def _in_range(key: str, name: str, values: np.ndarray, converted: bool = False) 
 
 
 def _si_values(key: str, si_key: str, spec, units: dict | None) -> np.ndarray:
-    """An axis or fixed value given in SI units (``si_key``), converted by jaxdea.units."""
+    """An axis or fixed value given in SI units (``si_key``), converted by jaxdea.physics.units."""
     name = SI_NAMES[si_key]
     if units is None:
         _fail(f"{key!r} is in SI units ({SI_QUANTITIES[name][1]}): add a [units] table "
@@ -287,7 +287,7 @@ def _parameter(table: str, key: str, seen: dict) -> str:
 
 
 def _parse_units(data) -> dict | None:
-    """The [units] table as the fields of :class:`jaxdea.units.Scales` (SI), or None."""
+    """The [units] table as the fields of :class:`jaxdea.physics.units.Scales` (SI), or None."""
     if "units" not in data:
         return None
     table = _table(data["units"], "units", tuple(UNITS_KEYS))

@@ -15,9 +15,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .compiled import jit
-from .moduli import energy_derivatives
-from .params import (
+from ..compiled import jit
+from ..numerics.scalar import Status, bracketed_root, implicit_root, value_and_slope
+from ..params import (
     Tube,
     admissible,
     as_float,
@@ -29,7 +29,7 @@ from .params import (
     validate_tube,
     wall_constant,
 )
-from .scalar import Status, bracketed_root, implicit_root, value_and_slope
+from .moduli import energy_derivatives
 
 GAUSS_ORDER = 8
 PANELS = 16

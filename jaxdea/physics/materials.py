@@ -2,7 +2,7 @@
 
 Each function takes the first invariant I_1 and the Gent constant G (ignored by models that do not
 use it) and returns W/μ. The electro-elastic energy adds I_5/2 (ideal dielectric, Eq. 9 of the
-paper); see :mod:`jaxdea.moduli`. A new model is one function here and one entry in ``ENERGIES``.
+paper); see :mod:`jaxdea.physics.moduli`. A new model is one function here and one entry in ``ENERGIES``.
 """
 
 import jax.numpy as jnp

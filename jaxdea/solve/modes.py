@@ -3,9 +3,9 @@
 
 One solve serves both public functions (:func:`mode_shape`, :func:`fluid_pressure`):
 
-1. the initial basis S(Ω) (:func:`jaxdea.dispersion.initial_basis`, denominators cleared) is carried
+1. the initial basis S(Ω) (:func:`jaxdea.physics.dispersion.initial_basis`, denominators cleared) is carried
    across the wall with re-orthonormalisation, T_k Q_{k−1} = Q_k R_k, S = Q_0 R_0
-   (:func:`jaxdea.transfer.propagate_basis_history`);
+   (:func:`jaxdea.physics.transfer.propagate_basis_history`);
 2. the null vector c_N of the outer-face rows (Φ, T̄, S̄) of Q_N is carried back, c_{k−1} = R_k⁻¹ c_k
    (triangular solves: stable for any α̂ĥ), giving the state Y_k = Q_k c_k at every interface and the
    coefficients x = R_0⁻¹ c_0 of the columns of S, Y(r̂_i) = S x;
@@ -26,9 +26,11 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .bessel import coupling_log_factor, coupling_pair
-from .compiled import cached_jit
-from .dispersion import (
+from ..compiled import cached_jit
+from ..numerics.bessel import coupling_log_factor, coupling_pair
+from ..numerics.scalar import ROOT_RTOL, newton_distance, refuse_non_root, value_and_slope
+from ..params import Fluid, Tube, admissible, as_float, canonical, validate_count, validate_real
+from ..physics.dispersion import (
     OUTER_ROWS,
     U,
     W,
@@ -40,10 +42,8 @@ from .dispersion import (
     outer_conditions,
     problem_function,
 )
-from .params import Fluid, Tube, admissible, as_float, canonical, validate_count, validate_real
-from .scalar import ROOT_RTOL, newton_distance, refuse_non_root, value_and_slope
-from .state_matrix import LONGITUDINAL, ORDER_M, TORSIONAL, family_matrix, state_matrix
-from .transfer import (
+from ..physics.state_matrix import LONGITUDINAL, ORDER_M, TORSIONAL, family_matrix, state_matrix
+from ..physics.transfer import (
     Wall,
     discretize,
     expm_taylor,
@@ -355,7 +355,7 @@ def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64,
     D_0 = 0 (rigid-wall cavity resonance, ū_i = 0) or J_0(x) = 0 (pressure node at the wall).
 
     In SI units the pressure is μ p̂* per unit of the displacement scale R_i (see
-    :mod:`jaxdea.units`): a mode with largest displacement δ has pressure μ (δ/R_i) p̂*.
+    :mod:`jaxdea.physics.units`): a mode with largest displacement δ has pressure μ (δ/R_i) p̂*.
 
     Order m (docs/theory/order_m.md §5): p* = μ p̂*(r̂) cos mθ cos αz with p̂*(r̂) = A J_m(χ̂ r̂) (A I_m(χ̃ r̂)
     when χ̂² < 0), p̂*(r̂_i) = Ω²ρ̂_f B̂_m ū_i, in the normalisation of ``mode_shape(..., m=m)``;
@@ -380,7 +380,7 @@ def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64,
 
     Examples:
         >>> import jaxdea as jd
-        >>> from jaxdea.modes import fluid_pressure
+        >>> from jaxdea.solve.modes import fluid_pressure
         >>> tube, fluid = jd.Tube(lambda_i=0.9, lambda_z=1.2), jd.Fluid()
         >>> omega = jd.frequencies(tube, 0.445, fluid)[0]
         >>> r, p = fluid_pressure(tube, 0.445, omega, fluid)

@@ -12,10 +12,10 @@ Fluid couplings clear their denominator by acting on the initial basis S (docs/t
 * ``paper``: columns 1, 2 → D_ν S⁰_{·j} + Ω²ρ̂_f N_ν S¹_{·j} (Eq. 45 with ΔP̂ → ΔP̂ + P̂_f, P̂_f = Ω²ρ̂_f B̂_ν).
 
 The characteristic function is det(B Q_N), with Q_N the orthonormalised propagated basis
-(:func:`jaxdea.transfer.propagate_basis`): real, finite, entire in Ω, the same zeros and sign as
+(:func:`jaxdea.physics.transfer.propagate_basis`): real, finite, entire in Ω, the same zeros and sign as
 det C, and |f| ≤ 1 (well scaled for Newton at any α̂ĥ).
 
-Circumferential order m (docs/theory/order_m.md §4–§5). A static *family* (:mod:`jaxdea.state_matrix`) picks
+Circumferential order m (docs/theory/order_m.md §4–§5). A static *family* (:mod:`jaxdea.physics.state_matrix`) picks
 the problem: ``"longitudinal"`` (m = 0, the 6×6 system above, its code unchanged), ``"order_m"``
 (the 8×8 system with a traced order m: Y(r̂_i) = S x, x = [U_i, V_i, W_i, D_i], outer rows
 Φ, T, Q, S; the acoustic fluid of order m through the U column only) and ``"torsional"``
@@ -29,9 +29,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .bessel import coupling_pair
-from .compiled import cached_jit
-from .params import (
+from ..compiled import cached_jit
+from ..numerics.bessel import coupling_pair
+from ..params import (
     Fluid,
     Tube,
     as_float,
@@ -101,7 +101,7 @@ def initial_basis(wall: Wall, omega, alpha, fluid: Fluid | None = None, order: i
 def characteristic_and_scale(wall: Wall, omega, alpha, fluid=None, order=0, method="taylor"):
     """(f, log_scale) with det(B A S) = f · exp(log_scale); f = det(B Q_N) ∈ [−1, 1].
 
-    ``method``: the sublayer exponential (:func:`jaxdea.transfer.layer_exponentials`)."""
+    ``method``: the sublayer exponential (:func:`jaxdea.physics.transfer.layer_exponentials`)."""
     q, log_scale = propagate_basis(wall, omega, alpha,
                                    initial_basis(wall, omega, alpha, fluid, order), method)
     return jnp.linalg.det(q[OUTER_ROWS, :]), log_scale
@@ -124,10 +124,10 @@ def value_and_slope_on_wall(wall: Wall, omega, alpha, fluid=None, order=0, m=0,
                             family=LONGITUDINAL, decoupled=None, generators=None):
     """(f, df/dΩ) at a real Ω: f of :func:`characteristic_on_wall` with ``method="adaptive"``,
     f' without forward mode through the propagation (the corrector lanes of
-    :func:`jaxdea.curves.dispersion_curve`; forward mode through Gram–Schmidt cost 3–4 values).
+    :func:`jaxdea.solve.curves.dispersion_curve`; forward mode through Gram–Schmidt cost 3–4 values).
 
     f = det(B Q_N) and Y_N = Q_N R with ∏ det R_k > 0, so f = det(B Y_N)/det R and
-    f' = D det(B Q_N)[B Z] − f tr(Q_Nᵀ Z), Z = Ẏ_N R⁻¹ (:func:`jaxdea.transfer.carry_basis_tangent`;
+    f' = D det(B Q_N)[B Z] − f tr(Q_Nᵀ Z), Z = Ẏ_N R⁻¹ (:func:`jaxdea.physics.transfer.carry_basis_tangent`;
     tr(R⁻¹Ṙ) = tr(QᵀẎR⁻¹) because QᵀQ̇ is skew). Only the exponentials and the basis are
     differentiated; f is the array of the forward-mode path. Longitudinal walls whose electric
     block (Φ, D) decouples from the mechanical one (U, W, T, S), as at V̂ = 0
@@ -145,7 +145,7 @@ def value_and_slope_on_wall(wall: Wall, omega, alpha, fluid=None, order=0, m=0,
 
 def generator_polynomials(wall: Wall, m=0, family=LONGITUDINAL, decoupled=None) -> dict:
     """The generators that :func:`value_and_slope_on_wall` forms from a wall, as polynomials in α̂
-    (:func:`jaxdea.transfer.alpha_generators`): ``"full"``, those of the whole state (order m,
+    (:func:`jaxdea.physics.transfer.alpha_generators`): ``"full"``, those of the whole state (order m,
     torsion, and a longitudinal wall unless ``decoupled`` is True), and ``"mechanical"``,
     ``"electric"`` (at rest), those of the blocks of a decoupled longitudinal wall (unless
     ``decoupled`` is False). :func:`lane_generators` evaluates them at one α̂."""
@@ -173,7 +173,7 @@ def lane_generators(polys: dict, alpha) -> dict:
 def electric_column(electric):
     """(q_Φ, log-scale): the column D̄ = [Φ, D] = [0, 1] of the initial basis (:func:`initial_basis`)
     carried across a decoupled wall by the electric block's exponentials at rest (``electric``: the
-    generators of :func:`jaxdea.transfer.wall_generators` with ``at_rest``, ``block=ELECTRIC``), with
+    generators of :func:`jaxdea.physics.transfer.wall_generators` with ``at_rest``, ``block=ELECTRIC``), with
     re-normalisation: q_Φ is its Φ entry at the outer face, the factor of f in
     :func:`_decoupled_value_and_slope`. Independent of Ω and of the fluid (the block holds no
     inertia, the column no fluid term), so the corrector lanes of a curve form it once per α̂, not
@@ -209,7 +209,7 @@ def scale_and_slope_on_wall(wall: Wall, alpha, fluid=None, order=0, decoupled=Tr
                             generators=None):
     """Ω ↦ (f, ℓ) of :func:`characteristic_and_scale` (longitudinal, ``"adaptive"``) whose
     forward-mode derivative is that of :func:`value_and_slope_on_wall` (ℓ' = tr(QᵀZ)): the
-    function :func:`jaxdea.roots.scan_roots` classifies (as ``Scaled``), on the 4×4 path of a
+    function :func:`jaxdea.solve.roots.scan_roots` classifies (as ``Scaled``), on the 4×4 path of a
     decoupled wall 4–5 times cheaper than forward mode through the 6×6 propagation.
     ``generators``: as for :func:`value_and_slope_on_wall`."""
     return carried_jvp(lambda omega: _longitudinal_value_and_slope(wall, omega, alpha, fluid, order,
@@ -221,7 +221,7 @@ def scale_and_slope_of_w(wall: Wall, alpha, fluid=None, order=0, m=0, family: st
     """x ↦ (f, ℓ) of :func:`characteristic_and_scale_of_w` (``"adaptive"``) at w = x²
     (``variable="omega"``) or w = x (``"omega_squared"``), whose forward-mode derivative is the
     carried slope of :func:`value_and_slope_on_wall` (ℓ' = tr(QᵀZ)), d/dx by the chain rule
-    through w(x): the order-m and torsional function of :func:`jaxdea.roots.scanned_function`,
+    through w(x): the order-m and torsional function of :func:`jaxdea.solve.roots.scanned_function`,
     without forward mode through Gram–Schmidt. ``generators``: as for
     :func:`value_and_slope_on_wall`."""
     w_of = _squared if variable == "omega" else (lambda x: x)
@@ -396,7 +396,7 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
         n_layers: number of sublayers N (static), or None: the accurate discretisation
             (:func:`jaxdea.frequencies`).
         scheme: how a sublayer is crossed (static): ``"midpoint"`` (the paper's laminate, error
-            O(N⁻²)), ``"magnus4"`` or ``"magnus6"`` (O(N⁻⁴), O(N⁻⁶); :mod:`jaxdea.transfer`).
+            O(N⁻²)), ``"magnus4"`` or ``"magnus6"`` (O(N⁻⁴), O(N⁻⁶); :mod:`jaxdea.physics.transfer`).
         m: circumferential order, an integer ≥ 0 (docs/theory/order_m.md): 0 is the axisymmetric longitudinal
             family (6×6, unchanged), m ≥ 1 the 8×8 system of order m. A traced m (e.g. under
             ``vmap`` over orders) uses the 8×8 system throughout (compiled once); at m = 0 it gives
@@ -454,7 +454,7 @@ def _characteristic_m(tube, omega_squared, alpha, fluid, m, n_layers, order, fam
     are inadmissible (:func:`~jaxdea.params.guard`, :func:`order_m_admissible`) or w not finite.
 
     The safe m depends on the case only, not on w: under ``vmap`` over w the sublayer generators
-    (:func:`jaxdea.transfer.wall_generators`) are then formed once for the whole batch."""
+    (:func:`jaxdea.physics.transfer.wall_generators`) are then formed once for the whole batch."""
     ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
     ok &= order_m_admissible(m, fluid, family)
     m = jnp.where(ok, m, 0.0) if family == ORDER_M else 0
@@ -497,7 +497,7 @@ def _basis_order_m(wall: Wall, omega_squared, alpha, fluid, order, m):
 
     Follower pressure P̂_i at r̂_i: T = −P̂_i(U + mV)/r̂_i − α̂P̂_iW − Ṗ, Q = −P̂_i(mU + V)/r̂_i,
     S = −α̂P̂_iU, Φ = 0. Acoustic fluid (§5): Ṗ = κU, κ = Ω²ρ̂_f B̂_m, B̂_m = r̂_i N_m/D_m
-    (:func:`jaxdea.bessel.coupling_pair` at s = χ̂²r̂_i², χ̂² = Ω²/ĉ_f² − α̂², order m), cleared:
+    (:func:`jaxdea.numerics.bessel.coupling_pair` at s = χ̂²r̂_i², χ̂² = Ω²/ĉ_f² − α̂², order m), cleared:
     column U → D_m S_{·U} − Ω²ρ̂_f r̂_i N_m e_T. The paper's coupling (docs/theory/axisymmetric.md §4(b), order
     ν) exists at m = 0 only (NaN elsewhere).
     """
@@ -544,7 +544,7 @@ def outer_conditions(wall: Wall, alpha, m=0, family: str = ORDER_M, pressure_out
 
     ``"order_m"`` (4×8): e_Φ; e_T + P̂_o(e_U/r̂_o + m e_V/r̂_o + α̂ e_W); e_Q + P̂_o(m e_U + e_V)/r̂_o;
     e_S + α̂P̂_o e_U. At m = 0 the row Q is e_V instead: V is constant there (its rows are switched
-    off, :func:`jaxdea.state_matrix.torsion_switch`), so the determinant is the longitudinal one
+    off, :func:`jaxdea.physics.state_matrix.torsion_switch`), so the determinant is the longitudinal one
     times a constant factor. ``"longitudinal"`` (3×6): the rows Φ, T̄, S̄ of docs/theory/axisymmetric.md §4;
     ``"torsional"`` (1×2): e_Q + P̂_o e_V/r̂_o. The library's gauge is P̂_o = 0 (then the plain rows
     Φ, T, Q, S); a non-zero P̂_o with P̂_i, p̂ shifted alike checks gauge invariance (§7e).
@@ -569,7 +569,7 @@ def characteristic_and_scale_of_w(wall: Wall, omega_squared, alpha, fluid=None, 
     """(f, log_scale) with det(Out A S) = f · exp(log_scale) at w = Ω² (docs/theory/order_m.md §4–§6).
 
     S from :func:`initial_basis_of_w`, propagated with re-orthonormalisation
-    (:func:`jaxdea.transfer.propagate_basis_of_w`, 8×4 basis for order m), f = det(Out Q_N) ∈ [−1, 1]
+    (:func:`jaxdea.physics.transfer.propagate_basis_of_w`, 8×4 basis for order m), f = det(Out Q_N) ∈ [−1, 1]
     (:func:`outer_conditions`): real for real w of either sign, entire in w, pole-free.
     """
     basis = initial_basis_of_w(wall, omega_squared, alpha, fluid, order, m, family)
@@ -594,7 +594,7 @@ def characteristic_at_rest(wall: Wall, exponentials, alpha, fluid=None, order=0,
     """f(Ω = 0) on ``wall`` with its sublayer exponentials T_k given (N, n, n): the value of
     :func:`characteristic_on_wall` (longitudinal) or :func:`characteristic_of_w` (w = 0) with
     ``method="at_rest"``, whose T_k the critical-voltage search forms from the generators' expansion
-    in V̂ (:func:`jaxdea.transfer.voltage_exponentials`)."""
+    in V̂ (:func:`jaxdea.physics.transfer.voltage_exponentials`)."""
     zero = jnp.zeros_like(wall.r_inner)
     if family == LONGITUDINAL:
         q, _ = carry_basis(initial_basis(wall, zero, alpha, fluid, order), exponentials)
@@ -662,7 +662,7 @@ def problem_function(tube: Tube, alpha, fluid: Fluid | None, n_layers, order: in
                      family: str = LONGITUDINAL, variable: str = "omega"):
     """(wall, f) with f the characteristic function of one case, for the root solvers (traceable).
 
-    Like ``jaxdea.roots._problem``: the wall is discretised once and f evaluates with the adaptive
+    Like ``jaxdea.solve.roots._problem``: the wall is discretised once and f evaluates with the adaptive
     exponential (values and forward-mode slopes). ``variable="omega"``: f(Ω) (even in Ω);
     ``"omega_squared"``: f(w), w = Ω² of either sign (unstable modes). ``family`` and ``order``
     static, ``m`` traced (``"order_m"``); where m is inadmissible (:func:`order_m_admissible`) f is

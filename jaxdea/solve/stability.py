@@ -15,9 +15,12 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .compiled import cached_jit, serializable
-from .dispersion import check_inputs
-from .params import Fluid, Tube, canonical, mode_wavenumber
+from ..compiled import cached_jit, serializable
+from ..numerics.scalar import Status
+from ..params import Fluid, Tube, canonical, mode_wavenumber
+from ..physics.dispersion import check_inputs
+from ..physics.state_matrix import ORDER_M
+from ..physics.transfer import laminate
 from .roots import (
     Roots,
     attach_derivatives,
@@ -25,9 +28,6 @@ from .roots import (
     map_orders_and_modes,
     validate_max,
 )
-from .scalar import Status
-from .state_matrix import ORDER_M
-from .transfer import laminate
 
 
 @serializable

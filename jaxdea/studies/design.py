@@ -37,7 +37,7 @@ How the problems are posed, and why (what converged robustly in our runs):
   seeds the first guess and verifies the optimum (the tracked root must be the lowest).
 * The loss and its gradient come from one small compiled program that attaches implicit-function
   derivatives to those roots, dx/dθ = −(∂g/∂θ)/(∂g/∂x) for g(Ω) = f(Ω; θ) and g(V̂) = f(0; V̂, θ)
-  (:func:`jaxdea.scalar.implicit_root`, the mechanism of every solver of the package; never
+  (:func:`jaxdea.numerics.scalar.implicit_root`, the mechanism of every solver of the package; never
   derivatives of the iterations), and differentiates in forward
   mode (two or fewer variables). The solvers themselves are the library's compiled programs, shared
   with every other use, so a design run compiles only characteristic-function derivatives.
@@ -64,14 +64,14 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from .compiled import cached_jit, jit, serializable
-from .dispersion import characteristic, check_inputs, mode_family
-from .modes import root_distance
-from .params import Fluid, Tube, as_float, canonical, mode_wavenumber, require_x64, validate_layers
-from .roots import first_instability, frequencies, solve_critical_voltage, solve_frequency
-from .scalar import ROOT_RTOL, Status, implicit_root, refuse_non_root
-from .state_matrix import LONGITUDINAL
-from .transfer import laminate, validate_scheme
+from ..compiled import cached_jit, jit, serializable
+from ..numerics.scalar import ROOT_RTOL, Status, implicit_root, refuse_non_root
+from ..params import Fluid, Tube, as_float, canonical, mode_wavenumber, require_x64, validate_layers
+from ..physics.dispersion import characteristic, check_inputs, mode_family
+from ..physics.state_matrix import LONGITUDINAL
+from ..physics.transfer import laminate, validate_scheme
+from ..solve.modes import root_distance
+from ..solve.roots import first_instability, frequencies, solve_critical_voltage, solve_frequency
 
 DECAY = 0.97  # learning-rate factor per step
 FLOOR = 1e-9  # the rate never falls below FLOOR x its initial value
@@ -140,7 +140,7 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
     """dΩ/dV̂ on the branch through the root ``omega``: T = −(∂f/∂V̂)/(∂f/∂Ω) (implicit function theorem).
 
     ``omega`` must be a root (from :func:`jaxdea.frequency` or :func:`jaxdea.frequencies`), to the
-    relative Newton distance ``jaxdea.modes.ROOT_RTOL`` = 1e-4 of the same discretisation: a
+    relative Newton distance ``jaxdea.solve.modes.ROOT_RTOL`` = 1e-4 of the same discretisation: a
     concrete non-root raises a ValueError (a traced one gives NaN), since −f_V̂/f_Ω off a root is a
     plausible number that means nothing. When ``omega`` carries its implicit derivatives, as those
     functions' roots do, ``jax.jacfwd``/``jax.grad`` of T with respect to any leaf is the exact

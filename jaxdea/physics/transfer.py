@@ -30,7 +30,7 @@ Two propagators:
   :func:`carry_basis_tangent` carries the Ω-tangent alongside in the frame of Q (Z = Ẏ R⁻¹), so a
   slope needs no derivative of Gram–Schmidt.
 
-Mode families (static ``family``, :mod:`jaxdea.state_matrix`): ``"longitudinal"`` (the 6×6 matrix
+Mode families (static ``family``, :mod:`jaxdea.physics.state_matrix`): ``"longitudinal"`` (the 6×6 matrix
 above, the default: its code path and values are those of the axisymmetric library), ``"order_m"``
 (the 8×8 M_m of docs/theory/order_m.md §3 with a traced order ``m``, 8×4 basis) and ``"torsional"`` (2×2, 2×1
 basis). Everything here is written for any matrix size. Every propagator also exists as a function
@@ -52,10 +52,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..compiled import jit
+from ..params import Tube, admissible, as_float
 from .base_state import base_state, geometry, pressure_difference_unchecked, w1_at
-from .compiled import jit
 from .moduli import Coefficients, closed_form_coefficients, coefficients, push_forward_moduli
-from .params import Tube, admissible, as_float
 from .state_matrix import (
     LONGITUDINAL,
     ORDER_M,
@@ -654,7 +654,7 @@ def generator_coefficients(step, coef: Coefficients, radius, alpha, m=0, family=
     solver) forms them once, with no Ω-tangent; each Ω then costs a Horner sum.
 
     ``family`` (static) and ``m`` (traced, ``"order_m"`` only) select the state matrix and its E
-    (:func:`jaxdea.state_matrix.family_matrix`, ``family_inertia``); n = 6, 8 or 2.
+    (:func:`jaxdea.physics.state_matrix.family_matrix`, ``family_inertia``); n = 6, 8 or 2.
 
     ``at_rest`` (static): G at w = 0 only (P = 1), the inertia left out: a search in V̂ at Ω = 0
     (:func:`jaxdea.critical_voltage`) forms the sixth-order generator with 6 matrix products per
@@ -662,7 +662,7 @@ def generator_coefficients(step, coef: Coefficients, radius, alpha, m=0, family=
 
     ``block`` (static, a tuple of state indices): the generator of that block of the state alone,
     from the same block of every M and E; where the block decouples from the rest (the electric
-    block at V̂ = 0, :func:`jaxdea.dispersion.value_and_slope_on_wall`) that is the block of G.
+    block at V̂ = 0, :func:`jaxdea.physics.dispersion.value_and_slope_on_wall`) that is the block of G.
     """
     matrix, inertia = _matrix_of_alpha(family, m, block)
     minus_e = [] if at_rest else [-inertia]
@@ -849,7 +849,7 @@ def alpha_generators(wall: Wall, m=0, family=LONGITUDINAL, at_rest: bool = False
     with A_0 = M(0), A_1 = (M(1) − M(−1))/2, A_2 = (M(1) + M(−1))/2 − M(0) (one batch of three
     state matrices per node), and the scheme's commutators are taken of the polynomials in (α̂, w):
     degree 2 in α̂ for the midpoint laminate, 4 for ``"magnus4"`` and 10 for ``"magnus6"``. Along a
-    dispersion curve of one tube (:func:`jaxdea.curves.dispersion_curve`) the generators of every α̂
+    dispersion curve of one tube (:func:`jaxdea.solve.curves.dispersion_curve`) the generators of every α̂
     then cost one contraction with the powers of α̂ instead of the state matrices and 24 matrix
     products per sublayer (magnus6). Measured against the generators formed at α̂ (α̂ ≤ 30 on walls
     of η = 0.3 … 0.85): G(Ω²) equal to 7e-16 to 1.1e-15 of each sublayer's largest entry."""
@@ -955,7 +955,7 @@ def orthonormalize(y):
     """Y = Q R for an n×k Y (6×3, 8×4, 2×1): Q with orthonormal columns, R upper triangular with R_jj > 0.
 
     Classical Gram–Schmidt applied twice ("CGS2", stable to rounding). Returns (Q, log det R).
-    A complex Y (complex Ω, :mod:`jaxdea.counting`) uses the Hermitian projection u (u^H v), so
+    A complex Y (complex Ω, :mod:`jaxdea.solve.counting`) uses the Hermitian projection u (u^H v), so
     Q^H Q = I and R_jj = ‖v_j‖ is still real and positive: det R > 0 leaves arg det unchanged.
     """
     q, _, norms = _gram_schmidt(y)
@@ -1038,7 +1038,7 @@ def carry_basis(basis, exponentials):
 
 TANGENT_UNROLL = 1
 """Sublayers per iteration of :func:`carry_basis_tangent`'s scan. 2 saved 4–6 % of the benchmark
-curve (section k), but once the scan's slope was carried too (:func:`jaxdea.roots.scanned_function`)
+curve (section k), but once the scan's slope was carried too (:func:`jaxdea.solve.roots.scanned_function`)
 it cost 0.3–0.6 s of compilation per copy of f and f' (a first ``frequencies`` at m = 2: 1.8 s),
 for no measurable change of its warm time; 4 saved no more and compiled 1 s longer (measured)."""
 
@@ -1064,7 +1064,7 @@ def carry_basis_tangent(basis, basis_dot, exponentials, exponentials_dot, with_s
 
     Z carries the tangent in the frame of Q, Z_k = (Ṫ_k Q_{k−1} + T_k Z_{k−1}) R_k⁻¹ with the R_k of
     each re-orthonormalisation, so Gram–Schmidt is never differentiated (its forward-mode tangent
-    was about 40 % of a value-and-slope of 5 lanes; :func:`jaxdea.dispersion.value_and_slope_on_wall`
+    was about 40 % of a value-and-slope of 5 lanes; :func:`jaxdea.physics.dispersion.value_and_slope_on_wall`
     turns Z into f'). Q is the same array as :func:`carry_basis` computes. ``with_scale`` (static):
     (Q, Z, log_scale) with the log_scale of :func:`carry_basis` (its slope is tr(QᵀZ))."""
     def log_det(norms):

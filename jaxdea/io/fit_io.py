@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .files import load_document, save_figure, write_text, write_together
-from .fit import NAMES, UNITS, FitResult, IdentifiabilityWarning, fit, fitted_frequencies
-from .peaks import read_peaks
+from ..files import load_document, save_figure, write_text, write_together
+from ..studies.fit import NAMES, UNITS, FitResult, IdentifiabilityWarning, fit, fitted_frequencies
+from ..studies.peaks import read_peaks
 
 TOP_KEYS = ("free", "fixed", "fluid", "options")
 FREE_KEYS = ("lower", "upper", "initial")
@@ -225,7 +225,7 @@ def parse_fit_config(data) -> FitConfig:
         if order is not None and (isinstance(order, bool) or not isinstance(order, int)
                                   or order < 0):
             raise ValueError(f"fluid.bessel_order: expected an integer >= 0, got {order!r}")
-        from .params import Fluid
+        from ..params import Fluid
 
         fluid = Fluid(coupling=fluid.get("coupling", "acoustic"), bessel_order=order)
     elif fluid is not None and fluid not in ("acoustic", "paper"):

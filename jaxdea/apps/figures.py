@@ -9,7 +9,7 @@ likewise along theirs (:func:`critical_curves`). The figures against n follow α
 fractional n (the infinite tube's curve) and mark the tube's modes, the integers; the paper's
 coupling, whose Bessel order is ν = n, exists at integer n only and is drawn there.
 
-Styles are the same in every figure (:mod:`jaxdea.plotstyle`: mathtext, 300 dpi, one legend below
+Styles are the same in every figure (:mod:`jaxdea.apps.plotstyle`: mathtext, 300 dpi, one legend below
 the panels): one colour per axial mode n (:data:`MODE_COLORS`), per order m (:data:`ORDER_COLORS`)
 or, against n, per V̂ (:data:`VOLTAGE_COLORS`); one line style per coupling and λ_i (:func:`_style`:
 the empty tube and the acoustic coupling solid-based, the paper's dashed-based). A curve breaks only
@@ -25,7 +25,7 @@ points are left blank (NaN, ``status`` = ``"past critical"`` in the CSV). V̂_cr
 The tube loses stability earlier in a non-axisymmetric order m (docs/theory/order_m.md): for λ_i = 0.9 the
 ring mode (m, n) = (2, 1) at V̂ ≈ 0.029, a tenth of the axisymmetric V̂_cr. The first instability
 (the smallest V̂_cr over m ≤ 4, n ≤ max_mode, as :func:`jaxdea.first_instability`) marks the states
-past it by one rule, V̂ ≥ V̂_first (:func:`jaxdea.plotstyle.past_first_instability`): faded in every
+past it by one rule, V̂ ≥ V̂_first (:func:`jaxdea.apps.plotstyle.past_first_instability`): faded in every
 figure, shaded on those against V̂ (Figs. 2, 5), and ``past_first_instability`` in every CSV. Three
 figures of order m follow: the stability map (V̂_cr of m = 0 … 4 against λ_i and n),
 the cross-sections of the lowest m = 1, 2, 3 modes, and the dispersion curves Ω(α̂) of m = 0, 1, 2.
@@ -51,17 +51,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..compiled import jit
+from ..files import atomic_write, save_figure, write_together
+from ..numerics.scalar import Status
+from ..params import Fluid, Tube, mode_wavenumber
+from ..physics.base_state import pull_in, squared_voltage
+from ..physics.leaves import apply_parameters
+from ..physics.state_matrix import ORDER_M
+from ..solve.curves import solve_critical_path, solve_path
+from ..solve.modes import mode_shape
 from . import plotstyle
-from .base_state import pull_in, squared_voltage
-from .compiled import jit
-from .curves import solve_critical_path, solve_path
-from .files import atomic_write, save_figure, write_together
-from .leaves import apply_parameters
-from .modes import mode_shape
-from .params import Fluid, Tube, mode_wavenumber
 from .plotstyle import SHORT_LABELS, line_handle, new_figure, past_first_instability, patch_handle
-from .scalar import Status
-from .state_matrix import ORDER_M
 
 PAPER_TUBE = Tube(lambda_z=1.2, eta=0.85, gent=97.2, length_ratio=10.0)
 PAPER_FLUID = dict(density_ratio=0.13, speed_ratio=0.27)
@@ -173,7 +173,7 @@ def _packed(curves: list):
 @jit
 def _points(base: Tube, fluid: Fluid | None, values: dict):
     """(tubes, α̂, fluids) of the points of a path: ``base`` and ``fluid`` with ``values`` set
-    (:func:`jaxdea.leaves.apply_parameters`, one point per entry of the arrays)."""
+    (:func:`jaxdea.physics.leaves.apply_parameters`, one point per entry of the arrays)."""
     return jax.vmap(lambda vals: apply_parameters(base, 1.0, fluid, vals))(values)
 
 
@@ -186,8 +186,8 @@ def _strong(tree):
 
 def critical_curves(n_layers: int, curves: list, base: Tube = PAPER_TUBE) -> list[np.ndarray]:
     """V̂_cr along each curve (values, abscissa) of the tube ``base`` (``values``: names of
-    :mod:`jaxdea.leaves` and ``m``, the circumferential order, 0 if absent), by continuation along
-    the curve (:func:`jaxdea.curves.critical_path_unchecked`: the first zero of f(Ω = 0; V̂) in
+    :mod:`jaxdea.physics.leaves` and ``m``, the circumferential order, 0 if absent), by continuation along
+    the curve (:func:`jaxdea.solve.curves.critical_path_unchecked`: the first zero of f(Ω = 0; V̂) in
     (0, V̂_lim], V̂_lim the pull-in limit; NaN where none); one compiled program for every curve."""
     out = [None] * len(curves)
     for members, lengths, values, abscissa, starts in _packed(curves):
@@ -247,10 +247,10 @@ empty tube)."""
 def solve_curves(n_layers: int, fluid: Fluid | None, curves: list, base: Tube = PAPER_TUBE,
                  n_roots: int = 1, m=None) -> list[Solved]:
     """The lowest root (``n_roots`` lowest: Ω of shape (P, n_roots)) along each curve of the tube
-    ``base``, by continuation along the curve (:func:`jaxdea.curves.path_unchecked`; of order m
+    ``base``, by continuation along the curve (:func:`jaxdea.solve.curves.path_unchecked`; of order m
     where ``m`` is not None, the order-m family with m traced).
 
-    A curve is (values, abscissa): ``values`` maps parameter names of :mod:`jaxdea.leaves` (the same
+    A curve is (values, abscissa): ``values`` maps parameter names of :mod:`jaxdea.physics.leaves` (the same
     names for every curve; ``n`` sets α̂ from the mode number) to scalars or arrays of its P points,
     and the abscissa (P,) is the coordinate the predictor extrapolates in. Every point gets the
     roots of :func:`jaxdea.frequencies` (the scan where a step fails its checks, and at every point
@@ -457,7 +457,7 @@ def _mask_past(omega, voltage, v_cr):
 
 
 def _styled(draw):
-    """Draw a figure in the style of :mod:`jaxdea.plotstyle` (its rc settings, restored after)."""
+    """Draw a figure in the style of :mod:`jaxdea.apps.plotstyle` (its rc settings, restored after)."""
     @functools.wraps(draw)
     def styled(*args, **kwargs):
         with plotstyle.style():
@@ -468,7 +468,7 @@ def _styled(draw):
 
 @functools.cache
 def figures_stamp() -> str:
-    """The stamp of the code that draws the figures (:func:`jaxdea.plotstyle.source_stamp` of this
+    """The stamp of the code that draws the figures (:func:`jaxdea.apps.plotstyle.source_stamp` of this
     module and the style module), written into every PNG."""
     import sys
 
@@ -495,7 +495,7 @@ def _stretch_text(lambda_i) -> str:
 def _plot(ax, x, y, jumps=None, past=None, **kw):
     """A curve that breaks where the lowest root changes branch (``jumps``): the segments are drawn
     apart and the first point after a break is marked with an open circle; its points ``past`` the
-    first instability are drawn faded (:func:`jaxdea.plotstyle.plot_marked`)."""
+    first instability are drawn faded (:func:`jaxdea.apps.plotstyle.plot_marked`)."""
     x, y = np.asarray(x, float), np.asarray(y, float)
     past = np.zeros(x.shape, bool) if past is None else np.broadcast_to(np.asarray(past, bool), x.shape)
     drawn = np.isfinite(y) & np.concatenate([[False], np.isfinite(y[:-1])])  # a start after a gap is none
@@ -1236,11 +1236,11 @@ def figure_static_response(ctx: Context):
     """V̂ against λ_i at fixed ΔP̂ (docs/theory/axisymmetric.md Eq. 1.1 solved for V̂²), pull-in points
     marked, with the first instability of the stability map (n = 1, m ≤ 4). Returns (figure, axes).
 
-    The pull-in point is the first maximum of V̂(λ_i) (:func:`jaxdea.base_state.pull_in`). For the
+    The pull-in point is the first maximum of V̂(λ_i) (:func:`jaxdea.physics.base_state.pull_in`). For the
     ideal-dielectric tube held at fixed λ_z there is none: V̂ rises monotonically at every ΔP̂ (the
     neo-Hookean closed form of theory finding 4; with Gent stiffening up to locking), so the static
     branch ends at Gent locking, marked with its voltage (the supremum that bounds the critical
-    voltage search, :func:`jaxdea.base_state.voltage_limit`). A pull-in maximum, where ``pull_in``
+    voltage search, :func:`jaxdea.physics.base_state.voltage_limit`). A pull-in maximum, where ``pull_in``
     finds one, is marked with a star. The tube loses stability long before: the largest stable V̂ of
     each curve is where it meets the first instability V̂_first(λ_i) (:func:`static_stability`).
     """

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .files import atomic_write, read_text
+from ..files import atomic_write, read_text
 
 COLUMNS = ("voltage_V", "frequency_Hz", "sigma_Hz", "m", "n", "branch")
 """The columns of a peak table, in the order :func:`write_peaks` writes them."""

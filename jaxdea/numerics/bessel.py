@@ -302,7 +302,7 @@ def _scaled_triple_jvp(primals, tangents):
 
 
 def _integrals_complex(s, order):
-    """(N, D) for large |s| and complex s (complex Ω, :mod:`jaxdea.counting`), series normalisation
+    """(N, D) for large |s| and complex s (complex Ω, :mod:`jaxdea.solve.counting`), series normalisation
     times a positive factor.
 
     Re s ≥ 0: J_ν, J_ν' from Bessel's integral at x = sqrt(s) (principal), scaled by e^{−|Im x|};
@@ -346,7 +346,7 @@ def coupling_pair(s, order):
     """(N_ν, D_ν) up to a common positive factor, entire in s = χ̂² r̂_i² (module docstring).
 
     Args:
-        s: χ̂² r̂_i², any real value; or complex (complex Ω, :mod:`jaxdea.counting`), where the
+        s: χ̂² r̂_i², any real value; or complex (complex Ω, :mod:`jaxdea.solve.counting`), where the
             large-|s| branch is :func:`_integrals_complex` and the common factor stays real and
             positive (so arg N, arg D are exact), though no longer analytic in s.
         order: Bessel order ν ≥ 0 (static int, or traced: sweeps over n or m).

@@ -7,7 +7,7 @@ The model of a measured peak at voltage V of order m, axial mode n and branch k 
 
 with Ω_k the k-th lowest positive root of order m (:func:`jaxdea.frequencies`, docs/theory/axisymmetric.md and
 docs/theory/order_m.md), refined by :func:`jaxdea.frequency` from the current root and converted to Hz
-(:mod:`jaxdea.units`). :func:`fit` minimises ½ Σ r_j², r_j = (f_model − f_data)_j/σ_j, over the free
+(:mod:`jaxdea.physics.units`). :func:`fit` minimises ½ Σ r_j², r_j = (f_model − f_data)_j/σ_j, over the free
 parameters θ mapped onto their bounds, θ = lo + (hi − lo)·sigmoid(u).
 
 Solver. A small Levenberg–Marquardt loop in NumPy (Marquardt's diagonal scaling; the damping is
@@ -46,8 +46,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .params import Fluid, Tube, require_x64
-from .roots import frequencies, frequency
+from ..params import Fluid, Tube, require_x64
+from ..solve.roots import frequencies, frequency
 
 NAMES = ("shear_modulus", "density", "permittivity", "inner_radius", "length", "eta", "lambda_i",
          "lambda_z", "gent", "fluid_density", "fluid_speed")

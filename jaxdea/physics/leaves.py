@@ -11,8 +11,8 @@ Order of application (so that a combination means what it says): tube leaves, th
 (α̂ of mode n of the final tube).
 """
 
+from ..params import Fluid, Tube, as_float, mode_wavenumber
 from .base_state import geometry, with_thickness_ratio_unchecked
-from .params import Fluid, Tube, as_float, mode_wavenumber
 
 TUBE_LEAVES = ("voltage", "lambda_i", "lambda_z", "eta", "gent", "length_ratio")
 FLUID_LEAVES = ("density_ratio", "speed_ratio")

@@ -2,12 +2,12 @@
 
 :func:`count_roots` returns the number of zeros of the characteristic function of the same
 discretisation (same ``n_layers`` laminate) in (ω_lo, ω_hi), independently of the scan of
-:mod:`jaxdea.roots`, so that ``frequencies`` can be checked: the two agree when the scan missed
+:mod:`jaxdea.solve.roots`, so that ``frequencies`` can be checked: the two agree when the scan missed
 nothing.
 
 Method. F(Ω) = det(B A S)(Ω) (docs/theory/axisymmetric.md §4) is entire in Ω: the state matrix is polynomial in
 Ω, the laminate exponentials are entire, and the fluid couplings enter through N_ν, D_ν, entire in
-s = χ̂² r̂_i² = (Ω²/ĉ_f² − α̂²) r̂_i² (:mod:`jaxdea.bessel`). By the argument principle the number of
+s = χ̂² r̂_i² = (Ω²/ĉ_f² − α̂²) r̂_i² (:mod:`jaxdea.numerics.bessel`). By the argument principle the number of
 zeros inside a closed contour Γ is
 
     Z = (1/2π) Δ_Γ arg F,
@@ -22,9 +22,9 @@ coefficients, F(Ω̄) = conj F(Ω), so the lower half mirrors the upper one and
 (the upper half of Γ, from the real axis back to it; ``symmetric=False`` integrates all of Γ, twice
 the work, the same count). arg F is evaluated stably for any α̂ĥ: the complex 6×3 basis is
 propagated and re-orthonormalised after every sublayer (Gram–Schmidt with conjugates,
-:func:`jaxdea.transfer.orthonormalize`); R_k has a real positive diagonal, so
+:func:`jaxdea.physics.transfer.orthonormalize`); R_k has a real positive diagonal, so
 arg det(B A S) = arg det(B Q_N) and |det(B Q_N)| ≤ 1. The Bessel pair for complex s carries a
-positive factor too (:func:`jaxdea.bessel.coupling_pair`), which leaves the argument exact.
+positive factor too (:func:`jaxdea.numerics.bessel.coupling_pair`), which leaves the argument exact.
 
 The zeros of the conservative problem in Ω² are real and F is even in Ω, so the zeros near the real
 Ω axis are real; zeros at Ω² < 0 (unstable modes beyond V̂_cr) lie on the imaginary axis, outside Γ.
@@ -37,7 +37,7 @@ the default box; count its roots with a ``height`` below that (1e-4: the count t
 scan). None was met with the fluid-free tube or the acoustic coupling.
 
 Box and sampling. Δ = min(``scan_step``, (ω_hi − ω_lo)/16) (a sixteenth of the shortest oscillation
-of f, :func:`jaxdea.roots.scan_step`), δ = Δ/2 (``height`` overrides). The contour is sampled
+of f, :func:`jaxdea.solve.roots.scan_step`), δ = Δ/2 (``height`` overrides). The contour is sampled
 adaptively by bisection: a segment [a, b] with midpoint m is accepted when it is at most Δ long and
 the principal increments Δ₁ = arg(F_m/F_a), Δ₂ = arg(F_b/F_m) satisfy |Δ₁|, |Δ₂| ≤ π/4 and
 |Δ₁ − Δ₂| ≤ π/8 (the phase is nearly linear across it); otherwise both halves are refined. Samples
@@ -73,12 +73,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .compiled import cached_jit, serializable
-from .dispersion import characteristic_on_wall
-from .params import Fluid, Tube, as_float, canonical, guard, validate_positive
+from ..compiled import cached_jit, serializable
+from ..params import Fluid, Tube, as_float, canonical, guard, validate_positive
+from ..physics.dispersion import characteristic_on_wall
+from ..physics.state_matrix import LONGITUDINAL, ORDER_M
+from ..physics.transfer import discretize, laminate
 from .roots import guard_order, order_inputs, scan_step
-from .state_matrix import LONGITUDINAL, ORDER_M
-from .transfer import discretize, laminate
 
 LANES = 64  # midpoints evaluated per iteration (one vmapped call)
 STACK = 4096  # pending segments held at most
