@@ -628,16 +628,10 @@ def rewrite_text(root: Path, path: Path, changed: list, shadowed: set[str], note
 
 
 def pyproject_packages(root: Path, changed: list):
-    path = root / "pyproject.toml"
-    if not path.exists():
-        return
-    text = path.read_text(encoding="utf-8")
-    wanted = [PACKAGE] + [f"{PACKAGE}.{f}" for f in FOLDERS]
-    line = "packages = [" + ", ".join(f'"{p}"' for p in wanted) + "]"
-    new, count = re.subn(r'^packages = \[[^\]]*\]$', line, text, flags=re.M)
-    if count == 0 and "packages.find" not in text:
-        raise Fail("pyproject.toml: no `packages = [...]` line to extend with the subpackages")
-    write(path, new, changed)
+    """Nothing to do for hatch: ``packages = ["jaxdea"]`` ships the subpackages (checked: the wheel
+    holds jaxdea/numerics … jaxdea/apps). Listing them as dotted names would name paths that do not
+    exist."""
+    del root, changed
 
 
 def move(root: Path, changed: list, ruff: str | None):
