@@ -8,13 +8,12 @@ cache and XLA's loop threshold (:mod:`jaxdea.compiled`).
 
 from importlib import metadata as _metadata
 
-from . import compiled
+from . import compiled, units
 from .apps.explore import explore  # ipywidgets is imported on the first call only
 from .compiled import Configuration, configure
 from .io.fit_io import plot_fit, write_fit
 from .numerics.scalar import Status
 from .params import Fluid, Tube, axial_wavenumber
-from . import units
 from .physics.base_state import (
     inner_stretch,
     pressure_difference,
