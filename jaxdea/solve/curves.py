@@ -602,11 +602,15 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
         # one propagation compiled, not both: V̂ = 0 decouples the electric block (a program each)
         voltage = tube.voltage
         decoupled = None if isinstance(voltage, jax.core.Tracer) else bool(np.all(np.asarray(voltage) == 0))
-        curve = _solve_curve(*values, n_roots, layers, order, decoupled=decoupled)
+
+        def solve(layers):
+            return _solve_curve(*values, n_roots, layers, order, decoupled=decoupled)
     else:
-        curve = _solve_curve(*values, n_roots, layers, order, detached(m), family)
+        def solve(layers):
+            return _solve_curve(*values, n_roots, layers, order, detached(m), family)
+    curve = solve(layers)
     if short is None and n_layers is None and is_graded(layers) and _concrete(values, m):
-        curve, short = _checked_curve(curve, layers, values, n_roots, order, m, family)
+        curve, short = _checked_curve(solve, curve, layers, values, order, m, family)
     curve = curve._replace(status=inaccurate_where(short, Roots(curve.omega, curve.status)).status)
     if not traced((tube, alpha, fluid, m)):
         # concrete inputs carry no tangents: the implicit derivatives would leave the values as
@@ -634,17 +638,16 @@ def sampled_newton_steps(tube, alphas, fluid, omegas, n_layers, order, m=0.0, fa
 _sampled_steps = cached_jit(sampled_newton_steps, static_argnames=("n_layers", "order", "family"))
 
 
-def _checked_curve(curve, layers, values, n_roots, order, m, family):
+def _checked_curve(solve, curve, layers, values, order, m, family):
     """(curve, short): a concrete default curve checked like the points of
     :func:`jaxdea.solve_frequencies` (:func:`jaxdea.solve.roots._verified`), at CHECKED_POINTS of its
     points (the error varies smoothly along α̂): one Newton step per root on the wall of N/2
-    sublayers estimates its error; where some exceed 1e-8 the curve is solved again on the finer
-    N they ask for; a root index still short at a checked point is INACCURATE along the curve."""
+    sublayers estimates its error; where some exceed 1e-8 the curve is solved again
+    (``solve(layers)``) on the finer N they ask for; a root index still short at a checked point is
+    INACCURATE along the curve."""
     tube, alpha, fluid = values
     order_args = () if family == LONGITUDINAL else (m, family)
     pick = np.unique(np.round(np.linspace(0, np.shape(alpha)[0] - 1, CHECKED_POINTS)).astype(int))
-    decoupled = (family == LONGITUDINAL
-                 and bool(np.all(np.asarray(tube.voltage) == 0)))
     for round_ in range(VERIFY_ROUNDS + 1):
         coarse = Layers(layers.count // 2, AUTO_SCHEME, True)
         sampled = Roots(curve.omega[pick], curve.status[pick])
@@ -655,10 +658,7 @@ def _checked_curve(curve, layers, values, n_roots, order, m, family):
         if finer is None:
             break
         layers = finer
-        if family == LONGITUDINAL:
-            curve = _solve_curve(*values, n_roots, layers, order, decoupled=decoupled)
-        else:
-            curve = _solve_curve(*values, n_roots, layers, order, m, family)
+        curve = solve(layers)
     short = np.broadcast_to(np.any(ratio > 1.0, axis=0), np.shape(curve.omega))
     return curve, (short if short.any() else None)
 
