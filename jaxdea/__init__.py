@@ -31,7 +31,6 @@ from .solve.roots import (
     Roots,
     critical_voltage,
     critical_voltages,
-    first_instability,
     frequencies,
     frequency,
     group_velocity,
@@ -42,6 +41,7 @@ from .solve.roots import (
     solve_frequencies,
     solve_frequency,
 )
+from .solve.instability import first_instability
 from .solve.stability import Stability, stability
 from .solve.trace import Branch, BranchEnd, trace_branch
 from .studies.design import DesignResult, DesignStatus, design_for_frequency, maximise_tunability, tunability

@@ -423,7 +423,19 @@ def voltage_limit(tube: Tube):
     Newton solve of :func:`pull_in` there, that call took 7.4 s instead of 5.7 s, measured).
     """
     tube = jax.lax.stop_gradient(tube)
-    delta_p = pressure_difference_unchecked(tube.replace(voltage=0.0))
+    return static_limit(tube, pressure_difference_unchecked(tube.replace(voltage=0.0)))[1]
+
+
+def static_limit(tube: Tube, delta_p):
+    """(λ_i, V̂) at the end of the static response at fixed ΔP̂ (values only: a search range).
+
+    The first local maximum of V̂²(λ_i) (:func:`squared_voltage`) on the λ_i grid of :func:`pull_in`,
+    refined by golden-section search on its two grid cells, or, where strain stiffening removes that
+    maximum (Gent), the largest voltage on the grid before locking (:func:`voltage_limit`). On the
+    branch from the unpressurised state up to that λ_i, V̂ grows monotonically with λ_i, so the
+    state held by ΔP̂ is a function of λ_i there (:mod:`jaxdea.solve.pressure_held`).
+    """
+    tube, delta_p = jax.lax.stop_gradient((tube, as_float(delta_p)))
     v2 = lambda li: squared_voltage(tube, li, delta_p)  # noqa: E731
     grid = _stretch_grid()
     vals = jax.vmap(v2)(grid)
@@ -443,10 +455,13 @@ def voltage_limit(tube: Tube):
         return (a, b, jnp.where(left, new, d), jnp.where(left, c, new),
                 jnp.where(left, f_new, fd), jnp.where(left, fc, f_new))
 
-    *_, fc, fd = jax.lax.fori_loop(0, GOLDEN_STEPS, golden, (a, b, c, d, v2(c), v2(d)))
+    *_, c, d, fc, fd = jax.lax.fori_loop(0, GOLDEN_STEPS, golden, (a, b, c, d, v2(c), v2(d)))
     v_peak = jnp.maximum(vals[j], jnp.maximum(fc, fd))
+    li_peak = jnp.where(vals[j] >= jnp.maximum(fc, fd), grid[j], jnp.where(fc >= fd, c, d))
     top = jnp.max(jnp.where(finite, vals, 0.0))
-    return jnp.sqrt(jnp.where(jnp.any(peak), v_peak, top))
+    li_top = grid[jnp.argmax(jnp.where(finite, vals, -jnp.inf))]
+    found = jnp.any(peak)
+    return jnp.where(found, li_peak, li_top), jnp.sqrt(jnp.where(found, v_peak, top))
 
 
 @jit

@@ -1445,13 +1445,7 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
     layers, short = checked_laminate(n_layers, scheme, tube, mode_wavenumber(tube, n_max), m=m_max,
                                      at_rest=True)
     voltage, status, growth = _instability_grid(jax.lax.stop_gradient(tube), n_max, m_max, layers)
-    # the order: the modes unstable at V̂ = 0, fastest first (key −s₀ < 0), then the critical voltages
-    key = jnp.where(voltage == 0.0, -growth, jnp.where(jnp.isnan(voltage), jnp.inf, voltage)).ravel()
-    first = jnp.argmin(key)
-    found = jnp.isfinite(key[first])
-    at_zero = found & (key[first] < 0)
-    m = jnp.where(found, first // n_max, -1)
-    n = jnp.where(found, first % n_max + 1, 0)
+    first, found, at_zero, m, n = first_of_grid(voltage, growth)
     alpha = mode_wavenumber(tube, jnp.maximum(n, 1).astype(jnp.float64))
     root = Roots(jnp.where(found & ~at_zero, voltage.ravel()[first], jnp.nan),
                  jnp.where(found, Status.CONVERGED, Status.NO_ROOT).astype(jnp.int32))
@@ -1459,6 +1453,19 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
                              layers, 0, "voltage", ORDER_M)  # NaN (at V̂ = 0): a zero tangent
     root = inaccurate_where(short, root)  # N from the worst (m_max, n_max)
     return Instability(jnp.where(at_zero, 0.0, root.omega), m, n, root.status, voltage)
+
+
+def first_of_grid(voltage, growth):
+    """(flat index, found, at_zero, m, n) of the first instability of a (m_max + 1, n_max) grid of
+    V̂_cr (0: unstable at V̂ = 0) and growth rates s₀ at V̂ = 0: the modes unstable at V̂ = 0 come
+    first, fastest first (key −s₀ < 0), then the smallest critical voltage."""
+    n_max = voltage.shape[1]
+    key = jnp.where(voltage == 0.0, -growth, jnp.where(jnp.isnan(voltage), jnp.inf, voltage)).ravel()
+    first = jnp.argmin(key)
+    found = jnp.isfinite(key[first])
+    at_zero = found & (key[first] < 0)
+    return (first, found, at_zero, jnp.where(found, first // n_max, -1),
+            jnp.where(found, first % n_max + 1, 0))
 
 
 def phase_velocity(omega, alpha):

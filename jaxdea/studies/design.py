@@ -66,12 +66,29 @@ import optax
 
 from ..compiled import cached_jit, jit, serializable
 from ..numerics.scalar import ROOT_RTOL, Status, implicit_root, refuse_non_root
-from ..params import Fluid, Tube, as_float, canonical, mode_wavenumber, require_x64, validate_layers
+from ..params import (
+    Fluid,
+    Tube,
+    as_float,
+    canonical,
+    mode_wavenumber,
+    require_x64,
+    validate_layers,
+    validate_real,
+)
 from ..physics.dispersion import characteristic, check_inputs, mode_family
 from ..physics.state_matrix import LONGITUDINAL
 from ..physics.transfer import laminate, validate_scheme
 from ..solve.modes import root_distance
-from ..solve.roots import first_instability, frequencies, solve_critical_voltage, solve_frequency
+from ..solve.instability import (
+    first_instability,
+    held_critical_stretch,
+    held_branch,
+    held_critical_voltage,
+    held_stretch,
+    held_tube,
+)
+from ..solve.roots import frequencies, solve_critical_voltage, solve_frequency
 
 DECAY = 0.97  # learning-rate factor per step
 FLOOR = 1e-9  # the rate never falls below FLOOR x its initial value
@@ -79,6 +96,7 @@ NEWTON_MAX_STEP = 2.0  # frequency design: the longest Newton step in the thickn
 NEWTON_EDGE = 25.0  # |x_H| beyond which the thickness sits on a bound (σ(25) = 1 − 1.4e-11)
 NEWTON_REFRESH = 0.25  # a Newton step longer than this (in x_H) refreshes the candidate modes
 NEWTON_STEPS = 40  # at most this many Newton steps before adam takes over
+NEWTON_HALVINGS = 6  # a step whose end has no admissible voltage is halved at most this often
 PLATEAU = 10  # steps over which maximise_tunability's loss must have settled
 CANDIDATE_BAND = 0.05  # (m, n) with V̂_cr <= (1 + band) V̂_first are solved at every step
 CANDIDATES = 4  # at most this many candidates (the lowest), padded by repeating the first
@@ -136,8 +154,12 @@ class DesignResult(NamedTuple):
 
 
 def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: int | None = None,
-               scheme: str | None = None, m=0, torsional: bool = False):
+               scheme: str | None = None, m=0, torsional: bool = False, delta_p=None):
     """dΩ/dV̂ on the branch through the root ``omega``: T = −(∂f/∂V̂)/(∂f/∂Ω) (implicit function theorem).
+
+    A tube held by its pressure difference (``delta_p`` = ΔP̂) has λ_i = λ_i(V̂; ΔP̂)
+    (:func:`jaxdea.inner_stretch`), and T is the total derivative −(∂f/∂V̂ + ∂f/∂λ_i dλ_i/dV̂)/(∂f/∂Ω):
+    what a lab that holds the pressure measures.
 
     ``omega`` must be a root (from :func:`jaxdea.frequency` or :func:`jaxdea.frequencies`), to the
     relative Newton distance ``jaxdea.solve.modes.ROOT_RTOL`` = 1e-4 of the same discretisation: a
@@ -155,6 +177,8 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
         scheme: the propagation scheme (static; :func:`jaxdea.frequencies`), that of the root.
         m: the circumferential order of the root (int >= 0, as :func:`jaxdea.frequencies`).
         torsional: the torsional family (m = 0 only), as :func:`jaxdea.frequencies`.
+        delta_p: None (λ_i held) or ΔP̂ = (P_i − P_o)/μ, the pressure difference that holds the tube
+            (``tube.lambda_i`` is then ignored: it is the λ_i that ΔP̂ holds at ``tube.voltage``).
 
     Examples:
         >>> t = Tube(voltage=0.1, lambda_i=1.1, lambda_z=1.2)
@@ -166,10 +190,15 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
     family = mode_family(m, torsional, fluid)
     orders = {} if family == LONGITUDINAL else dict(m=m, torsional=torsional)
     tube, alpha, omega = canonical(tube, alpha, omega)
+    if delta_p is not None:
+        validate_real("delta_p", delta_p, "a finite real number (ΔP̂, the pressure difference)")
+        delta_p = as_float(delta_p)
+        tube = held_at(tube, tube.voltage, delta_p)
     voltage = as_float(tube.voltage)
 
     def f(om, v):
-        return characteristic(tube.replace(voltage=v), om, alpha, fluid, n_layers, scheme, **orders)
+        return characteristic(held_at(tube, v, delta_p), om, alpha, fluid, n_layers, scheme,
+                              **orders)
 
     f_omega = jax.jvp(lambda om: f(om, voltage), (omega,), (jnp.ones_like(omega),))[1]
     f_voltage = jax.jvp(lambda v: f(omega, v), (voltage,), (jnp.ones_like(voltage),))[1]
@@ -181,6 +210,15 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
                                  as_float(m), family)
     refuse_non_root(omega, distance)
     return jnp.where(distance <= ROOT_RTOL, -f_voltage / f_omega, jnp.nan)
+
+
+def held_at(tube: Tube, voltage, delta_p=None) -> Tube:
+    """``tube`` at ``voltage``, held by its stretch (``delta_p`` None: λ_i kept) or by ΔP̂ (λ_i that
+    ΔP̂ holds there, :func:`jaxdea.inner_stretch`, with implicit derivatives)."""
+    tube = tube.replace(voltage=voltage)
+    if delta_p is None:
+        return tube
+    return tube.replace(lambda_i=held_stretch(tube, delta_p))
 
 
 def _with_implicit_derivatives(residual, root):
@@ -246,37 +284,48 @@ def _candidates(critical) -> Candidates | None:
     return Candidates(jnp.asarray(m, jnp.float64), jnp.asarray(n + 1, jnp.float64))
 
 
-def _first_instability(tube, m_max, n_max, n_layers, scheme):
-    """(V̂_first, (m, n), the full grid) of ``tube`` (values)."""
-    first = first_instability(tube, n_max=n_max, m_max=m_max, n_layers=n_layers, scheme=scheme)
+def _first_instability(tube, m_max, n_max, n_layers, scheme, delta_p=None):
+    """(V̂_first, (m, n), the full grid) of ``tube`` (values), held by its stretch or by ΔP̂."""
+    first = first_instability(tube, n_max=n_max, m_max=m_max, n_layers=n_layers, scheme=scheme,
+                              delta_p=delta_p)
     found = int(first.status) == Status.CONVERGED
     return (float(first.voltage) if found else math.nan, (int(first.m), int(first.n)),
             np.asarray(first.critical))
 
 
-def _solve_candidates(tube, candidates, n_layers, scheme):
-    """V̂_cr of each candidate (values; NaN where it has none below pull-in), shape (K,)."""
+def _solve_candidates(tube, candidates, n_layers, scheme, delta_p=None):
+    """The critical root of each candidate (values; NaN where it has none below pull-in), shape
+    (K,): V̂_cr of the tube held by its stretch, or λ_cr of the tube held by ΔP̂
+    (:mod:`jaxdea.solve.instability`)."""
     values, seen = [], {}
     for m, n in zip(np.asarray(candidates.m).tolist(), np.asarray(candidates.n).tolist(), strict=True):
         if (m, n) not in seen:
             alpha = mode_wavenumber(tube, n)
-            seen[m, n] = float(solve_critical_voltage(tube, alpha, n_layers=n_layers, scheme=scheme,
-                                                      m=int(m))[0])
+            if delta_p is None:
+                root = solve_critical_voltage(tube, alpha, n_layers=n_layers, scheme=scheme, m=int(m))
+            else:
+                root = held_critical_stretch(tube, delta_p, alpha, float(m),
+                                             n_layers=laminate(n_layers, scheme))
+            seen[m, n] = float(root[0])
         values.append(seen[m, n])
     return jnp.asarray(values, jnp.float64)
 
 
-def _bound(tube, v_roots, candidates, n_layers, scheme):
+def _bound(tube, v_roots, candidates, n_layers, scheme, delta_p=None):
     """V̂_first = min over the candidates of V̂_cr(m, n), each root with implicit derivatives
     (g(V̂) = f(Ω = 0; V̂) of order m at α̂_n; order m as a traced value: one program for every
-    candidate set, the longitudinal zeros at m = 0, docs/theory/order_m.md §3)."""
+    candidate set, the longitudinal zeros at m = 0, docs/theory/order_m.md §3). Held by ΔP̂, the
+    roots are λ_cr and V̂_cr = V̂(λ_cr) (:func:`jaxdea.solve.instability.held_critical_voltage`)."""
     def one(v_root, m, n):
         found = jnp.isfinite(v_root)
         alpha = mode_wavenumber(tube, n)
-        v = _with_implicit_derivatives(
-            lambda v: characteristic(tube.replace(voltage=v), jnp.zeros_like(v), alpha,
-                                     n_layers=n_layers, scheme=scheme, m=m),
-            jnp.where(found, v_root, 1.0))
+        root = jnp.where(found, v_root, 1.0)
+        if delta_p is None:
+            v = _with_implicit_derivatives(
+                lambda v: characteristic(tube.replace(voltage=v), jnp.zeros_like(v), alpha,
+                                         n_layers=n_layers, scheme=scheme, m=m), root)
+        else:
+            v = held_critical_voltage(tube, delta_p, alpha, m, laminate(n_layers, scheme), root)
         return jnp.where(found, v, jnp.inf)
 
     return jnp.min(jax.vmap(one)(v_roots, candidates.m, candidates.n))
@@ -292,8 +341,9 @@ def _orders(mode):
 def _objective(x, omega_root, v_roots, candidates, setting, kind, n_layers, scheme, mode=(0, False)):
     """(loss, aux) at x, given the roots solved there (values); differentiable through them."""
     tube, alpha, fraction = _point(x, setting, kind)
-    v_first = _bound(tube, v_roots, candidates, n_layers, scheme)
-    biased = tube.replace(voltage=fraction * setting["margin"] * v_first)
+    delta_p = setting.get("delta_p")
+    v_first = _bound(tube, v_roots, candidates, n_layers, scheme, delta_p)
+    biased = held_at(tube, fraction * setting["margin"] * v_first, delta_p)
     omega = _with_implicit_derivatives(
         lambda om: characteristic(biased, om, alpha, n_layers=n_layers, scheme=scheme,
                                   **_orders(mode)), omega_root)
@@ -302,7 +352,8 @@ def _objective(x, omega_root, v_roots, candidates, setting, kind, n_layers, sche
         miss = omega / setting["target"] - 1.0
         loss = miss**2 + (fraction - setting["s_op"]) ** 2
     else:
-        slope = tunability(biased, alpha, omega, n_layers=n_layers, scheme=scheme, **_orders(mode))
+        slope = tunability(biased, alpha, omega, n_layers=n_layers, scheme=scheme, delta_p=delta_p,
+                           **_orders(mode))
         miss = jnp.zeros_like(omega)
         loss = -jnp.abs(slope)
     aux = dict(loss=loss, omega=omega, alpha=alpha, critical_voltage=v_first, tube=biased,
@@ -322,10 +373,12 @@ def _loss_and_gradient(x, omega_root, v_roots, candidates, setting, kind, n_laye
 def _evaluate(x, guess, setting, kind, n_layers, scheme, candidates, mode=(0, False)):
     """Solve the roots at x (values) and return (aux, gradient), or None where a solve failed."""
     tube, alpha, fraction = _point(x, setting, kind)
-    v_roots = _solve_candidates(tube, candidates, n_layers, scheme)
+    delta_p = setting.get("delta_p")
+    v_roots = _solve_candidates(tube, candidates, n_layers, scheme, delta_p)
     if not bool(jnp.any(jnp.isfinite(v_roots))):
         return None
-    biased = tube.replace(voltage=fraction * setting["margin"] * jnp.nanmin(v_roots))
+    v_first = jnp.nanmin(v_roots if delta_p is None else held_tube(tube, delta_p, v_roots).voltage)
+    biased = held_at(tube, fraction * setting["margin"] * v_first, delta_p)
     omega, status = solve_frequency(biased, alpha, guess, n_layers=n_layers, scheme=scheme,
                                     **_orders(mode))
     if int(status) != Status.CONVERGED:
@@ -350,7 +403,8 @@ class _Bound:
         tube is unstable already at V̂ = 0 (no admissible voltage)."""
         tube = _point(jnp.asarray(x, jnp.float64), self.setting, self.kind)[0]
         self.first, self.mode, grid = _first_instability(tube, self.m_max, self.n_max,
-                                                         self.n_layers, self.scheme)
+                                                         self.n_layers, self.scheme,
+                                                         self.setting.get("delta_p"))
         self.candidates = _candidates(grid)
         return self.candidates is not None and self.first > 0.0
 
@@ -405,7 +459,8 @@ def _newton(x_h, guess, bound, setting, n_layers, scheme, history, rtol, max_ste
     iterates have residuals of opposite sign they bracket the root and a Newton step that leaves the
     bracket is replaced by bisection (convergence guaranteed, quadratic near the root). The candidate
     modes of the bound are refreshed from the full (m, n) grid after every step longer than
-    ``NEWTON_REFRESH`` and confirmed at convergence. (The earlier design finished adam's iterate
+    ``NEWTON_REFRESH`` and confirmed at convergence; a step to a wall with no admissible voltage
+    (unstable at V̂ = 0, or no critical voltage) is halved. (The earlier design finished adam's iterate
     by Newton only once adam had come within 1e-3 of the target; adam's geometrically decaying
     step froze first on a silicone tube in SI: 0.31 % off after 500 steps, issue 43.)
 
@@ -445,8 +500,16 @@ def _newton(x_h, guess, bound, setting, n_layers, scheme, history, rtol, max_ste
             return None
         last = (xh, miss)
         x = x.at[0].set(new)
-        if abs(new - xh) > NEWTON_REFRESH and not bound.refresh(x):
-            return None
+        if abs(new - xh) > NEWTON_REFRESH:
+            for _ in range(NEWTON_HALVINGS):
+                if bound.refresh(x):
+                    break
+                # no admissible voltage at the step's end (e.g. a held pressure that the thinner
+                # wall cannot carry stably): half the step
+                new = 0.5 * (new + xh)
+                x = x.at[0].set(new)
+            else:
+                return None
     return None
 
 
@@ -465,7 +528,7 @@ def _finish(aux, history, status, bound, material, n_layers, scheme, mode=(0, Fa
     slope = float(aux["tunability"])
     if not math.isfinite(slope):
         slope = float(_tunability(tube, alpha, lowest, n_layers=n_layers, scheme=scheme,
-                                  **_orders(mode)))
+                                  delta_p=bound.setting.get("delta_p"), **_orders(mode)))
     return DesignResult(
         tube=tube, alpha=alpha, omega=lowest, critical_voltage=v_first, unstable_mode=bound.mode,
         thickness=1.0 / tube.eta - 1.0, voltage=tube.voltage,
@@ -498,6 +561,29 @@ def _check_bounds(name, bounds, lo, hi, allowed):
 
 
 HOLDS = ("length", "length_ratio")
+
+
+def _pressure(delta_p):
+    """``{"delta_p": ΔP̂}`` of a tube held by its pressure difference, validated; {} for one held by
+    its stretch."""
+    if delta_p is None:
+        return {}
+    validate_real("delta_p", delta_p, "a finite real number (ΔP̂ = (P_i − P_o)/μ, the pressure "
+                  "difference that holds the tube)")
+    return dict(delta_p=float(delta_p))
+
+
+def _branch(tube, setting):
+    """``tube`` with λ_i = (λ_0, λ_end), the ends of the static branch held by ΔP̂ (its thickest and
+    thinnest walls: the run's discretisation serves both), or as it is when held by its stretch."""
+    if "delta_p" not in setting:
+        return tube
+    lam0, lam_end = held_branch(canonical(tube), setting["delta_p"])
+    if not math.isfinite(float(lam0)):
+        raise ValueError(f"delta_p = {float(setting['delta_p'])!r} holds no static state at V̂ = 0 "
+                         "(it lies above the pull-in pressure of the tube, jaxdea.pull_in): give a "
+                         "smaller pressure difference")
+    return tube.replace(lambda_i=np.asarray([float(lam0), max(float(lam_end), float(lam0))]))
 
 
 def _check_mode(m, torsional):
@@ -537,7 +623,7 @@ def _seed(x0, setting, kind, fraction, n_layers, scheme, m_max, n_max, what, mod
                          "stability below pull-in): the constraint V̂ <= voltage_margin * V̂_first "
                          "is undefined there")
     tube, alpha, _ = _point(jnp.asarray(x0, jnp.float64), setting, kind)
-    biased = tube.replace(voltage=fraction * float(setting["margin"]) * bound.first)
+    biased = held_at(tube, fraction * float(setting["margin"]) * bound.first, setting.get("delta_p"))
     guess = float(frequencies(biased, alpha, n_roots=1, n_layers=n_layers, scheme=scheme,
                               **_orders(mode))[0])
     if not math.isfinite(guess):
@@ -552,10 +638,12 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
                          voltage_fraction=None, thickness_bounds=(0.05, 1.0), voltage_margin=0.8,
                          m_max: int = 8, n_max: int = 3, learning_rate=0.2, max_steps=500,
                          rtol=1e-6, n_layers: int | None = None, scheme: str | None = None,
-                         hold: str = "length", m: int = 0, torsional: bool = False) -> DesignResult:
+                         hold: str = "length", m: int = 0, torsional: bool = False,
+                         delta_p=None) -> DesignResult:
     """Undeformed thickness H/R_i and voltage V̂ that put the lowest frequency of mode (m, n) at ``target``.
 
-    Fluid-free tube; λ_i, λ_z, G and the undeformed length are kept (``hold``). Design variables,
+    Fluid-free tube; λ_i (or the pressure difference ΔP̂ that holds the tube, ``delta_p``), λ_z, G
+    and the undeformed length are kept (``hold``). Design variables,
     mapped onto their ranges: H/R_i = H_lo + (H_hi − H_lo) σ(x_H) (η = 1/(1 + H/R_i)) and
     V̂ = s · m V̂_first(η) with s = σ(x_s) ∈ (0, 1), so every iterate satisfies V̂ < m V̂_first,
     V̂_first the first instability over the orders m ≤ ``m_max`` and axial modes n ≤ ``n_max``
@@ -613,6 +701,12 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
             ``"length_ratio"`` (L/R_o held).
         m: circumferential order of the designed mode (int >= 0; ring modes m >= 1).
         torsional: design the torsional mode (m = 0 only).
+        delta_p: None (the tube held by its stretch ``tube.lambda_i`` at every voltage) or ΔP̂ =
+            (P_i − P_o)/μ, a finite real number: the tube held by that pressure difference, as in a
+            lab. λ_i then follows the voltage and the wall (:func:`jaxdea.inner_stretch`), V̂_first is
+            the first instability of the held tube (:func:`jaxdea.first_instability` with
+            ``delta_p``), and the result's ``tube.lambda_i`` is the λ_i at the design point.
+            ``jaxdea.pressure_difference(tube.replace(voltage=0))`` holds the tube's λ_i at V̂ = 0.
 
     Returns:
         An instance of :class:`DesignResult`.
@@ -644,14 +738,14 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
     setting = dict(tube=canonical(tube.replace(voltage=0.0)), n=float(n), target=target, s_op=s_op,
                    margin=voltage_margin, h_lo=h_lo, h_hi=h_hi,
                    length=float(tube.length_ratio) / float(tube.eta),
-                   hold_length=1.0 if hold == "length" else 0.0)
+                   hold_length=1.0 if hold == "length" else 0.0, **_pressure(delta_p))
     setting = jax.tree_util.tree_map(as_float, setting)
     x0 = [_sigmoid_inverse(h0, h_lo, h_hi), _sigmoid_inverse(s0, 0.0, 1.0)]
     # one discretisation for the whole run: the default's N for its thickest wall and the orders
     # and modes of the bound (the run solves and differentiates on this one wall model)
     eta = 1.0 / (1.0 + h_hi)
-    thickest = tube.replace(eta=eta, length_ratio=float(setting["length"]) * eta
-                            if hold == "length" else tube.length_ratio)
+    thickest = _branch(tube.replace(eta=eta, length_ratio=float(setting["length"]) * eta
+                                    if hold == "length" else tube.length_ratio), setting)
     layers = laminate(n_layers, scheme, thickest, mode_wavenumber(thickest, max(int(n), int(n_max))),
                       m=max(int(m_max), int(mode[0])), at_rest=True)  # at rest: V̂_cr is searched
     start = [x0[0], _sigmoid_inverse(s_op, 0.0, 1.0)]  # Newton works at s = s_op
@@ -686,7 +780,8 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
 def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage_fraction=0.5,
                         lambda_i=None, voltage_margin=0.8, m_max: int = 8, n_max: int = 3,
                         learning_rate=0.3, max_steps=300, rtol=1e-9, n_layers: int | None = None,
-                        scheme: str | None = None, m: int = 0, torsional: bool = False) -> DesignResult:
+                        scheme: str | None = None, m: int = 0, torsional: bool = False,
+                        delta_p=None) -> DesignResult:
     """Voltage (and optionally λ_i) that maximise the tunability |dΩ/dV̂| of the lowest frequency of mode (m, n).
 
     Fixed thickness (η), λ_z, G; fluid-free. Loss −|T| with T = dΩ/dV̂ = −(∂f/∂V̂)/(∂f/∂Ω) at the
@@ -719,6 +814,9 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
         voltage_margin, m_max, n_max, learning_rate, max_steps, n_layers, scheme, m, torsional:
             as in :func:`design_for_frequency` (m, torsional: the mode whose tunability is
             maximised; ring modes m >= 1 are often far more tunable than the axisymmetric one).
+        delta_p: None (λ_i held) or ΔP̂, the pressure difference that holds the tube, as in
+            :func:`design_for_frequency` (λ_i follows the voltage; T is then the total dΩ/dV̂ at
+            fixed ΔP̂, :func:`tunability`); not with ``lambda_i_bounds``.
 
     Returns:
         An instance of :class:`DesignResult` (``tunability`` is T at the optimum, negative where Ω falls
@@ -736,6 +834,9 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
     mode = _check_mode(m, torsional)
     s0 = _check_open("voltage_fraction", voltage_fraction, 0.0, 1.0, "(0, 1)")
     free = lambda_i_bounds is not None
+    if free and delta_p is not None:
+        raise ValueError("lambda_i_bounds frees λ_i, while delta_p holds the tube by its pressure "
+                         "difference (λ_i follows from it): give one of them")
     if free:
         li_lo, li_hi = _check_bounds("lambda_i_bounds", lambda_i_bounds, 0.0, 10.0,
                                      "0 < lower < upper <= 10")
@@ -749,12 +850,13 @@ def maximise_tunability(tube: Tube, n: int = 1, *, lambda_i_bounds=None, voltage
     else:
         li0, li_lo, li_hi = float(tube.lambda_i), 0.0, 1.0  # bounds unused
     setting = dict(tube=canonical(tube.replace(voltage=0.0, lambda_i=li0)), n=float(n),
-                   margin=voltage_margin, li_lo=li_lo, li_hi=li_hi)
+                   margin=voltage_margin, li_lo=li_lo, li_hi=li_hi, **_pressure(delta_p))
     setting = jax.tree_util.tree_map(as_float, setting)
     kind = "tunability_lambda" if free else "tunability"
     x0 = [_cosine_inverse(s0, 0.0, 1.0)] + ([_cosine_inverse(li0, li_lo, li_hi)] if free else [])
     start = setting["tube"]
-    layers = laminate(n_layers, scheme, start, mode_wavenumber(start, max(int(n), int(n_max))),
+    layers = laminate(n_layers, scheme, _branch(start, setting),
+                      mode_wavenumber(start, max(int(n), int(n_max))),
                       m=max(int(m_max), mode[0]), at_rest=True)  # one discretisation for the run
     guess, bound = _seed(x0, setting, kind, s0, layers, None, int(m_max), int(n_max), "lambda_i",
                          mode)
