@@ -45,6 +45,7 @@ from ..params import (
     validate_real,
     validate_tube,
 )
+from .families import Face, Family
 from .state_matrix import LONGITUDINAL, ORDER_M, TORSIONAL
 from .transfer import (
     EXPONENTIALS,
@@ -389,7 +390,7 @@ def reference_determinant(wall: Wall, omega, alpha, fluid=None, order=0):
 def resolve_order(tube: Tube, alpha, fluid: Fluid | None) -> int:
     """The static Bessel order: 0 for ``acoustic``; ``bessel_order`` or the axial mode number n for
     ``paper`` (API.md)."""
-    if fluid is None or fluid.coupling == "acoustic":
+    if not Face.of(fluid).has_poles:
         return 0
     if fluid.bessel_order is not None:
         return int(fluid.bessel_order)
@@ -482,13 +483,14 @@ def characteristic_at_omega_squared(tube: Tube, omega_squared, alpha, fluid: Flu
 @cached_jit(static_argnames=("n_layers", "order", "family"))
 def _characteristic_m(tube, omega_squared, alpha, fluid, m, n_layers, order, family):
     """f(w) of the families ``"order_m"`` (traced m) and ``"torsional"``; NaN where traced inputs
-    are inadmissible (:func:`~jaxdea.params.guard`, :func:`order_m_admissible`) or w not finite.
+    are inadmissible (:func:`~jaxdea.params.guard`,
+    :meth:`~jaxdea.physics.families.Family.admissible`) or w not finite.
 
     The safe m depends on the case only, not on w: under ``vmap`` over w the sublayer generators
     (:func:`jaxdea.physics.transfer.wall_generators`) are then formed once for the whole batch."""
     ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
-    ok &= order_m_admissible(m, fluid, family)
-    m = jnp.where(ok, m, 0.0) if family == ORDER_M else 0
+    ok &= family.admissible(m, fluid)
+    m = family.safe_m(m, ok)
     omega_squared = as_float(omega_squared)
     ok &= jnp.isfinite(omega_squared)
     wall = discretize(tube, n_layers)
@@ -642,19 +644,6 @@ def reference_determinant_of_w(wall: Wall, omega_squared, alpha, fluid=None, ord
     return jnp.linalg.det(outer_conditions(wall, alpha, m, family, pressure_outer) @ a @ basis)
 
 
-def order_m_admissible(m, fluid: Fluid | None, family: str):
-    """True where a (traced) order m is admissible for the family: a finite integer ≥ 0; 0 for
-    ``"torsional"``; 0 for the paper's coupling (an axisymmetric model). Always True for
-    ``"longitudinal"`` (m is not used there)."""
-    if family == LONGITUDINAL:
-        return jnp.asarray(True)
-    m = as_float(m)
-    ok = jnp.isfinite(m) & (m >= 0) & (m == jnp.round(m))
-    if family == TORSIONAL or (fluid is not None and fluid.coupling == "paper"):
-        ok &= m == 0
-    return ok
-
-
 def mode_family(m=0, torsional=False, fluid: Fluid | None = None) -> str:
     """The static family of (m, torsional), validating concrete inputs (API.md, order m).
 
@@ -682,7 +671,7 @@ def mode_family(m=0, torsional=False, fluid: Fluid | None = None) -> str:
         raise ValueError(bad)
     if torsional and value != 0:
         raise ValueError(f"torsional=True exists only at m = 0 (the torsional family), got m = {m!r}")
-    if fluid is not None and fluid.coupling == "paper" and value != 0:
+    if Face.of(fluid).has_poles and value != 0:
         raise ValueError(f"the 'paper' coupling is axisymmetric: it needs m = 0, got m = {m!r}")
     if torsional:
         return TORSIONAL
@@ -696,7 +685,8 @@ def problem_function(tube: Tube, alpha, fluid: Fluid | None, n_layers, order: in
     Like ``jaxdea.solve.roots._problem``: the wall is discretised once and f evaluates with the adaptive
     exponential (values and forward-mode slopes). ``variable="omega"``: f(Ω) (even in Ω);
     ``"omega_squared"``: f(w), w = Ω² of either sign (unstable modes). ``family`` and ``order``
-    static, ``m`` traced (``"order_m"``); where m is inadmissible (:func:`order_m_admissible`) f is
+    static, ``m`` traced (``"order_m"``); where m is inadmissible
+    (:meth:`~jaxdea.physics.families.Family.admissible`) f is
     NaN. ``"longitudinal"`` f(Ω) is exactly the axisymmetric ``_problem``'s function.
     """
     if variable not in ("omega", "omega_squared"):
@@ -704,8 +694,9 @@ def problem_function(tube: Tube, alpha, fluid: Fluid | None, n_layers, order: in
     wall = discretize(tube, n_layers)
     if family == LONGITUDINAL and variable == "omega":
         return wall, lambda om: characteristic_on_wall(wall, om, alpha, fluid, order, "adaptive")
-    ok = order_m_admissible(m, fluid, family)
-    m_safe = jnp.where(ok, as_float(m), 0.0) if family == ORDER_M else 0
+    family = Family(family)
+    ok = family.admissible(m, fluid)
+    m_safe = family.safe_m(m, ok)
 
     def of_w(w):
         f = characteristic_of_w(wall, w, alpha, fluid, order, "adaptive", m_safe, family)
