@@ -87,7 +87,7 @@ def initial_basis(wall: Wall, omega, alpha, fluid: Fluid | None = None, order: i
     if fluid is not None:
         rho, c_f = as_float(fluid.density_ratio), as_float(fluid.speed_ratio)
         s = ((omega / c_f) ** 2 - alpha**2) * ri**2  # χ̂² r̂_i²
-        if fluid.coupling == "acoustic":
+        if Face.of(fluid) is Face.ACOUSTIC:
             n, d = coupling_pair(s, 0)
             col_u = d * col_u - omega**2 * rho * ri * n * _unit(T)
         else:  # "paper": follower pressure P̂_f on the inner face, no Ṗ term
@@ -542,7 +542,7 @@ def _basis_order_m(wall: Wall, omega_squared, alpha, fluid, order, m):
     if fluid is not None:
         rho, c_f = as_float(fluid.density_ratio), as_float(fluid.speed_ratio)
         s = (omega_squared / c_f**2 - alpha**2) * ri**2  # χ̂² r̂_i²
-        if fluid.coupling == "acoustic":
+        if Face.of(fluid) is Face.ACOUSTIC:
             n, d = coupling_pair(s, m)
             col_u = d * col_u - omega_squared * rho * ri * n * _unit8(T8)
         else:
