@@ -39,9 +39,10 @@ class Face(enum.StrEnum):
 
     @property
     def has_poles(self) -> bool:
-        """The paper's coupling: f has the poles of B̂_ν in Ω (scanned as grid points), its
-        Bessel order is the axial mode number ν, and it is axisymmetric (m = 0 only). The empty and
-        acoustic faces are smooth in Ω and α̂ (continuation along α̂ applies)."""
+        """The paper's coupling (docs/theory/axisymmetric.md §4(b)): f has the poles of B̂_ν in Ω
+        (scanned as grid points), ν is its static Bessel order (``bessel_order`` or the axial mode
+        number n), and it is axisymmetric (m = 0 only). The empty and acoustic faces (static order 0;
+        the acoustic fluid takes m) are smooth in Ω and α̂ (continuation along α̂ applies)."""
         return self is Face.PAPER
 
     @property
