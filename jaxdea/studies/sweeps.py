@@ -55,9 +55,10 @@ from ..params import (
     validate_roots,
 )
 from ..physics.base_state import inner_stretch_traced
-from ..physics.dispersion import characteristic_on_wall, mode_family
+from ..physics.dispersion import characteristic_on_wall
 from ..physics.families import Face
 from ..physics.leaves import FLUID_LEAVES, TUBE_LEAVES, apply_parameters, check_names, get_parameter
+from ..physics.problem import family_of
 from ..physics.state_matrix import LONGITUDINAL
 from ..physics.transfer import AUTO_SCHEME, discretize, is_graded, laminate, split_layers, validate_scheme
 from ..physics.units import Scales, fluid_from_si, fluid_to_si
@@ -833,18 +834,18 @@ def _held_stretch(tube, names, grids, delta_p):
 
 def _orders(m, torsional, fluid):
     """(the axis ``m`` as a float64 array or None, the static family) of sweep's ``m``: a scalar is
-    a fixed order (its family from :func:`jaxdea.physics.dispersion.mode_family`), a 1-D array an axis of
-    the order-m family (traced m; each value validated by ``mode_family``)."""
+    a fixed order (its family from :func:`jaxdea.physics.problem.family_of`), a 1-D array an axis of
+    the order-m family (traced m; each value validated by ``family_of``)."""
     if np.ndim(m) == 0:
-        return None, mode_family(m, torsional, fluid)
+        return None, family_of(m, torsional, fluid)
     values = np.asarray(m)
     if values.ndim != 1 or values.size == 0:
         raise ValueError(f"m must be an integer >= 0 or a non-empty 1-D array of them, got {m!r}")
     if values.dtype == object or not np.issubdtype(values.dtype, np.number):
         raise ValueError(f"m must hold integers >= 0 (the circumferential order), got {m!r}")
     for value in values:
-        mode_family(value.item(), torsional, fluid)
-    return values.astype(np.float64), mode_family(0, torsional, fluid).in_omega_squared
+        family_of(value.item(), torsional, fluid)
+    return values.astype(np.float64), family_of(0, torsional, fluid).in_omega_squared
 
 
 def _check_client(client):
