@@ -56,7 +56,6 @@ from ..files import atomic_write, save_figure, write_together
 from ..numerics.scalar import Status
 from ..params import Fluid, Tube, mode_wavenumber
 from ..physics.base_state import pull_in, squared_voltage
-from ..physics.families import Face
 from ..physics.leaves import apply_parameters
 from ..physics.state_matrix import ORDER_M
 from ..solve.curves import solve_critical_path, solve_path
@@ -263,7 +262,7 @@ def solve_curves(n_layers: int, fluid: Fluid | None, curves: list, base: Tube = 
     through Ω = 0 or went up through it past V̂_cr, or, with the paper's coupling, a pair born below
     it)."""
     fluid = MASSLESS_FLUID if fluid is None else fluid
-    paper = Face.of(fluid).has_poles
+    paper = fluid.coupling == "paper"
     solved = [None] * len(curves)
     for members, lengths, values, abscissa, starts in _packed(curves):
         tubes, alphas, fluids = _points(base, fluid, {k: jnp.asarray(v) for k, v in values.items()})
