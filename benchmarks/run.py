@@ -563,6 +563,7 @@ def work_defaults(cfg: dict) -> dict:
     jax, jaxdea = _jax()
     import numpy as np
 
+    from jaxdea.physics.problem import describe
     from jaxdea.physics.transfer import Layers, laminate
     from jaxdea.solve import roots as R
 
@@ -574,7 +575,7 @@ def work_defaults(cfg: dict) -> dict:
 
     def fine_roots(tube, alpha, fluid=None, n_roots=3):
         layers = laminate(None, None, tube, alpha, n_roots)
-        order = R.check_inputs(tube, alpha, fluid, None, None)
+        order = describe(tube, alpha, fluid, None, None).order
         t, a, f, om = R.canonical(tube, alpha, fluid, None)
         return np.asarray(R._solve_frequencies(t, a, f, om, n_roots, Layers(4 * layers.count,
                                                                             "magnus6", True),

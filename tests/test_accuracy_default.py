@@ -15,6 +15,7 @@ from conftest import fd_derivative
 from exact_cylinder import EXACT_K, EXACT_OMEGA
 
 import jaxdea as jd
+from jaxdea.physics.problem import describe
 from jaxdea.physics.transfer import (
     LAYER_COUNTS,
     TRACED_LAYERS,
@@ -45,7 +46,7 @@ def _reference(tube, alpha, fluid=None, n_roots=3, m=0, factor=4):
 
 def _fine_graded(tube, alpha, fluid=None, n_roots=3, factor=4):
     layers = laminate(None, None, tube, alpha, n_roots)
-    order = R.check_inputs(tube, alpha, fluid, None, None)
+    order = describe(tube, alpha, fluid, None, None).order
     t, a, f, om = R.canonical(tube, alpha, fluid, None)
     fine = Layers(factor * layers.count, "magnus6", True)
     return np.asarray(R._solve_frequencies(t, a, f, om, n_roots, fine, order).omega)
@@ -340,7 +341,7 @@ def test_default_check_estimates_the_error_of_its_roots():
     error of Ω_N (a wall 8x finer) for the paper's tube at N = 8, where the error is measurable: the
     estimate is within a factor 3 of it, and the roots of the checked default equal those of the
     rule's N bit for bit where the estimate is below 1e-8."""
-    order = R.check_inputs(PAPER, 5.0, None, None, None)
+    order = describe(PAPER, 5.0, None, None, None).order
     t, a, f, om = R.canonical(PAPER, 5.0, None, None)
     roots, steps = R._solve_checked_frequencies(t, a, f, om, 4, Layers(8, "magnus6", True), order)
     ref = _at(PAPER, 5.0, 4, Layers(64, "magnus6", True))

@@ -11,6 +11,7 @@ from conftest import fd_derivative
 
 import jaxdea as jd
 from jaxdea.numerics.scalar import Status
+from jaxdea.physics.families import Family
 from jaxdea.solve import roots as roots_module
 
 PAPER = dict(lambda_z=1.2, eta=0.85)
@@ -305,7 +306,7 @@ def test_group_velocity_of_order_m_refuses_a_non_root():
     layers = laminate(None, None, tube, alpha, m=m)
     for omega, finite in ((root, True), (root * 1.01, False)):
         velocity, distance = roots_module._group_velocity(tube, alpha, jnp.asarray(omega), None,
-                                                          layers, 0, m, "order_m")
+                                                          layers, 0, m, Family.ORDER_M)
         assert np.isfinite(float(velocity)) == finite and (float(distance) <= 1e-4) == finite
 
 

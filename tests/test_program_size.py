@@ -7,6 +7,8 @@ import pytest
 
 import jaxdea as jd
 from jaxdea.numerics import bessel
+from jaxdea.physics.families import Family
+from jaxdea.physics.problem import describe
 from jaxdea.physics.transfer import discretize, laminate
 from jaxdea.solve import roots
 
@@ -122,14 +124,14 @@ def test_scanned_slope_is_forward_mode(case):
     from jaxdea.numerics.scalar import value_and_slope
     from jaxdea.physics.dispersion import characteristic_and_scale, characteristic_and_scale_of_w
 
-    alpha, fluid, m, family, variable = 0.445, None, 0.0, "longitudinal", "omega"
+    alpha, fluid, m, family, variable = 0.445, None, 0.0, Family.LONGITUDINAL, "omega"
     x = jnp.linspace(0.0, 6.0, 25)
     if case == "acoustic":
         fluid = jd.Fluid(density_ratio=0.13, speed_ratio=0.27)
     elif case == "torsional":
-        family = "torsional"
+        family = Family.TORSIONAL
     else:
-        m, family, fluid = 2.0, "order_m", jd.Fluid(density_ratio=0.13, speed_ratio=0.27)
+        m, family, fluid = 2.0, Family.ORDER_M, jd.Fluid(density_ratio=0.13, speed_ratio=0.27)
         if case == "m2_omega_squared":
             variable, x = "omega_squared", jnp.linspace(-4.0, 30.0, 25)
     wall = discretize(TUBE, laminate(None, None, TUBE, alpha, 3, m))
@@ -151,7 +153,7 @@ def test_scanned_slope_is_forward_mode(case):
     np.testing.assert_allclose(dlog, dlog_ref, rtol=1e-11, atol=1e-12 * float(jnp.max(jnp.abs(dlog_ref))))
 
 
-@pytest.mark.parametrize("m, family", [(0.0, "longitudinal"), (2.0, "order_m")])
+@pytest.mark.parametrize("m, family", [(0.0, Family.LONGITUDINAL), (2.0, Family.ORDER_M)])
 def test_critical_slope_is_forward_mode(m, family):
     """g(V̂) = f(Ω = 0; V̂) of the critical-voltage search with its carried slope equals
     characteristic_at_rest on the wall at V̂ and its forward-mode derivative in V̂."""
@@ -216,7 +218,7 @@ BUDGETS = {  # public program: (call of one traced leaf x, x, equations allowed 
 
 def _checked(tube, alpha):
     layers = laminate(None, None, TUBE, ALPHA, 3)
-    order = roots.check_inputs(TUBE, ALPHA, None, None, None)
+    order = describe(TUBE, ALPHA, None, None, None).order
     _, alpha, fluid, omega_max = roots.canonical(TUBE, alpha, None, None)
     return roots.checked_frequencies_unchecked(tube, alpha, fluid, omega_max, 3, layers, order)
 SLOW = {"frequencies_acoustic", "dispersion_curve", "first_instability"}  # 9-15 s to trace each

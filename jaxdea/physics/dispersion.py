@@ -37,14 +37,10 @@ from ..params import (
     as_float,
     canonical,
     guard,
-    mode_number,
-    require_x64,
-    validate_alpha,
-    validate_fluid,
-    validate_layers,
     validate_real,
-    validate_tube,
 )
+from .families import Face, Family
+from .problem import describe, family_of, validated_order
 from .state_matrix import LONGITUDINAL, ORDER_M, TORSIONAL
 from .transfer import (
     EXPONENTIALS,
@@ -61,7 +57,6 @@ from .transfer import (
     propagate_basis_of_w,
     transfer_matrix,
     transfer_matrix_of_w,
-    validate_scheme,
     wall_generators,
 )
 
@@ -86,7 +81,7 @@ def initial_basis(wall: Wall, omega, alpha, fluid: Fluid | None = None, order: i
     if fluid is not None:
         rho, c_f = as_float(fluid.density_ratio), as_float(fluid.speed_ratio)
         s = ((omega / c_f) ** 2 - alpha**2) * ri**2  # χ̂² r̂_i²
-        if fluid.coupling == "acoustic":
+        if Face.of(fluid) is Face.ACOUSTIC:
             n, d = coupling_pair(s, 0)
             col_u = d * col_u - omega**2 * rho * ri * n * _unit(T)
         else:  # "paper": follower pressure P̂_f on the inner face, no Ṗ term
@@ -386,28 +381,10 @@ def reference_determinant(wall: Wall, omega, alpha, fluid=None, order=0):
     return jnp.linalg.det(a[OUTER_ROWS, :] @ initial_basis(wall, omega, alpha, fluid, order))
 
 
-def resolve_order(tube: Tube, alpha, fluid: Fluid | None) -> int:
-    """The static Bessel order: 0 for ``acoustic``; ``bessel_order`` or the axial mode number n for
-    ``paper`` (API.md)."""
-    if fluid is None or fluid.coupling == "acoustic":
-        return 0
-    if fluid.bessel_order is not None:
-        return int(fluid.bessel_order)
-    return mode_number(tube, alpha)
-
-
 def check_inputs(tube, alpha, fluid, n_layers, scheme="midpoint"):
-    """Validate the public inputs (concrete values) and return the static Bessel order; ``alpha``
-    None where a solver takes no α̂ of its own (the order is then resolved at α̂ = 1)."""
-    require_x64()
-    validate_tube(tube)
-    validate_fluid(fluid)
-    validate_layers(n_layers)
-    validate_scheme(scheme)
-    if alpha is None:
-        return resolve_order(tube, 1.0, fluid)
-    validate_alpha(alpha, tube=tube)
-    return resolve_order(tube, alpha, fluid)
+    """The static Bessel order of the validated public inputs (:func:`jaxdea.physics.problem.describe`
+    without the family; ``alpha`` None where a solver takes no α̂ of its own)."""
+    return validated_order(tube, alpha, fluid, n_layers, scheme)
 
 
 def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layers: int | None = None,
@@ -444,8 +421,8 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
         >>> f = characteristic(Tube(), 1.0, 0.445)
         >>> g = characteristic(Tube(), 1.0, 0.445, m=2)
     """
-    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
-    family = mode_family(m, torsional, fluid)
+    problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    order, family = problem.order, problem.family
     validate_real("omega", omega)
     tube, omega, alpha, fluid = canonical(tube, omega, alpha, fluid)
     if family == LONGITUDINAL:
@@ -470,8 +447,8 @@ def characteristic_at_omega_squared(tube: Tube, omega_squared, alpha, fluid: Flu
         >>> characteristic_at_omega_squared(Tube(voltage=0.1, lambda_i=0.95, lambda_z=1.2),
         ...                                 -0.5574, 0.445, m=2)  # ≈ 0: an unstable mode
     """
-    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
-    family = mode_family(m, torsional, fluid)
+    problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    order, family = problem.order, problem.family
     validate_real("omega_squared", omega_squared)
     tube, omega_squared, alpha, fluid = canonical(tube, omega_squared, alpha, fluid)
     family = ORDER_M if family == LONGITUDINAL else family
@@ -482,13 +459,14 @@ def characteristic_at_omega_squared(tube: Tube, omega_squared, alpha, fluid: Flu
 @cached_jit(static_argnames=("n_layers", "order", "family"))
 def _characteristic_m(tube, omega_squared, alpha, fluid, m, n_layers, order, family):
     """f(w) of the families ``"order_m"`` (traced m) and ``"torsional"``; NaN where traced inputs
-    are inadmissible (:func:`~jaxdea.params.guard`, :func:`order_m_admissible`) or w not finite.
+    are inadmissible (:func:`~jaxdea.params.guard`,
+    :meth:`~jaxdea.physics.families.Family.admissible`) or w not finite.
 
     The safe m depends on the case only, not on w: under ``vmap`` over w the sublayer generators
     (:func:`jaxdea.physics.transfer.wall_generators`) are then formed once for the whole batch."""
     ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
-    ok &= order_m_admissible(m, fluid, family)
-    m = jnp.where(ok, m, 0.0) if family == ORDER_M else 0
+    ok &= family.admissible(m, fluid)
+    m = family.safe_m(m, ok)
     omega_squared = as_float(omega_squared)
     ok &= jnp.isfinite(omega_squared)
     wall = discretize(tube, n_layers)
@@ -540,7 +518,7 @@ def _basis_order_m(wall: Wall, omega_squared, alpha, fluid, order, m):
     if fluid is not None:
         rho, c_f = as_float(fluid.density_ratio), as_float(fluid.speed_ratio)
         s = (omega_squared / c_f**2 - alpha**2) * ri**2  # χ̂² r̂_i²
-        if fluid.coupling == "acoustic":
+        if Face.of(fluid) is Face.ACOUSTIC:
             n, d = coupling_pair(s, m)
             col_u = d * col_u - omega_squared * rho * ri * n * _unit8(T8)
         else:
@@ -642,51 +620,9 @@ def reference_determinant_of_w(wall: Wall, omega_squared, alpha, fluid=None, ord
     return jnp.linalg.det(outer_conditions(wall, alpha, m, family, pressure_outer) @ a @ basis)
 
 
-def order_m_admissible(m, fluid: Fluid | None, family: str):
-    """True where a (traced) order m is admissible for the family: a finite integer ≥ 0; 0 for
-    ``"torsional"``; 0 for the paper's coupling (an axisymmetric model). Always True for
-    ``"longitudinal"`` (m is not used there)."""
-    if family == LONGITUDINAL:
-        return jnp.asarray(True)
-    m = as_float(m)
-    ok = jnp.isfinite(m) & (m >= 0) & (m == jnp.round(m))
-    if family == TORSIONAL or (fluid is not None and fluid.coupling == "paper"):
-        ok &= m == 0
-    return ok
-
-
-def mode_family(m=0, torsional=False, fluid: Fluid | None = None) -> str:
-    """The static family of (m, torsional), validating concrete inputs (API.md, order m).
-
-    Concrete m = 0: ``"longitudinal"`` (``"torsional"`` with ``torsional=True``); concrete m ≥ 1 or
-    a traced m: ``"order_m"`` (``"torsional"`` with ``torsional=True``, NaN where m ≠ 0).
-
-    Raises:
-        ValueError: m not an integer ≥ 0 (naming m); ``torsional`` not a bool or True with m ≥ 1
-            (naming torsional); the paper's coupling with m ≥ 1 (naming m).
-    """
-    if not isinstance(torsional, (bool, np.bool_)):
-        raise ValueError(f"torsional must be True or False, got {torsional!r}")
-    bad = f"m must be an integer >= 0 (the circumferential order), got {m!r}"
-    if isinstance(m, (bool, np.bool_, str)):
-        raise ValueError(bad)
-    if isinstance(m, jax.core.Tracer):
-        return TORSIONAL if torsional else ORDER_M
-    try:
-        value = np.asarray(m)
-    except Exception as err:
-        raise ValueError(bad) from err
-    if (value.ndim or value.dtype == bool or not np.issubdtype(value.dtype, np.number)
-            or np.iscomplexobj(value) or not np.isfinite(value) or value < 0
-            or value != np.round(value)):
-        raise ValueError(bad)
-    if torsional and value != 0:
-        raise ValueError(f"torsional=True exists only at m = 0 (the torsional family), got m = {m!r}")
-    if fluid is not None and fluid.coupling == "paper" and value != 0:
-        raise ValueError(f"the 'paper' coupling is axisymmetric: it needs m = 0, got m = {m!r}")
-    if torsional:
-        return TORSIONAL
-    return LONGITUDINAL if value == 0 else ORDER_M
+def mode_family(m=0, torsional=False, fluid: Fluid | None = None) -> Family:
+    """The static family of (m, torsional), validated (:func:`jaxdea.physics.problem.family_of`)."""
+    return family_of(m, torsional, fluid)
 
 
 def problem_function(tube: Tube, alpha, fluid: Fluid | None, n_layers, order: int, m=0,
@@ -696,7 +632,8 @@ def problem_function(tube: Tube, alpha, fluid: Fluid | None, n_layers, order: in
     Like ``jaxdea.solve.roots._problem``: the wall is discretised once and f evaluates with the adaptive
     exponential (values and forward-mode slopes). ``variable="omega"``: f(Ω) (even in Ω);
     ``"omega_squared"``: f(w), w = Ω² of either sign (unstable modes). ``family`` and ``order``
-    static, ``m`` traced (``"order_m"``); where m is inadmissible (:func:`order_m_admissible`) f is
+    static, ``m`` traced (``"order_m"``); where m is inadmissible
+    (:meth:`~jaxdea.physics.families.Family.admissible`) f is
     NaN. ``"longitudinal"`` f(Ω) is exactly the axisymmetric ``_problem``'s function.
     """
     if variable not in ("omega", "omega_squared"):
@@ -704,8 +641,9 @@ def problem_function(tube: Tube, alpha, fluid: Fluid | None, n_layers, order: in
     wall = discretize(tube, n_layers)
     if family == LONGITUDINAL and variable == "omega":
         return wall, lambda om: characteristic_on_wall(wall, om, alpha, fluid, order, "adaptive")
-    ok = order_m_admissible(m, fluid, family)
-    m_safe = jnp.where(ok, as_float(m), 0.0) if family == ORDER_M else 0
+    family = Family(family)
+    ok = family.admissible(m, fluid)
+    m_safe = family.safe_m(m, ok)
 
     def of_w(w):
         f = characteristic_of_w(wall, w, alpha, fluid, order, "adaptive", m_safe, family)

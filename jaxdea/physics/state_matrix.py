@@ -14,14 +14,13 @@ dY/dr̂ = M Y; Ω enters only through −Ω² in the inertia entries (:func:`fam
 import jax.numpy as jnp
 import numpy as np
 
+from .families import Family
 from .moduli import Coefficients
 
-LONGITUDINAL, ORDER_M, TORSIONAL = "longitudinal", "order_m", "torsional"
-FAMILIES = (LONGITUDINAL, ORDER_M, TORSIONAL)
-"""The static mode families: which state matrix, basis and boundary rows a problem uses."""
-
-FAMILY_SIZE = {LONGITUDINAL: 6, ORDER_M: 8, TORSIONAL: 2}
-"""Size of the state vector of each family."""
+LONGITUDINAL, ORDER_M, TORSIONAL = Family.LONGITUDINAL, Family.ORDER_M, Family.TORSIONAL
+FAMILIES = tuple(Family)
+"""The static mode families (:class:`jaxdea.physics.families.Family`): which state matrix, basis
+and boundary rows a problem uses."""
 
 
 def state_matrix(coef: Coefficients, r, omega, alpha):
@@ -144,7 +143,7 @@ _INERTIA = {LONGITUDINAL: ((3, 0), (4, 1)), ORDER_M: ((4, 0), (5, 1), (6, 2)), T
 def inertia_matrix(family: str):
     """E with M(r̂; Ω) = M(r̂; 0) − Ω² E (a NumPy constant): ones at (traction row, displacement
     column) — longitudinal (T̄, ū), (S̄, w̄); order m (T, U), (Q, V), (S, W); torsional (Q, V)."""
-    size = FAMILY_SIZE[family]
+    size = Family(family).size
     e = np.zeros((size, size))
     for i, j in _INERTIA[family]:
         e[i, j] = 1.0

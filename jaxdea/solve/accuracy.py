@@ -48,9 +48,9 @@ import numpy as np
 from ..compiled import serializable
 from ..numerics.scalar import Status
 from ..params import Fluid, Tube, canonical, validate_layers, validate_roots
-from ..physics.state_matrix import LONGITUDINAL
+from ..physics.problem import describe
 from ..physics.transfer import Layers, is_graded, laminate, scheme_order, split_layers
-from .roots import follow_roots, order_inputs, solve_frequencies
+from .roots import follow_roots, solve_frequencies
 
 
 @serializable
@@ -107,7 +107,8 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
         >>> est = frequencies_with_error(Tube(), 0.445, rtol=1e-10)
         >>> est.omega, est.error
     """
-    order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    order = problem.order
     n_roots = validate_roots(n_roots)
     base = laminate(n_layers, scheme, *canonical(tube, alpha), n_roots, canonical(m))
     count, scheme = split_layers(base)
@@ -125,14 +126,14 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
         raise ValueError(f"rtol must be a finite number > 0, got {rtol!r}")
     first = solve_frequencies(tube, alpha, fluid, n_roots, omega_max, base, None, m, torsional)
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
-    order_args = () if family == LONGITUDINAL else (m, family)
+    order_args = problem.arguments(m)
     levels = [np.asarray(first.omega)]
     status = np.asarray(first.status).copy()
     layers = [count]
     while True:
         n = 2 * layers[-1]
         omega, stat = (np.asarray(x) for x in follow_roots(tube, alpha, fluid, levels[-1], level(n),
-                                                      order, *order_args))
+                                                      order, **order_args))
         status = np.where(status == Status.CONVERGED, stat, status)
         levels.append(omega)
         layers.append(n)

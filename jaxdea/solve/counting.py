@@ -74,11 +74,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..compiled import cached_jit, serializable
-from ..params import Fluid, Tube, as_float, canonical, guard, validate_positive
+from ..params import Fluid, Tube, as_float, canonical, validate_positive
 from ..physics.dispersion import characteristic_on_wall
-from ..physics.state_matrix import LONGITUDINAL, ORDER_M
+from ..physics.problem import describe
+from ..physics.state_matrix import LONGITUDINAL
 from ..physics.transfer import discretize, laminate
-from .roots import guard_order, order_inputs, scan_step
+from .roots import guard_order, scan_step
 
 LANES = 64  # midpoints evaluated per iteration (one vmapped call)
 STACK = 4096  # pending segments held at most
@@ -231,11 +232,8 @@ def count_roots_unchecked(tube, alpha, omega_lo, omega_hi, fluid, n_layers: int,
     exception).
     """
     lo, hi = as_float(omega_lo), as_float(omega_hi)
-    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
-        ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
-    else:
-        ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
-    m_safe = jnp.where(ok, as_float(m), 0.0) if family == ORDER_M else 0
+    ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
+    m_safe = family.safe_m(m, ok)
     ok &= jnp.isfinite(lo) & jnp.isfinite(hi) & (lo >= 0) & (hi > lo)
     lo, hi = jnp.where(ok, lo, 0.0), jnp.where(ok, hi, 1.0)
     wall = discretize(tube, n_layers)
@@ -300,7 +298,7 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
     Examples:
         >>> count_roots(Tube(), 0.445, 0.5, 3.0)  # RootCount(count=2, status=0)
     """
-    order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_positive("omega_hi", omega_hi)
     lo, hi = (np.asarray(v, dtype=np.float64) if not isinstance(v, jax.core.Tracer) else None
               for v in (omega_lo, omega_hi))
@@ -319,9 +317,6 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
     default = height is None
     height = as_float(1.0 if default else height)
     args = (tube, alpha, omega_lo, omega_hi, fluid, height, jnp.asarray(max_evaluations),
-            laminate(n_layers, scheme, tube, alpha, m=m), order, bool(symmetric), default)
-    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
-        count, status, _ = _count_roots(*args)
-    else:
-        count, status, _ = _count_roots(*args, m, family)
+            laminate(n_layers, scheme, tube, alpha, m=m), problem.order, bool(symmetric), default)
+    count, status, _ = _count_roots(*args, **problem.arguments(m))
     return RootCount(count, status)

@@ -117,9 +117,10 @@ from ..physics.dispersion import (
     characteristic_on_wall,
     generator_polynomials,
     lane_generators,
-    order_m_admissible,
     value_and_slope_on_wall,
 )
+from ..physics.families import Face
+from ..physics.problem import describe
 from ..physics.state_matrix import LONGITUDINAL, ORDER_M
 from ..physics.transfer import AUTO_SCHEME, Layers, checked_laminate, discretize, is_graded, voltage_expansion
 from .roots import (
@@ -131,11 +132,11 @@ from .roots import (
     attach_derivatives,
     critical_function,
     critical_voltage_unchecked,
+    decoupled_choice,
     default_omega_max,
     inaccurate_where,
     invalid_where,
     newton_steps,
-    order_inputs,
     refined_layers,
     scan_roots,
     scan_step,
@@ -265,9 +266,8 @@ def _omega_problem(problem, n_roots, m_safe, family, decoupled=None, polys=None,
     the scan's search range, as in :func:`jaxdea.frequencies` (None: automatic)."""
     def value(x, s, om):
         wall, a, fluid, order = problem(x, s)
-        if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
-            return characteristic_on_wall(wall, om, a, fluid, order, "adaptive")
-        return characteristic_on_wall(wall, om, a, fluid, order, "adaptive", m_safe, family)
+        return characteristic_on_wall(wall, om, a, fluid, order, "adaptive",
+                                      **family.arguments(m_safe))
 
     def at(x, s):  # (f, f') for the corrector lanes
         wall, a, fluid, order = problem(x, s)
@@ -391,11 +391,8 @@ def _follow(at, value, search, points, abscissa, ok_points, starts, n_roots, con
 def _family_order(ok, m, fluid, family):
     """(ok, the traced order m, zero where not admissible) of the mode family (one m for every
     point of ``ok``)."""
-    if family == LONGITUDINAL:
-        return ok, 0.0
-    admissible = order_m_admissible(m, fluid, family)
-    m_safe = jnp.where(admissible, as_float(m), 0.0) if family == ORDER_M else 0.0
-    return ok & admissible, m_safe
+    admissible = family.admissible(m, fluid)
+    return ok & admissible, family.safe_m(m, admissible)
 
 
 def curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order, m=0.0,
@@ -417,7 +414,7 @@ def _along_alpha(tube, alpha, fluid, n_roots, n_layers, order, m, family, decoup
     alpha = as_float(alpha)
     ok_alpha = ok_tube & jnp.isfinite(alpha) & (alpha >= ALPHA_MIN)
     wall = discretize(tube, n_layers)
-    conservative = fluid is None or fluid.coupling == "acoustic"
+    conservative = not Face.of(fluid).has_poles
     # the wall is the same at every α̂: the lanes' generators as polynomials in α̂, formed once
     # (the state matrices and the scheme's products at every step cost as much as the lanes' evaluation)
     polys = generator_polynomials(wall, m_safe, family, decoupled)
@@ -540,7 +537,7 @@ def path_unchecked(tubes, alphas, fluids, abscissa, starts, orders, n_roots, n_l
     orders = as_float(orders) if order == "n" else jnp.zeros_like(abscissa)
     starts = jnp.asarray(starts, bool)
     points, moved = _path_points((tubes, alphas, fluids), abscissa, starts)
-    conservative = fluids is None or fluids.coupling == "acoustic"
+    conservative = not Face.of(fluids).has_poles
 
     def problem(x, s):
         tube, a, fluid = moved(x[0], s)
@@ -587,10 +584,11 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
         >>> c = dispersion_curve(Tube(), np.linspace(0.05, 5, 100), n_roots=4, n_layers=10)
         >>> c.omega.shape, int(c.scanned.sum())   # (100, 4), 1
     """
-    if fluid is not None and fluid.coupling == "paper" and fluid.bessel_order is None:
+    if Face.of(fluid, strict=False).has_poles and fluid.bessel_order is None:
         raise ValueError("fluid.bessel_order must be set for a dispersion curve with the 'paper' "
                          "coupling (one Bessel order for every α̂ of the curve), got None")
-    order, family = order_inputs(tube, None, fluid, n_layers, scheme, m, torsional)
+    problem = describe(tube, None, fluid, n_layers, scheme, m, torsional)
+    order, family = problem.order, problem.family
     a = validate_alpha(alpha, "alpha", tube, scalar=False)
     if a is not None and (a.ndim != 1 or a.size == 0):
         raise ValueError(f"alpha must be a non-empty 1-D array of axial wavenumbers, got shape {a.shape}")
@@ -598,16 +596,13 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, n_roots, m)
     values = detached((tube, alpha, fluid))
-    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
-        # one propagation compiled, not both: V̂ = 0 decouples the electric block (a program each)
-        voltage = tube.voltage
-        decoupled = None if isinstance(voltage, jax.core.Tracer) else bool(np.all(np.asarray(voltage) == 0))
+    # one propagation compiled, not both: V̂ = 0 decouples the electric block (a program each)
+    decoupled = decoupled_choice(tube, family)
 
-        def solve(layers):
-            return _solve_curve(*values, n_roots, layers, order, decoupled=decoupled)
-    else:
-        def solve(layers):
-            return _solve_curve(*values, n_roots, layers, order, detached(m), family)
+    def solve(layers):
+        return _solve_curve(*values, n_roots, layers, order, **problem.arguments(detached(m)),
+                            decoupled=decoupled)
+
     curve = solve(layers)
     if short is None and n_layers is None and is_graded(layers) and _concrete(values, m):
         curve, short = _checked_curve(solve, curve, layers, values, order, m, family)
@@ -646,13 +641,13 @@ def _checked_curve(solve, curve, layers, values, order, m, family):
     (``solve(layers)``) on the finer N they ask for; a root index still short at a checked point is
     INACCURATE along the curve."""
     tube, alpha, fluid = values
-    order_args = () if family == LONGITUDINAL else (m, family)
+    order_args = family.arguments(m)
     pick = np.unique(np.round(np.linspace(0, np.shape(alpha)[0] - 1, CHECKED_POINTS)).astype(int))
     for round_ in range(VERIFY_ROUNDS + 1):
         coarse = Layers(layers.count // 2, AUTO_SCHEME, True)
         sampled = Roots(curve.omega[pick], curve.status[pick])
         steps = _sampled_steps(tube, jnp.asarray(alpha)[pick], fluid, sampled.omega, coarse, order,
-                               *order_args)
+                               **order_args)
         ratio = _shortfall(sampled, steps)
         finer = refined_layers(layers, ratio) if round_ < VERIFY_ROUNDS else None
         if finer is None:
@@ -683,7 +678,7 @@ def critical_path_unchecked(tubes, alphas, abscissa, starts, orders, n_layers, f
     ok, tubes, alphas, _ = jax.vmap(guard)(tubes.replace(voltage=jnp.zeros_like(abscissa)),
                                            as_float(alphas), None)
     abscissa = as_float(abscissa)
-    ok &= jnp.isfinite(abscissa) & order_m_admissible(orders, None, family)
+    ok &= jnp.isfinite(abscissa) & family.admissible(orders)
     orders = jnp.where(ok, orders, 0.0)
     starts = jnp.asarray(starts, bool)
     points, moved = _path_points((tubes, alphas), abscissa, starts)

@@ -34,15 +34,14 @@ from ..physics.dispersion import (
     OUTER_ROWS,
     U,
     W,
-    check_inputs,
     initial_basis,
     initial_basis_of_w,
-    mode_family,
-    order_m_admissible,
     outer_conditions,
     problem_function,
 )
-from ..physics.state_matrix import LONGITUDINAL, ORDER_M, TORSIONAL, family_matrix, state_matrix
+from ..physics.families import Face
+from ..physics.problem import describe
+from ..physics.state_matrix import LONGITUDINAL, family_matrix, state_matrix
 from ..physics.transfer import (
     Wall,
     discretize,
@@ -53,10 +52,6 @@ from ..physics.transfer import (
     propagate_basis_history,
     split_layers,
 )
-
-TORSIONAL_FIELDS = (1, 5)
-"""Where the torsional state [V, Q] sits among the 8 fields [ū, v̄, w̄, Φ, T̄, Q̄, S̄, D̄]."""
-
 
 
 def root_distance(tube, alpha, omega, fluid, n_layers, order, m=0.0, family=LONGITUDINAL):
@@ -73,7 +68,7 @@ def _interface_solution(wall: Wall, omega, alpha, fluid, order, m=0.0, family=LO
 
     ``family`` (static) and ``m`` (traced, ``"order_m"``): the basis, propagation and outer rows of
     that family (docs/theory/order_m.md §4), n × k = 6 × 3, 8 × 4 or 2 × 1."""
-    if family == LONGITUDINAL:
+    if not family.carries_m:
         basis = initial_basis(wall, omega, alpha, fluid, order)
         qs, rs = propagate_basis_history(wall, omega, alpha, basis)
         # null vector of the outer-face conditions in the last basis, then back through the R factors
@@ -122,7 +117,7 @@ def _wall_fields(tube: Tube, wall: Wall, states, omega, alpha, n_points: int, m=
     start = jnp.where(after, edges[layer + 1], edges[layer])
     base = jnp.where(after[:, None], states[layer + 1], states[layer])
     coef = jax.tree_util.tree_map(lambda x: x[layer], mid_coef)
-    if family == LONGITUDINAL:
+    if not family.carries_m:
         mats = jax.vmap(state_matrix, (0, 0, None, None))(coef, mids[layer], omega, alpha)
     else:
         mats = jax.vmap(lambda c, rad: family_matrix(family, c, rad, omega * omega, alpha, m))(
@@ -181,25 +176,25 @@ def _solve_mode(tube, alpha, omega, fluid, n_points, n_layers, order, m=0.0, fam
     docs/theory/order_m.md §1 (torsional: v̄, Q̄ only, the others 0)."""
     alpha, omega = as_float(alpha), as_float(omega)
     wall = discretize(tube, n_layers)
-    if family == LONGITUDINAL:
+    if not family.carries_m:
         states, coefficients = _interface_solution(wall, omega, alpha, fluid, order)
         r, fields = _wall_fields(tube, wall, states, omega, alpha, n_points)
         scale = _displacement_scale(fields)
         order_ok = True
     else:
-        order_ok = order_m_admissible(m, fluid, family)
-        m = jnp.where(order_ok, as_float(m), 0.0) if family == ORDER_M else 0.0
+        order_ok = family.admissible(m, fluid)
+        m = family.safe_m(m, order_ok)
         states, coefficients = _interface_solution(wall, omega, alpha, fluid, order, m, family)
         r, fields = _wall_fields(tube, wall, states, omega, alpha, n_points, m, family)
-        if family == TORSIONAL:  # [V, Q] into the 8 fields
-            fields = jnp.zeros((n_points, 8), fields.dtype).at[:, jnp.array(TORSIONAL_FIELDS)].set(fields)
+        if family.size < 8:  # its rows (torsional: V, Q) into the 8 fields
+            rows = jnp.array(family.order_m_rows)
+            fields = jnp.zeros((n_points, 8), fields.dtype).at[:, rows].set(fields)
         scale = _displacement_scale(fields, slice(0, 3))
     r_f = p = None
-    if fluid is not None and fluid.coupling == "acoustic":
-        if family == LONGITUDINAL:
-            r_f, p = _cavity_pressure(wall, omega, alpha, fluid, coefficients[0], n_points)
-        elif family == ORDER_M:
-            r_f, p = _cavity_pressure(wall, omega, alpha, fluid, coefficients[0], n_points, m)
+    if Face.of(fluid).has_pressure:
+        if family.moves_fluid:  # order 0 (the axisymmetric code) or m
+            order_m = m if family.carries_m else None
+            r_f, p = _cavity_pressure(wall, omega, alpha, fluid, coefficients[0], n_points, order_m)
         else:  # an inviscid fluid exerts no shear: a torsional mode leaves it at rest
             r_f, p = jnp.linspace(0.0, wall.r_inner, n_points), jnp.zeros(n_points)
         p = p / scale
@@ -227,17 +222,13 @@ def _describe(layers) -> str:
 def _solve(tube, alpha, omega, fluid, n_points, n_layers, scheme, m, torsional):
     """Validate, then :func:`_solve_mode` (the axisymmetric program unchanged for m = 0); a
     concrete ``omega`` that is no root raises (a traced one gives NaN fields)."""
-    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
-    family = mode_family(m, torsional, fluid)
+    problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
     _check_mode_arguments(omega, n_points)
     tube, alpha, omega, fluid, m = canonical(tube, alpha, omega, fluid, m)
     layers = laminate(n_layers, scheme, tube, alpha, m=m)
-    if family == LONGITUDINAL:
-        out = _solve_mode(tube, alpha, omega, fluid, int(n_points), layers, order)
-    else:
-        out = _solve_mode(tube, alpha, omega, fluid, int(n_points), layers, order, as_float(m),
-                          family)
-    refuse_non_root(omega, out[-1], f" of this case (order m = {m if family == ORDER_M else 0}, "
+    out = _solve_mode(tube, alpha, omega, fluid, int(n_points), layers, problem.order,
+                      **problem.arguments(as_float(m)))
+    refuse_non_root(omega, out[-1], f" of this case (order m = {m if problem.family.reads_m else 0}, "
                     f"{_describe(layers)})", " of the same tube, α̂, fluid and order")
     return out[:-1]
 
@@ -387,7 +378,7 @@ def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64,
     """
     if fluid is None:
         raise ValueError("fluid must be a jaxdea.Fluid: the empty tube (fluid=None) has no fluid pressure")
-    if isinstance(fluid, Fluid) and isinstance(fluid.coupling, str) and fluid.coupling == "paper":
+    if isinstance(fluid, Fluid) and Face.of(fluid, strict=False).has_poles:
         raise ValueError(
             "coupling='paper' has no fluid pressure field: the paper's model (docs/theory/axisymmetric.md "
             "§4(b)) loads the inner face with an Ω-dependent follower pressure P̂_f only; use "

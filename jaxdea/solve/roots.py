@@ -79,13 +79,12 @@ from ..physics.dispersion import (
     carried_jvp,
     characteristic_of_w,
     characteristic_on_wall,
-    check_inputs,
-    mode_family,
-    order_m_admissible,
     problem_function,
     scale_and_slope_of_w,
     scale_and_slope_on_wall,
 )
+from ..physics.families import Face
+from ..physics.problem import Problem, describe
 from ..physics.state_matrix import LONGITUDINAL, ORDER_M
 from ..physics.transfer import (
     AUTO_SCHEME,
@@ -124,17 +123,10 @@ class Roots(NamedTuple):
     status: jax.Array
 
 
-def _slowest_shear(coef, family):
-    """c_min² over the wall: the shear moduli c − εd² and a, and e = 2W_1λ² off the axisymmetric
-    family (θ-shear, docs/theory/order_m.md §2)."""
-    shear = jnp.minimum(coef.c - coef.eps * coef.d**2, coef.a)
-    return jnp.min(shear if family == LONGITUDINAL else jnp.minimum(shear, coef.e))
-
-
 def scan_step(wall: Wall, fluid: Fluid | None, family: str = LONGITUDINAL):
     """Scan step Δ = min(π c_min/ĥ, π ĉ_f/r̂_i)/16 (a sixteenth of the shortest oscillation of f)."""
     coef = wall.coef
-    c_min = jnp.sqrt(_slowest_shear(coef, family))
+    c_min = jnp.sqrt(family.slowest_shear(coef))
     thickness = wall.thickness
     scale = np.pi * c_min / thickness
     if fluid is not None:
@@ -154,7 +146,7 @@ def cutoff_steps(wall: Wall, alpha, fluid: Fluid | None, step, family: str = LON
     oscillation far above the cutoff).
     """
     coef = wall.coef
-    c_min = jnp.sqrt(_slowest_shear(coef, family))
+    c_min = jnp.sqrt(family.slowest_shear(coef))
     c_z = jnp.sqrt(coef.a)
     cut = [jnp.min(c_z) * alpha, jnp.max(c_z) * alpha]
     speed = [c_min, c_min]
@@ -312,10 +304,10 @@ def scanned_function(wall: Wall, alpha, fluid: Fluid | None, order: int, m=0.0,
     measured with :data:`jaxdea.physics.transfer.TANGENT_UNROLL` = 1: m = 2 12.4 → 9.0, empty 5.7 → 5.0,
     acoustic 9.0 → 8.1).
     """
-    if family == LONGITUDINAL and variable == "omega":
+    if not family.carries_m and variable == "omega":
         return Scaled(scale_and_slope_on_wall(wall, alpha, fluid, order, decoupled, generators))
-    ok = order_m_admissible(m, fluid, family)
-    m_safe = jnp.where(ok, as_float(m), 0.0) if family == ORDER_M else 0
+    ok = family.admissible(m, fluid)
+    m_safe = family.safe_m(m, ok)
     carried = scale_and_slope_of_w(wall, alpha, fluid, order, m_safe, family, variable, generators)
 
     def scaled(x):
@@ -598,11 +590,11 @@ def _residual(x, tube, alpha, fluid, m, n_layers, order, unknown, family=LONGITU
     derivatives of any order."""
     if unknown == "voltage":
         wall = discretize(tube.replace(voltage=x), n_layers)
-        if family == LONGITUDINAL:
+        if not family.carries_m:
             return characteristic_on_wall(wall, jnp.zeros_like(x), alpha, fluid, order, method)
         return characteristic_of_w(wall, jnp.zeros_like(x), alpha, None, order, method, m, family)
     wall = discretize(tube, n_layers)
-    if family == LONGITUDINAL:
+    if not family.carries_m:
         return characteristic_on_wall(wall, x, alpha, fluid, order, method)
     if unknown == "growth":  # f at Ω = i s: Ω² = −s²
         return characteristic_of_w(wall, -x * x, alpha, fluid, order, method, m, family)
@@ -749,7 +741,7 @@ def scan_roots(wall: Wall, fun, alpha, fluid, omega_max, n_roots: int, m=0.0,
     ok = jnp.isfinite(end) & (end > 0)
     step = jnp.minimum(scan_step(wall, fluid, family), end / CHUNK)
     next_point = cutoff_steps(wall, alpha, fluid, step, family)
-    paper = fluid is not None and fluid.coupling == "paper"
+    paper = Face.of(fluid).has_poles
     if order is not None and paper:
         next_point = pole_steps(next_point, *coupling_poles(wall, alpha, fluid, order))
     return invalid_where(ok, _scan_for_roots(fun, step, end, n_roots, next_point, continuous=not paper))
@@ -758,7 +750,7 @@ def scan_roots(wall: Wall, fun, alpha, fluid, omega_max, n_roots: int, m=0.0,
 def guard_order(tube, alpha, fluid, m, family):
     """:func:`~jaxdea.params.guard` and, off the axisymmetric family, an admissible traced m."""
     ok, tube, alpha, fluid = guard(tube, as_float(alpha), fluid)
-    return ok & order_m_admissible(m, fluid, family), tube, alpha, fluid
+    return ok & family.admissible(m, fluid), tube, alpha, fluid
 
 
 def frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, order, m=0.0,
@@ -780,7 +772,7 @@ def growth_rates_unchecked(tube, alpha, fluid, s_max, n_roots, n_layers, order, 
     """The growth rates s = √(−Ω²) > 0 of one case, largest first (traceable): the roots of
     f(Ω² = −s²) in (0, s_max] by the same guaranteed scan as the frequencies (f is entire in Ω²,
     docs/theory/order_m.md §6), reversed; NaN-padded at the end. ``family``: ``ORDER_M`` (at m = 0 the
-    longitudinal modes) or ``TORSIONAL`` (:func:`growth_family`)."""
+    longitudinal modes) or ``TORSIONAL`` (:attr:`~jaxdea.physics.families.Family.in_omega_squared`)."""
     ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
     wall = discretize(tube, n_layers)
     of_w = scanned_function(wall, alpha, fluid, order, m, family, "omega_squared")
@@ -798,10 +790,20 @@ _solve_growth_rates = cached_jit(growth_rates_unchecked,
                                  static_argnames=("n_roots", "n_layers", "order", "family"))
 
 
-def order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional):
-    """Validate the public inputs with the order: (Bessel order, family)."""
-    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
-    return order, mode_family(m, torsional, fluid)
+def solve_each(program, problem: Problem, values, m, along=None, vectorised=False, **static):
+    """``program(*values, **static)``, solved one point at a time (:func:`one_point_at_a_time`),
+    with the order m (traced, detached) and the family appended where the family's programs take
+    them (:attr:`~jaxdea.physics.families.Family.carries_m`; the longitudinal programs as before
+    order m existed)."""
+    family = problem.family
+    if not family.carries_m:
+        return one_point_at_a_time(functools.partial(program, **static), *values, along=along,
+                                   vectorised=vectorised)
+
+    def solve(*args):
+        return program(*args[:-1], **static, **family.arguments(args[-1]))
+
+    return one_point_at_a_time(solve, *values, detached(m), along=along, vectorised=vectorised)
 
 
 def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3, m=0,
@@ -826,24 +828,20 @@ def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3
     Examples:
         >>> growth_rates(Tube(voltage=0.1, lambda_i=0.95, lambda_z=1.2), 0.445, m=2)  # ≈ [0.7466, nan, nan]
     """
-    order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
-    family = growth_family(family)
+    problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    family = problem.family.in_omega_squared
     n_roots = validate_roots(n_roots)
     if s_max is not None:
         validate_positive("s_max", s_max)
     tube, alpha, fluid, s_max, m = canonical(tube, alpha, fluid, s_max, m)
     layers = laminate(n_layers, scheme, tube, alpha, n_roots, m)
     def solve(tube, alpha, fluid, s_max, m):
-        return _solve_growth_rates(tube, alpha, fluid, s_max, n_roots, layers, order, m, family)
+        return _solve_growth_rates(tube, alpha, fluid, s_max, n_roots, layers, problem.order, m,
+                                   family)
 
     roots = one_point_at_a_time(solve, *detached((tube, alpha, fluid, s_max, m)))
-    return attach_derivatives(roots, (tube, alpha, fluid, m), layers, order, "growth", family).omega
-
-
-def growth_family(family):
-    """The family scanned for growth rates: the axisymmetric one in Ω² through the 8×8 path at m = 0
-    (the 6×6 path is written in Ω)."""
-    return ORDER_M if family == LONGITUDINAL else family
+    return attach_derivatives(roots, (tube, alpha, fluid, m), layers, problem.order, "growth",
+                              family).omega
 
 
 def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
@@ -858,7 +856,8 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
         sublayers than it has, the value kept; :func:`jaxdea.physics.transfer.checked_laminate`: where the
         geometry, α̂ or m are traced, N = 16 serves every point).
     """
-    order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    order, family = problem.order, problem.family
     n_roots = validate_roots(n_roots)
     if omega_max is not None:
         validate_positive("omega_max", omega_max)
@@ -866,20 +865,14 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, n_roots, m)
     values = detached((tube, alpha, fluid, omega_max))
     along = None  # a batch over α̂ alone: continued along α̂ (jaxdea.solve.curves), not the paper's coupling
-    if fluid is None or fluid.coupling == "acoustic":
+    if not problem.face.has_poles:
         along = along_alpha("frequencies", n_roots=n_roots, n_layers=layers, order=order,
-                            family=family, decoupled=_decoupled(tube, family))
+                            family=family, decoupled=decoupled_choice(tube, family))
     if short is None and n_layers is None and is_graded(layers) and _concrete(values, m):
         layers, roots, short = _verified(layers, *values, n_roots, order, m, family)
-    elif family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
-        solve = functools.partial(_solve_frequencies, n_roots=n_roots, n_layers=layers, order=order)
-        roots = one_point_at_a_time(solve, *values, along=along)
     else:
-        def solve(tube, alpha, fluid, omega_max, m):
-            return _solve_frequencies(tube, alpha, fluid, omega_max, n_roots, layers, order, m,
-                                      family)
-
-        roots = one_point_at_a_time(solve, *values, detached(m), along=along)
+        roots = solve_each(_solve_frequencies, problem, values, m, along, n_roots=n_roots,
+                           n_layers=layers, order=order)
     return inaccurate_where(short, attach_derivatives(roots, (tube, alpha, fluid, m), layers, order,
                                                      "omega", family))
 
@@ -902,10 +895,7 @@ SECANT_STEP = 1e-6
 def newton_steps(tube, alpha, fluid, omegas, n_layers, order, m=0.0, family=LONGITUDINAL):
     """−f(Ω)/f'(Ω) at each Ω of ``omegas`` on the laminate ``n_layers``: to first order the
     distance from Ω to that laminate's root (:func:`secant_steps`)."""
-    if family == LONGITUDINAL:
-        ok, tube, alpha, fluid = guard(tube, alpha, fluid)
-    else:
-        ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
+    ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
     _, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
     return jnp.where(ok, secant_steps(fun, omegas), jnp.nan)
 
@@ -973,9 +963,9 @@ def _verified(layers, tube, alpha, fluid, omega_max, n_roots, order, m, family):
     solves again on N' ≥ N (VERIFY_MARGIN·ratio)^(1/6) (from :data:`LAYER_COUNTS`), at most
     VERIFY_ROUNDS times; roots still short are INACCURATE (``short``). Where the rule sufficed, the
     roots are those of N."""
-    order_args = () if family == LONGITUDINAL else (m, family)
+    order_args = family.arguments(m)
     roots, steps = _solve_checked_frequencies(tube, alpha, fluid, omega_max, n_roots, layers, order,
-                                              *order_args)
+                                              **order_args)
     ratio = _shortfall(roots, steps)
     for _ in range(VERIFY_ROUNDS):
         finer = refined_layers(layers, ratio)
@@ -983,17 +973,17 @@ def _verified(layers, tube, alpha, fluid, omega_max, n_roots, order, m, family):
             break
         layers = finer
         roots, steps = _solve_checked_frequencies(tube, alpha, fluid, omega_max, n_roots, layers,
-                                                  order, *order_args)
+                                                  order, **order_args)
         ratio = _shortfall(roots, steps)
     short = ratio > 1.0
     return layers, roots, (short if short.any() else None)
 
 
-def _decoupled(tube, family):
+def decoupled_choice(tube, family):
     """The propagation of a continuation along α̂ (:func:`jaxdea.solve.curves.curve_unchecked`): the 4×4
     one (True) for a concrete V̂ = 0 of the axisymmetric family, the 6×6 one (False) for another or
     a traced V̂, each point's choice (None) off that family."""
-    if family != LONGITUDINAL:
+    if family.carries_m:
         return None
     voltage = tube.voltage
     return False if isinstance(voltage, jax.core.Tracer) else bool(np.all(np.asarray(voltage) == 0))
@@ -1004,10 +994,7 @@ def follow_roots(tube, alpha, fluid, guesses, n_layers, order, m=0.0, family=LON
     """Safeguarded Newton from each guess on the laminate of ``n_layers`` sublayers (one lane
     per root, steps capped at a quarter of the scan step, as in :func:`jaxdea.solve_frequency`).
     ``family`` (static) and ``m`` (traced): the mode family, as in :func:`jaxdea.frequencies`."""
-    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
-        ok, tube, alpha, fluid = guard(tube, alpha, fluid)
-    else:
-        ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
+    ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
     wall, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
     finite = jnp.isfinite(guesses) & ok
     start = jnp.where(finite, guesses, 1.0)
@@ -1092,23 +1079,18 @@ def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
                     torsional: bool = False) -> Roots:
     """The root reached by safeguarded Newton from ``guess``, with its status (scalar Roots;
     INACCURATE as in :func:`solve_frequencies`)."""
-    order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    order, family = problem.order, problem.family
     validate_positive("guess", guess)
     tube, alpha, guess, fluid, m = canonical(tube, alpha, guess, fluid, m)
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, m=m)
     values = detached((tube, alpha, guess, fluid))
     along = None  # a batch over α̂ and the guess alone: the curves' lanes (jaxdea.solve.curves), any other
-    if fluid is None or fluid.coupling == "acoustic":  # vectorised as before
+    if not problem.face.has_poles:  # vectorised as before
         along = along_alpha("frequency", (1, 2), n_layers=layers, order=order, family=family,
-                            decoupled=_decoupled(tube, family))
-    if family == LONGITUDINAL:
-        solve = functools.partial(_solve_frequency, n_layers=layers, order=order)
-        roots = one_point_at_a_time(solve, *values, along=along, vectorised=True)
-    else:
-        def solve(tube, alpha, guess, fluid, m):
-            return _solve_frequency(tube, alpha, guess, fluid, layers, order, m, family)
-
-        roots = one_point_at_a_time(solve, *values, detached(m), along=along, vectorised=True)
+                            decoupled=decoupled_choice(tube, family))
+    roots = solve_each(_solve_frequency, problem, values, m, along, True, n_layers=layers,
+                       order=order)
     return inaccurate_where(short, attach_derivatives(roots, (tube, alpha, fluid, m), layers, order,
                                                      "omega", family))
 
@@ -1161,15 +1143,13 @@ def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layer
         >>> group_velocity(t, 0.445, frequencies(t, 0.445)[0])  # ≈ 1.661
         >>> group_velocity(t, 0.445, 0.7)  # ValueError: omega = 0.7 is not a root (0.1 away)
     """
-    order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_range("omega", omega, "a finite real number > 0 (a root of the characteristic function)",
                    lambda v: v > 0)
     tube, alpha, omega, fluid, m = canonical(tube, alpha, omega, fluid, m)
     layers = laminate(n_layers, scheme, tube, alpha, m=m)
-    if family == LONGITUDINAL:
-        velocity, distance = _group_velocity(tube, alpha, omega, fluid, layers, order)
-    else:
-        velocity, distance = _group_velocity(tube, alpha, omega, fluid, layers, order, m, family)
+    velocity, distance = _group_velocity(tube, alpha, omega, fluid, layers, problem.order,
+                                         **problem.arguments(m))
     refuse_non_root(omega, distance)
     return velocity
 
@@ -1183,7 +1163,7 @@ def _group_velocity(tube, alpha, omega, fluid, n_layers, order, m=0.0, family=LO
     omega = as_float(omega)
     ok &= jnp.isfinite(omega) & (omega > 0)
     omega = jnp.where(ok, omega, 1.0)
-    if family == LONGITUDINAL:
+    if not family.carries_m:
         wall = discretize(tube, n_layers)
         f = lambda om, al: characteristic_on_wall(wall, om, al, fluid, order)  # noqa: E731
     else:
@@ -1200,20 +1180,15 @@ def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
                            torsional: bool = False):
     """(V̂_cr, status): the smallest V̂ > 0 with f(Ω = 0; V̂) = 0 (see :func:`critical_voltage`;
     INACCURATE as in :func:`solve_frequencies`)."""
-    order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    order, family = problem.order, problem.family
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
     layers, short = checked_laminate(n_layers, scheme, tube, alpha, m=m, at_rest=True)
     values = detached((tube, alpha, fluid))
     # a batch over α̂ alone: continued along α̂ (jaxdea.solve.curves); fluids (which do not change V̂_cr) mapped
     along = along_alpha("critical_voltage", n_layers=layers, family=family) if fluid is None else None
-    if family == LONGITUDINAL:
-        solve = functools.partial(_solve_critical_voltage, n_layers=layers, order=order)
-        roots = Roots(*one_point_at_a_time(solve, *values, along=along))
-    else:
-        def solve(tube, alpha, fluid, m):
-            return _solve_critical_voltage(tube, alpha, fluid, layers, order, m=m, family=family)
-
-        roots = Roots(*one_point_at_a_time(solve, *values, detached(m), along=along))
+    roots = Roots(*solve_each(_solve_critical_voltage, problem, values, m, along, n_layers=layers,
+                              order=order))
     return inaccurate_where(short, attach_derivatives(roots, (tube, alpha, fluid, m), layers, order,
                                                      "voltage", family))
 
@@ -1245,7 +1220,7 @@ def critical_function(tube, alpha, fluid, n_layers, order, v_end=None, m=0.0, fa
         if magnus:
             return carried(v)
         wall = wall_at_voltage(expansion, v)
-        if family == LONGITUDINAL:
+        if not family.carries_m:
             return characteristic_on_wall(wall, jnp.zeros_like(v), alpha, fluid, order, "at_rest")
         # fluid-free: κ ∝ Ω² vanishes at Ω = 0 (docs/theory/order_m.md §6)
         return characteristic_of_w(wall, jnp.zeros_like(v), alpha, None, order, "at_rest", m_safe,
@@ -1313,16 +1288,13 @@ def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
     Returns:
         An instance of :class:`Roots` whose ``omega`` field holds V̂_cr, shape (n_max,).
     """
-    check_inputs(tube, None, fluid, n_layers, scheme)
-    family = mode_family(m, False, fluid)
+    problem = describe(tube, None, fluid, n_layers, scheme, m)
     n_max = validate_max("n_max", n_max, 1)
     layers, short = checked_laminate(n_layers, scheme, canonical(tube),
                                      mode_wavenumber(canonical(tube), n_max), m=canonical(m),
                                      at_rest=True)
-    if family == LONGITUDINAL:
-        return inaccurate_where(short, _critical_voltages(canonical(tube), n_max, layers))
-    return inaccurate_where(short, _critical_voltages(canonical(tube), n_max, layers, as_float(m),
-                                                      family))
+    return inaccurate_where(short, _critical_voltages(canonical(tube), n_max, layers,
+                                                      **problem.arguments(as_float(m))))
 
 
 def validate_max(name, value, low):
@@ -1438,7 +1410,7 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
         >>> first = first_instability(Tube(lambda_i=0.9, lambda_z=1.2, eta=0.85), n_max=1)
         >>> float(first.voltage), int(first.m), int(first.n)  # ≈ (0.0293, 2, 1)
     """
-    check_inputs(tube, None, fluid, n_layers, scheme)
+    describe(tube, None, fluid, n_layers, scheme)
     n_max = validate_max("n_max", n_max, 1)
     m_max = validate_max("m_max", m_max, 0)
     tube = canonical(tube)

@@ -18,7 +18,7 @@ import jax.numpy as jnp
 from ..compiled import cached_jit, serializable
 from ..numerics.scalar import Status
 from ..params import Fluid, Tube, canonical, mode_wavenumber
-from ..physics.dispersion import check_inputs
+from ..physics.problem import describe
 from ..physics.state_matrix import ORDER_M
 from ..physics.transfer import laminate
 from .roots import (
@@ -97,10 +97,11 @@ def stability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = 
         >>> s = stability(Tube(voltage=0.05, lambda_i=0.9, lambda_z=1.2, eta=0.85), n_max=1)
         >>> bool(s.stable), int(s.m), int(s.n)  # (False, 2, 1): ovalisation grows fastest
     """
-    order = check_inputs(tube, None, fluid, n_layers, scheme)
+    problem = describe(tube, None, fluid, n_layers, scheme)
+    order = problem.order
     n_max = validate_max("n_max", n_max, 1)
     m_max = validate_max("m_max", m_max, 0)
-    if fluid is not None and fluid.coupling == "paper" and m_max > 0:
+    if problem.face.has_poles and m_max > 0:
         raise ValueError(f"m_max must be 0 with the 'paper' coupling (an axisymmetric model), got "
                          f"{m_max}")
     tube, fluid = canonical(tube, fluid)

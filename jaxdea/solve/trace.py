@@ -89,11 +89,12 @@ from ..params import (
     validate_real,
     validate_tube,
 )
-from ..physics.dispersion import characteristic_on_wall, order_m_admissible
+from ..physics.dispersion import characteristic_on_wall
 from ..physics.leaves import FLUID_LEAVES, check_names, get_parameter, set_parameter
-from ..physics.state_matrix import LONGITUDINAL, ORDER_M
+from ..physics.problem import describe
+from ..physics.state_matrix import LONGITUDINAL
 from ..physics.transfer import Layers, discretize, laminate
-from .roots import order_inputs, scan_step
+from .roots import scan_step
 
 DEFAULT_MAX_STEP = 0.1  # scaled arclength: at least ten points between the start and ``stop``
 MIN_STEP = 1e-10  # scaled arclength below which the trace gives up
@@ -399,15 +400,14 @@ def _trace_branch(tube, alpha, omega, fluid, stop, max_step, along, max_points, 
     wall0 = discretize(tube, n_layers)
     wall_is_fixed = along == "alpha" or along in FLUID_LEAVES
     # off the axisymmetric family: f is NaN where the (traced) order m is inadmissible (NO_START)
-    ok = order_m_admissible(m, fluid, family)
-    m_safe = jnp.where(ok, as_float(m), 0.0) if family == ORDER_M else 0.0
+    ok = family.admissible(m, fluid)
+    m_safe = family.safe_m(m, ok)
 
     def residual(s, om):
         t, a, fl = set_parameter(tube, alpha, fluid, along, s)
         wall = wall0 if wall_is_fixed else discretize(t, n_layers)
-        if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
-            return characteristic_on_wall(wall, om, as_float(a), fl, order)
-        f = characteristic_on_wall(wall, om, as_float(a), fl, order, "taylor", m_safe, family)
+        f = characteristic_on_wall(wall, om, as_float(a), fl, order, "taylor",
+                                   **family.arguments(m_safe))
         return jnp.where(ok, f, jnp.nan)
 
     return continue_branch(residual, s0, omega, stop, max_points, max_step,
@@ -468,7 +468,7 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
         >>> k = int(branch.n_points)  # 24 points, status REACHED_STOP, last Ω(2.0) ≈ 3.8956
         >>> alphas, omegas = branch.parameter[:k], branch.omega[:k]
     """
-    order, family = order_inputs(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
     if not isinstance(along, str):
         raise ValueError(f"along must be a parameter name (str), got {along!r}")
     try:
@@ -496,7 +496,5 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
         end = laminate(n_layers, scheme, end_tube, end_alpha, m=m)  # the finer of the two ends
         layers = max(layers, end, key=lambda x: x.count)
     static = dict(along=along, max_points=int(max_points), n_layers=layers,
-                  order=order)
-    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
-        return _trace_branch(*args, **static)
-    return _trace_branch(*args, m=jax.lax.stop_gradient(canonical(m)), family=family, **static)
+                  order=problem.order)
+    return _trace_branch(*args, **problem.arguments(jax.lax.stop_gradient(canonical(m))), **static)

@@ -55,12 +55,14 @@ from ..params import (
     validate_roots,
 )
 from ..physics.base_state import inner_stretch_traced
-from ..physics.dispersion import characteristic_on_wall, mode_family
+from ..physics.dispersion import characteristic_on_wall
+from ..physics.families import Face
 from ..physics.leaves import FLUID_LEAVES, TUBE_LEAVES, apply_parameters, check_names, get_parameter
-from ..physics.state_matrix import LONGITUDINAL, ORDER_M
+from ..physics.problem import family_of
+from ..physics.state_matrix import LONGITUDINAL
 from ..physics.transfer import AUTO_SCHEME, discretize, is_graded, laminate, split_layers, validate_scheme
 from ..physics.units import Scales, fluid_from_si, fluid_to_si
-from ..solve.roots import frequencies_unchecked, growth_family, growth_rates_unchecked
+from ..solve.roots import frequencies_unchecked, growth_rates_unchecked
 
 SENSITIVITY = ("voltage", "lambda_i", "lambda_z", "density_ratio", "speed_ratio", "thickness_ratio",
                "gent")
@@ -390,15 +392,12 @@ def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_
     point = apply_parameters(tube, alpha, fluid, values)
     nu = values["n"] if order == "n" else order
     m = values.get("m", m)
-    if family == LONGITUDINAL:  # the axisymmetric program, as before order m existed
-        roots = frequencies_unchecked(*point, omega_max, n_roots, n_layers, nu)
-    else:
-        roots = frequencies_unchecked(*point, omega_max, n_roots, n_layers, nu, m, family)
+    roots = frequencies_unchecked(*point, omega_max, n_roots, n_layers, nu, m, family)
     alpha_point = as_float(point[1])
     growth = ()
     if n_growth:  # the scan in Ω² = −s² (the 8×8 path at m = 0: docs/theory/order_m.md §6)
         growth = (growth_rates_unchecked(*point, None, n_growth, n_layers, nu, as_float(m),
-                                         growth_family(family)).omega,)
+                                         family.in_omega_squared).omega,)
     if jac_names is None:
         return roots.omega, roots.status, alpha_point, *growth
     held = {k: v for k, v in values.items() if k == "n"}  # α̂ of mode n follows the tube
@@ -407,8 +406,6 @@ def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_
         moved = dict(zip(jac_names, x[2:], strict=True), **held)
         t, a, f = apply_parameters(*point, moved)
         _, t, a, f = guard(t, as_float(a) + x[1], f)
-        if family == LONGITUDINAL:
-            return characteristic_on_wall(discretize(t, n_layers), x[0], a, f, nu)
         return characteristic_on_wall(discretize(t, n_layers), x[0], a, f, nu, "taylor", m, family)
 
     theta = [get_parameter(*point, name) for name in jac_names]
@@ -434,7 +431,7 @@ def _sweep_chunk(columns, tube, alpha, fluid, omega_max, names, n_roots, n_layer
     ``n_growth`` (static): growth rates per point (0: none)."""
     def one(vals):
         values = dict(zip(names, vals, strict=True))
-        if family == LONGITUDINAL and not n_growth:
+        if not (family.carries_m or n_growth):  # the longitudinal program as before order m existed
             return _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_names)
         return _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_names,
                       m, family, n_growth)
@@ -731,7 +728,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
                           n_roots, m)
     static = dict(names=names, n_roots=int(n_roots), n_layers=layers, order=order,
                   jac_names=jac_names, batch_size=min(int(batch_size), size))
-    if family != LONGITUDINAL or n_growth:  # the longitudinal program is called as before order m
+    if family.carries_m or n_growth:  # the longitudinal program is called as before order m
         static.update(m=float(0 if m_axis is not None else m), family=family, n_growth=int(n_growth))
     starts = range(0, total, size)
 
@@ -837,19 +834,18 @@ def _held_stretch(tube, names, grids, delta_p):
 
 def _orders(m, torsional, fluid):
     """(the axis ``m`` as a float64 array or None, the static family) of sweep's ``m``: a scalar is
-    a fixed order (its family from :func:`jaxdea.physics.dispersion.mode_family`), a 1-D array an axis of
-    the order-m family (traced m; each value validated by ``mode_family``)."""
+    a fixed order (its family from :func:`jaxdea.physics.problem.family_of`), a 1-D array an axis of
+    the order-m family (traced m; each value validated by ``family_of``)."""
     if np.ndim(m) == 0:
-        return None, mode_family(m, torsional, fluid)
+        return None, family_of(m, torsional, fluid)
     values = np.asarray(m)
     if values.ndim != 1 or values.size == 0:
         raise ValueError(f"m must be an integer >= 0 or a non-empty 1-D array of them, got {m!r}")
     if values.dtype == object or not np.issubdtype(values.dtype, np.number):
         raise ValueError(f"m must hold integers >= 0 (the circumferential order), got {m!r}")
     for value in values:
-        mode_family(value.item(), torsional, fluid)
-    family = mode_family(0, torsional, fluid)
-    return values.astype(np.float64), ORDER_M if family == LONGITUDINAL else family
+        family_of(value.item(), torsional, fluid)
+    return values.astype(np.float64), family_of(0, torsional, fluid).in_omega_squared
 
 
 def _check_client(client):
@@ -899,7 +895,7 @@ def _jacobian_names(jacobian, fluid):
 
 def _order(fluid, axes):
     """The Bessel order: static int, or "n" (the paper's ν = n read from the n axis, traced)."""
-    if fluid is None or fluid.coupling == "acoustic":
+    if not Face.of(fluid).has_poles:
         return 0
     if fluid.bessel_order is not None:
         return int(fluid.bessel_order)
