@@ -76,8 +76,8 @@ from ..params import (
     validate_layers,
     validate_real,
 )
-from ..physics.dispersion import characteristic, check_inputs, mode_family
-from ..physics.state_matrix import LONGITUDINAL
+from ..physics.dispersion import characteristic
+from ..physics.problem import describe, family_of
 from ..physics.transfer import laminate, validate_scheme
 from ..solve.modes import root_distance
 from ..solve.instability import (
@@ -186,9 +186,8 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
         >>> tunability(t, a, frequencies(t, a)[0])  # ≈ −1.217
     """
     require_x64()
-    order = check_inputs(tube, alpha, fluid, n_layers, scheme)
-    family = mode_family(m, torsional, fluid)
-    orders = {} if family == LONGITUDINAL else dict(m=m, torsional=torsional)
+    problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
+    orders = dict(m=m, torsional=torsional) if problem.family.carries_m else {}
     tube, alpha, omega = canonical(tube, alpha, omega)
     if delta_p is not None:
         validate_real("delta_p", delta_p, "a finite real number (ΔP̂, the pressure difference)")
@@ -203,11 +202,8 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
     f_omega = jax.jvp(lambda om: f(om, voltage), (omega,), (jnp.ones_like(omega),))[1]
     f_voltage = jax.jvp(lambda v: f(omega, v), (voltage,), (jnp.ones_like(voltage),))[1]
     layers = laminate(n_layers, scheme, tube, alpha, m=m)
-    if family == LONGITUDINAL:
-        distance = root_distance(*jax.lax.stop_gradient((tube, alpha, omega, fluid)), layers, order)
-    else:
-        distance = root_distance(*jax.lax.stop_gradient((tube, alpha, omega, fluid)), layers, order,
-                                 as_float(m), family)
+    distance = root_distance(*jax.lax.stop_gradient((tube, alpha, omega, fluid)), layers,
+                             problem.order, **problem.arguments(as_float(m)))
     refuse_non_root(omega, distance)
     return jnp.where(distance <= ROOT_RTOL, -f_voltage / f_omega, jnp.nan)
 
@@ -589,7 +585,7 @@ def _branch(tube, setting):
 def _check_mode(m, torsional):
     """(m, torsional) of the designed mode as (int, bool), validated (ValueError naming m or
     torsional)."""
-    mode_family(m, torsional)  # m an integer >= 0, torsional a bool and only with m = 0
+    family_of(m, torsional)  # m an integer >= 0, torsional a bool and only with m = 0
     return int(m), bool(torsional)
 
 

@@ -89,6 +89,7 @@ import numpy as np
 
 from ..params import Fluid, Tube, require_x64
 from ..physics.base_state import inner_stretch_traced
+from ..physics.families import Face, Family
 from ..physics.transfer import Layers, laminate, validate_scheme
 from ..solve.roots import frequencies, frequency
 
@@ -254,13 +255,13 @@ def hz_per_omega(values):
     return jnp.sqrt(values[0] / values[1]) / (2.0 * math.pi * values[3])
 
 
-FAMILIES = ("axisymmetric", "order_m", "torsional")
+FAMILIES = (Family.LONGITUDINAL, Family.ORDER_M, Family.TORSIONAL)
 """The static mode families of the model: m = 0 longitudinal, m ≥ 1 (traced m), m = 0 torsional."""
 
 
 def _solver_family(family, order):
     """(m, torsional) arguments of the solvers for a family."""
-    return (0 if family != "order_m" else order), family == "torsional"
+    return (order if family.reads_m else 0), family is Family.TORSIONAL
 
 
 @partial(jax.jit, static_argnames=("n_roots", "n_layers", "coupling", "bessel_order", "family",
@@ -269,7 +270,7 @@ def mode_roots(values, voltage_V, n, m, n_roots, n_layers, coupling, bessel_orde
                by_pressure=False, load=None):
     """Ω of the ``n_roots`` lowest positive roots of order m at α̂_n, per point: (points, n_roots).
 
-    ``family``: one of :data:`FAMILIES` (every m is 0 but for ``"order_m"``, m ≥ 1, traced);
+    ``family``: one of :data:`FAMILIES` (every m is 0 but for ``ORDER_M``, m ≥ 1, traced);
     ``load``: (points, 3) of (λ_i, λ_z, ΔP) per point, NaN where ``values`` holds it (None: all).
     """
     load = jnp.full((voltage_V.shape[0], 3), jnp.nan) if load is None else load
@@ -856,7 +857,7 @@ def _validate(data, free, fixed, fluid):
         coupling, bessel_order = fluid, None
     else:
         raise ValueError(f"fluid must be None, 'acoustic', 'paper' or a jaxdea.Fluid, got {fluid!r}")
-    if coupling == "paper" and bessel_order is None:
+    if coupling is not None and Face(coupling).has_poles and bessel_order is None:
         raise ValueError("fluid with the 'paper' coupling needs an explicit bessel_order")
     known = NAMES if coupling is not None else NAMES[:-2]
     for name in list(free) + list(fixed):
