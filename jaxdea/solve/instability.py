@@ -158,8 +158,8 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
     ``tube.lambda_i`` is ignored) and each V̂_cr is the first voltage at which the lowest Ω² of
     (m, n) reaches 0 on that path (module docstring), below pull-in at ΔP̂. The λ_i there is
     ``jaxdea.inner_stretch(tube.replace(voltage=first.voltage), delta_p)``. For the paper's tube held
-    at the ΔP̂ that gives λ_i = 1.1 at V̂ = 0, ring buckling (2, 1) comes at V̂ ≈ 0.088, with λ_i ≈ 1.5,
-    instead of 0.106 with λ_i held at 1.1.
+    at the ΔP̂ that gives λ_i = 1.1 at V̂ = 0, the axisymmetric bulge (0, 1) comes first, at
+    V̂ ≈ 0.088 with λ_i ≈ 1.5, instead of ring buckling (2, 1) at 0.106 with λ_i held at 1.1.
 
     ``jaxdea.pressure_difference(tube.replace(voltage=0))`` is the ΔP̂ that holds the tube's λ_i at
     V̂ = 0, and ``Scales.pressure_from_si`` converts Pa. A fluid does not change V̂_cr (its terms
@@ -184,7 +184,7 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
     Examples:
         >>> tube = Tube(lambda_i=1.1, lambda_z=1.2)
         >>> held = first_instability(tube, delta_p=pressure_difference(tube.replace(voltage=0.0)))
-        >>> float(held.voltage), int(held.m), int(held.n)  # ≈ (0.088, 2, 1)
+        >>> float(held.voltage), int(held.m), int(held.n)  # ≈ (0.0882, 0, 1)
     """
     if delta_p is None:
         return stretch_held_instability(tube, n_max, m_max, fluid, n_layers, scheme)
