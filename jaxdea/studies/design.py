@@ -96,7 +96,6 @@ NEWTON_MAX_STEP = 2.0  # frequency design: the longest Newton step in the thickn
 NEWTON_EDGE = 25.0  # |x_H| beyond which the thickness sits on a bound (σ(25) = 1 − 1.4e-11)
 NEWTON_REFRESH = 0.25  # a Newton step longer than this (in x_H) refreshes the candidate modes
 NEWTON_STEPS = 40  # at most this many Newton steps before adam takes over
-NEWTON_HALVINGS = 6  # a step whose end has no admissible voltage is halved at most this often
 PLATEAU = 10  # steps over which maximise_tunability's loss must have settled
 CANDIDATE_BAND = 0.05  # (m, n) with V̂_cr <= (1 + band) V̂_first are solved at every step
 CANDIDATES = 4  # at most this many candidates (the lowest), padded by repeating the first
@@ -455,8 +454,7 @@ def _newton(x_h, guess, bound, setting, n_layers, scheme, history, rtol, max_ste
     iterates have residuals of opposite sign they bracket the root and a Newton step that leaves the
     bracket is replaced by bisection (convergence guaranteed, quadratic near the root). The candidate
     modes of the bound are refreshed from the full (m, n) grid after every step longer than
-    ``NEWTON_REFRESH`` and confirmed at convergence; a step to a wall with no admissible voltage
-    (unstable at V̂ = 0, or no critical voltage) is halved. (The earlier design finished adam's iterate
+    ``NEWTON_REFRESH`` and confirmed at convergence. (The earlier design finished adam's iterate
     by Newton only once adam had come within 1e-3 of the target; adam's geometrically decaying
     step froze first on a silicone tube in SI: 0.31 % off after 500 steps, issue 43.)
 
@@ -496,16 +494,8 @@ def _newton(x_h, guess, bound, setting, n_layers, scheme, history, rtol, max_ste
             return None
         last = (xh, miss)
         x = x.at[0].set(new)
-        if abs(new - xh) > NEWTON_REFRESH:
-            for _ in range(NEWTON_HALVINGS):
-                if bound.refresh(x):
-                    break
-                # no admissible voltage at the step's end (e.g. a held pressure that the thinner
-                # wall cannot carry stably): half the step
-                new = 0.5 * (new + xh)
-                x = x.at[0].set(new)
-            else:
-                return None
+        if abs(new - xh) > NEWTON_REFRESH and not bound.refresh(x):
+            return None
     return None
 
 
