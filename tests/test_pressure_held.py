@@ -7,7 +7,6 @@ held design checked by direct solves."""
 import math
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
 

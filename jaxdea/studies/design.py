@@ -79,15 +79,15 @@ from ..params import (
 from ..physics.dispersion import characteristic
 from ..physics.problem import describe, family_of
 from ..physics.transfer import laminate, validate_scheme
-from ..solve.modes import root_distance
 from ..solve.instability import (
     first_instability,
-    held_critical_stretch,
     held_branch,
+    held_critical_stretch,
     held_critical_voltage,
     held_stretch,
     held_tube,
 )
+from ..solve.modes import root_distance
 from ..solve.roots import frequencies, solve_critical_voltage, solve_frequency
 
 DECAY = 0.97  # learning-rate factor per step
