@@ -64,6 +64,21 @@ def held_branch(tube: Tube, delta_p):
     return held_stretch(tube.replace(voltage=0.0), delta_p), static_limit(tube, delta_p)[0]
 
 
+def branch_walls(tube: Tube, delta_p) -> Tube:
+    """``tube`` with λ_i = (λ_0, λ_end), the ends of the branch held by ΔP̂ (its thickest wall and
+    its end: the discretisation chosen for both serves the branch).
+
+    Raises:
+        ValueError: a concrete ΔP̂ that holds no static state at V̂ = 0 (above the pull-in pressure).
+    """
+    lam0, lam_end = held_branch(tube, delta_p)
+    if not traced((lam0, lam_end)) and not bool(jnp.isfinite(lam0)):
+        raise ValueError(f"delta_p = {float(delta_p)!r} holds no static state at V̂ = 0 (it lies "
+                         "above the pull-in pressure of the tube, jaxdea.pull_in): give a smaller "
+                         "pressure difference")
+    return tube.replace(lambda_i=jnp.stack([lam0, jnp.maximum(lam_end, lam0)]))
+
+
 def critical_residual(tube: Tube, delta_p, alpha, m, n_layers, method="adaptive"):
     """h(λ) = f(Ω² = 0) of order m (traced; the 8×8 path, longitudinal at m = 0, fluid-free: the
     fluid's terms vanish like Ω²) at α̂ on the state held by ΔP̂ at λ_i = λ. ``method``: the
@@ -197,14 +212,8 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
     n_max = validate_max("n_max", n_max, 1)
     m_max = validate_max("m_max", m_max, 0)
     tube, delta_p = canonical(tube, delta_p)
-    lam0, lam_end = held_branch(tube, delta_p)
-    if not traced((lam0, lam_end)) and not bool(jnp.isfinite(lam0)):
-        raise ValueError(f"delta_p = {float(delta_p)!r} holds no static state at V̂ = 0 (it lies "
-                         "above the pull-in pressure of the tube, jaxdea.pull_in): give a smaller "
-                         "pressure difference")
-    # N for the worst point of the branch: its thickest wall (λ_0) and its end
-    wall = tube.replace(lambda_i=jnp.stack([lam0, jnp.maximum(lam_end, lam0)]))
-    layers, short = checked_laminate(n_layers, scheme, wall, mode_wavenumber(tube, n_max), m=m_max,
+    layers, short = checked_laminate(n_layers, scheme, branch_walls(tube, delta_p),
+                                     mode_wavenumber(tube, n_max), m=m_max,
                                      at_rest=True)
     first, _ = held_instability(tube, delta_p, n_max, m_max, layers)
     if short is not None:

@@ -80,8 +80,8 @@ from ..physics.dispersion import characteristic
 from ..physics.problem import describe, family_of
 from ..physics.transfer import laminate, validate_scheme
 from ..solve.instability import (
+    branch_walls,
     first_instability,
-    held_branch,
     held_critical_stretch,
     held_critical_voltage,
     held_stretch,
@@ -564,12 +564,7 @@ def _branch(tube, setting):
     thinnest walls: the run's discretisation serves both), or as it is when held by its stretch."""
     if "delta_p" not in setting:
         return tube
-    lam0, lam_end = held_branch(canonical(tube), setting["delta_p"])
-    if not math.isfinite(float(lam0)):
-        raise ValueError(f"delta_p = {float(setting['delta_p'])!r} holds no static state at V̂ = 0 "
-                         "(it lies above the pull-in pressure of the tube, jaxdea.pull_in): give a "
-                         "smaller pressure difference")
-    return tube.replace(lambda_i=np.asarray([float(lam0), max(float(lam_end), float(lam0))]))
+    return branch_walls(canonical(tube), setting["delta_p"])
 
 
 def _check_mode(m, torsional):
