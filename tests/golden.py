@@ -214,5 +214,9 @@ def record(path: Path = GOLDEN) -> None:
 
 
 if __name__ == "__main__":
-    jd.configure(cache=False)  # XLA's loop threshold, as the tests run (tests/conftest.py)
+    # exactly as the tests run (tests/conftest.py): the disk cache under .jax_cache and XLA's loop
+    # threshold. Programs called through the cache are exported ones, compiled from StableHLO, and
+    # can round differently from a direct jit (7 entries did by up to 1.2e-14): record as checked.
+    os.environ.setdefault("JAXDEA_CACHE_DIR", str(Path(__file__).resolve().parents[1] / ".jax_cache"))
+    jd.configure()
     record()
