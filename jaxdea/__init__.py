@@ -25,6 +25,7 @@ from .physics.dispersion import characteristic
 from .solve.accuracy import Estimate, frequencies_with_error
 from .solve.counting import CountStatus, RootCount, count_roots
 from .solve.curves import Curve, dispersion_curve
+from .solve.instability import first_instability
 from .solve.modes import ModeShape, fluid_pressure, mode_shape
 from .solve.roots import (
     Instability,
@@ -41,7 +42,6 @@ from .solve.roots import (
     solve_frequencies,
     solve_frequency,
 )
-from .solve.instability import first_instability
 from .solve.stability import Stability, stability
 from .solve.trace import Branch, BranchEnd, trace_branch
 from .studies.design import DesignResult, DesignStatus, design_for_frequency, maximise_tunability, tunability

@@ -20,6 +20,7 @@ from scipy.special import iv, ivp, jv, jvp, yv
 
 import jaxdea as jd
 from jaxdea.numerics.bessel import coupling_pair
+from jaxdea.physics import characteristic as ch
 from jaxdea.physics import dispersion as dp
 from jaxdea.physics import state_matrix as sm
 from jaxdea.physics import transfer as tr
@@ -38,8 +39,8 @@ LONG = dp.LONGITUDINAL_ROWS
 
 @functools.partial(jax.jit, static_argnames=("layers", "family", "order"))
 def _values(tube, ws, alpha, m, fluid, layers, family, order=0):
-    """f(w) on a batch of w = Ω² via :func:`dp.problem_function` (the solvers' builder)."""
-    _, fun = dp.problem_function(tube, alpha, fluid, layers, order, m, family, "omega_squared")
+    """f(w) on a batch of w = Ω² via the solvers' builder (characteristic.problem_function)."""
+    _, fun = ch.problem_function(tube, alpha, fluid, layers, order, m, family, "omega_squared")
     return jax.vmap(fun)(ws)
 
 
@@ -156,10 +157,10 @@ def test_problem_function_variables():
 
     @jax.jit
     def both(om):
-        wall, f6 = dp.problem_function(tube, alpha, None, 10, 0)
+        wall, f6 = ch.problem_function(tube, alpha, None, 10, 0)
         ref = jax.vmap(lambda o: dp.characteristic_on_wall(wall, o, alpha, None, 0, "adaptive"))(om)
-        _, f8 = dp.problem_function(tube, alpha, None, 10, 0, 2.0, dp.ORDER_M)
-        _, g8 = dp.problem_function(tube, alpha, None, 10, 0, 2.0, dp.ORDER_M, "omega_squared")
+        _, f8 = ch.problem_function(tube, alpha, None, 10, 0, 2.0, dp.ORDER_M)
+        _, g8 = ch.problem_function(tube, alpha, None, 10, 0, 2.0, dp.ORDER_M, "omega_squared")
         return jax.vmap(f6)(om), ref, jax.vmap(f8)(om), jax.vmap(g8)(om * om)
 
     f6, ref, f8, g8 = both(om)

@@ -311,16 +311,21 @@ def _integrals_complex(s, order):
     the same entire function of s up to a real positive factor: arg N, arg D and the direction of
     (N, D) are continuous across Re s = 0, and the trapezoidal rule on NODES points stays accurate
     for complex arguments while |x| + ν < RANGE (beyond: NaN). The factors are positive but not
-    analytic: only the arguments of N, D (and of the characteristic function) are meaningful.
+    analytic, so they are held constant under differentiation: the derivative of (N, D) in s is
+    the analytic one, times the factor.
     """
     theta = jnp.asarray(2.0 * np.pi * np.arange(NODES) / NODES)
     right = jnp.real(s) >= 0
     x = jnp.sqrt(jnp.where(right, s, -s))  # x (right) or x̃ (left), Re ≥ 0
     phase = order * theta - x * jnp.sin(theta)
-    shrink = jnp.exp(-jnp.abs(jnp.imag(x)))
+    # the positive factors are held constant under differentiation (stop_gradient: the same value):
+    # d/ds of N, D is then that of the entire function times a constant, so the log-derivative of
+    # the characteristic function is the analytic one (complex Newton steps,
+    # :mod:`jaxdea.physics.characteristic`)
+    shrink = jax.lax.stop_gradient(jnp.exp(-jnp.abs(jnp.imag(x))))
     j_nu = jnp.mean(jnp.cos(phase)) * shrink
     xj_prime = x * jnp.mean(jnp.sin(phase) * jnp.sin(theta)) * shrink
-    damp = jnp.exp(x * (jnp.cos(theta) - 1.0) + 1j * jnp.imag(x))  # e^{x̃ cos t − Re x̃}
+    damp = jnp.exp(x * (jnp.cos(theta) - 1.0) + 1j * jax.lax.stop_gradient(jnp.imag(x)))  # e^{x̃ cos t − Re x̃}
     i_nu = jnp.mean(damp * jnp.cos(order * theta))
     xi_prime = x * jnp.mean(jnp.cos(theta) * damp * jnp.cos(order * theta))
     factor = jnp.exp(order * np.log(2.0) + gammaln(order + 1.0) - order * jnp.log(x))  # 2^ν ν!/x^ν

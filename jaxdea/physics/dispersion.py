@@ -21,7 +21,7 @@ the problem: ``"longitudinal"`` (m = 0, the 6×6 system above, its code unchange
 Φ, T, Q, S; the acoustic fluid of order m through the U column only) and ``"torsional"``
 (m = 0, (V, Q) alone, no fluid coupling). Each is a function of w = Ω² of either sign
 (:func:`characteristic_of_w`; w < 0: unstable modes, docs/theory/order_m.md §6), with real arithmetic.
-The root solvers use :func:`problem_function`.
+The root solvers evaluate it through :mod:`jaxdea.physics.characteristic`.
 """
 
 
@@ -627,32 +627,3 @@ def reference_determinant_of_w(wall: Wall, omega_squared, alpha, fluid=None, ord
 def mode_family(m=0, torsional=False, fluid: Fluid | None = None) -> Family:
     """The static family of (m, torsional), validated (:func:`jaxdea.physics.problem.family_of`)."""
     return family_of(m, torsional, fluid)
-
-
-def problem_function(tube: Tube, alpha, fluid: Fluid | None, n_layers, order: int, m=0,
-                     family: str = LONGITUDINAL, variable: str = "omega"):
-    """(wall, f) with f the characteristic function of one case, for the root solvers (traceable).
-
-    Like ``jaxdea.solve.roots._problem``: the wall is discretised once and f evaluates with the adaptive
-    exponential (values and forward-mode slopes). ``variable="omega"``: f(Ω) (even in Ω);
-    ``"omega_squared"``: f(w), w = Ω² of either sign (unstable modes). ``family`` and ``order``
-    static, ``m`` traced (``"order_m"``); where m is inadmissible
-    (:meth:`~jaxdea.physics.families.Family.admissible`) f is
-    NaN. ``"longitudinal"`` f(Ω) is exactly the axisymmetric ``_problem``'s function.
-    """
-    if variable not in ("omega", "omega_squared"):
-        raise ValueError(f"variable must be 'omega' or 'omega_squared', got {variable!r}")
-    wall = discretize(tube, n_layers)
-    if family == LONGITUDINAL and variable == "omega":
-        return wall, lambda om: characteristic_on_wall(wall, om, alpha, fluid, order, "adaptive")
-    family = Family(family)
-    ok = family.admissible(m, fluid)
-    m_safe = family.safe_m(m, ok)
-
-    def of_w(w):
-        f = characteristic_of_w(wall, w, alpha, fluid, order, "adaptive", m_safe, family)
-        return jnp.where(ok, f, jnp.nan)
-
-    if variable == "omega_squared":
-        return wall, of_w
-    return wall, lambda om: of_w(om * om)

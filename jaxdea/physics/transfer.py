@@ -1051,7 +1051,7 @@ def _flag_reduced(q, z):
     sublayer, and f' = D det(BQ)[BZ] − f tr(QᵀZ) became the difference of huge terms (measured at
     α̂ĥ = 150: f' wrong in every digit, the scan's roots SUSPECT); what remains,
     Q̇ + Q (diag + strictly lower part of QᵀZ, transposed), is bounded by |Q̇| and |ℓ'|."""
-    a = jnp.einsum("ni,nj->ij", q, z)  # QᵀZ (k × k)
+    a = jnp.einsum("ni,nj->ij", jnp.conj(q) if jnp.iscomplexobj(q) else q, z)  # QᵀZ (QᴴZ if complex)
     upper = jnp.triu(a, 1)
     return z - sum(q[:, i : i + 1] * upper[i][None, :] for i in range(q.shape[-1] - 1))
 

@@ -75,7 +75,7 @@ import numpy as np
 
 from ..compiled import cached_jit, serializable
 from ..params import Fluid, Tube, as_float, canonical, validate_positive
-from ..physics.dispersion import characteristic_on_wall
+from ..physics import characteristic
 from ..physics.problem import describe
 from ..physics.state_matrix import LONGITUDINAL
 from ..physics.transfer import discretize, laminate
@@ -242,8 +242,8 @@ def count_roots_unchecked(tube, alpha, omega_lo, omega_hi, fluid, n_layers: int,
     delta = jnp.where(ok, delta, 1.0)
 
     def phasor(z):
-        f = jax.vmap(lambda om: characteristic_on_wall(wall, om, alpha, fluid, order, "taylor",
-                                                       m_safe, family))(z)
+        f = jax.vmap(lambda om: characteristic.value(family, wall, om, alpha, fluid, order,
+                                                     m_safe))(z)
         size = jnp.abs(f)
         finite = jnp.isfinite(size)
         return jnp.where(size > 0, f / jnp.where(size > 0, size, 1.0), 0.0), finite

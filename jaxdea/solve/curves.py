@@ -112,9 +112,10 @@ from ..params import (
     validate_alpha,
     validate_roots,
 )
+from ..physics import characteristic
 from ..physics.base_state import voltage_limit
+from ..physics.characteristic import Unknown
 from ..physics.dispersion import (
-    characteristic_on_wall,
     generator_polynomials,
     lane_generators,
     value_and_slope_on_wall,
@@ -266,8 +267,8 @@ def _omega_problem(problem, n_roots, m_safe, family, decoupled=None, polys=None,
     the scan's search range, as in :func:`jaxdea.frequencies` (None: automatic)."""
     def value(x, s, om):
         wall, a, fluid, order = problem(x, s)
-        return characteristic_on_wall(wall, om, a, fluid, order, "adaptive",
-                                      **family.arguments(m_safe))
+        return characteristic.value(family, wall, om, a, fluid, order, m_safe, Unknown.OMEGA,
+                                    "adaptive")
 
     def at(x, s):  # (f, f') for the corrector lanes
         wall, a, fluid, order = problem(x, s)

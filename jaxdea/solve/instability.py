@@ -22,8 +22,10 @@ import jax.numpy as jnp
 from ..compiled import cached_jit
 from ..numerics.scalar import Status, implicit_root
 from ..params import Fluid, Tube, as_float, canonical, guard, mode_wavenumber, traced, validate_real
+from ..physics import characteristic
 from ..physics.base_state import inner_stretch_traced, squared_voltage, static_limit
-from ..physics.dispersion import characteristic_of_w, check_inputs
+from ..physics.characteristic import Unknown
+from ..physics.dispersion import check_inputs
 from ..physics.state_matrix import ORDER_M
 from ..physics.transfer import checked_laminate, discretize
 from .roots import (
@@ -86,7 +88,8 @@ def critical_residual(tube: Tube, delta_p, alpha, m, n_layers, method="adaptive"
     derivatives of any order and mode (the implicit derivatives)."""
     def h(lambda_i):
         wall = discretize(held_tube(tube, delta_p, lambda_i), n_layers)
-        return characteristic_of_w(wall, jnp.zeros_like(lambda_i), alpha, None, 0, method, m, ORDER_M)
+        return characteristic.value(ORDER_M, wall, jnp.zeros_like(lambda_i), alpha, None, 0,
+                                    m, Unknown.OMEGA_SQUARED, method)
 
     return h
 

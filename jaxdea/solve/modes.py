@@ -30,6 +30,7 @@ from ..compiled import cached_jit
 from ..numerics.bessel import coupling_log_factor, coupling_pair
 from ..numerics.scalar import ROOT_RTOL, newton_distance, refuse_non_root, value_and_slope
 from ..params import Fluid, Tube, admissible, as_float, canonical, validate_count, validate_real
+from ..physics.characteristic import problem_function
 from ..physics.dispersion import (
     OUTER_ROWS,
     U,
@@ -37,7 +38,6 @@ from ..physics.dispersion import (
     initial_basis,
     initial_basis_of_w,
     outer_conditions,
-    problem_function,
 )
 from ..physics.families import Face
 from ..physics.problem import describe

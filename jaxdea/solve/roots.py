@@ -73,13 +73,12 @@ from ..params import (
     validate_range,
     validate_roots,
 )
+from ..physics import characteristic
 from ..physics.base_state import voltage_limit
+from ..physics.characteristic import Unknown, problem_function
 from ..physics.dispersion import (
     at_rest_value_and_slope,
     carried_jvp,
-    characteristic_of_w,
-    characteristic_on_wall,
-    problem_function,
     scale_and_slope_of_w,
     scale_and_slope_on_wall,
 )
@@ -167,7 +166,7 @@ def cutoff_steps(wall: Wall, alpha, fluid: Fluid | None, step, family: str = LON
     return next_point
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def bessel_derivative_zeros(order: int) -> np.ndarray:
     """The zeros j'_{ν,k} of J'_ν in [0, RANGE − ν), ascending (NumPy, computed once per ν).
 
@@ -210,7 +209,7 @@ TRACED_ORDERS = 32
 poles from a table of ν = 0 … TRACED_ORDERS; above it the scan has no pole points (the plain grid)."""
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _zeros_table() -> np.ndarray:
     """j'_{ν,k} for ν = 0 … TRACED_ORDERS, padded with inf, shape (TRACED_ORDERS + 1, K)."""
     rows = [bessel_derivative_zeros(nu) for nu in range(TRACED_ORDERS + 1)]
@@ -590,15 +589,13 @@ def _residual(x, tube, alpha, fluid, m, n_layers, order, unknown, family=LONGITU
     derivatives of any order."""
     if unknown == "voltage":
         wall = discretize(tube.replace(voltage=x), n_layers)
-        if not family.carries_m:
-            return characteristic_on_wall(wall, jnp.zeros_like(x), alpha, fluid, order, method)
-        return characteristic_of_w(wall, jnp.zeros_like(x), alpha, None, order, method, m, family)
+        return characteristic.value(family, wall, jnp.zeros_like(x), alpha,
+                                    None if family.carries_m else fluid, order, m, Unknown.OMEGA,
+                                    method)
     wall = discretize(tube, n_layers)
-    if not family.carries_m:
-        return characteristic_on_wall(wall, x, alpha, fluid, order, method)
-    if unknown == "growth":  # f at Ω = i s: Ω² = −s²
-        return characteristic_of_w(wall, -x * x, alpha, fluid, order, method, m, family)
-    return characteristic_of_w(wall, x * x, alpha, fluid, order, method, m, family)
+    growth = unknown == "growth" and family.carries_m  # f at Ω = i s: Ω² = −s²
+    return characteristic.value(family, wall, x, alpha, fluid, order, m,
+                                Unknown.GROWTH if growth else Unknown.OMEGA, method)
 
 
 class Residual(NamedTuple):
@@ -707,7 +704,7 @@ def attach_derivatives(roots: Roots, params, n_layers, order, unknown="omega",
 
 def _problem(tube, alpha, fluid, n_layers, order, m=0.0, family=LONGITUDINAL):
     """(wall, f) with f(Ω) the characteristic function of one case, for the solvers (values and
-    forward-mode slopes: the adaptive exponential); :func:`jaxdea.physics.dispersion.problem_function`."""
+    forward-mode slopes: the adaptive exponential); :func:`jaxdea.physics.characteristic.problem_function`."""
     return problem_function(tube, alpha, fluid, n_layers, order, m, family)
 
 
@@ -1165,7 +1162,7 @@ def _group_velocity(tube, alpha, omega, fluid, n_layers, order, m=0.0, family=LO
     omega = jnp.where(ok, omega, 1.0)
     if not family.carries_m:
         wall = discretize(tube, n_layers)
-        f = lambda om, al: characteristic_on_wall(wall, om, al, fluid, order)  # noqa: E731
+        f = lambda om, al: characteristic.value(family, wall, om, al, fluid, order)  # noqa: E731
     else:
         f = lambda om, al: _residual(om, tube, al, fluid, m, n_layers, order, "omega",  # noqa: E731
                                      family)
@@ -1220,11 +1217,10 @@ def critical_function(tube, alpha, fluid, n_layers, order, v_end=None, m=0.0, fa
         if magnus:
             return carried(v)
         wall = wall_at_voltage(expansion, v)
-        if not family.carries_m:
-            return characteristic_on_wall(wall, jnp.zeros_like(v), alpha, fluid, order, "at_rest")
-        # fluid-free: κ ∝ Ω² vanishes at Ω = 0 (docs/theory/order_m.md §6)
-        return characteristic_of_w(wall, jnp.zeros_like(v), alpha, None, order, "at_rest", m_safe,
-                                   family)
+        # fluid-free off the axisymmetric family: κ ∝ Ω² vanishes at Ω = 0 (docs/theory/order_m.md §6)
+        return characteristic.value(family, wall, jnp.zeros_like(v), alpha,
+                                    None if family.carries_m else fluid, order, m_safe,
+                                    Unknown.OMEGA, "at_rest")
 
     return ok, g, v_end
 

@@ -89,7 +89,7 @@ from ..params import (
     validate_real,
     validate_tube,
 )
-from ..physics.dispersion import characteristic_on_wall
+from ..physics import characteristic
 from ..physics.leaves import FLUID_LEAVES, check_names, get_parameter, set_parameter
 from ..physics.problem import describe
 from ..physics.state_matrix import LONGITUDINAL
@@ -406,8 +406,7 @@ def _trace_branch(tube, alpha, omega, fluid, stop, max_step, along, max_points, 
     def residual(s, om):
         t, a, fl = set_parameter(tube, alpha, fluid, along, s)
         wall = wall0 if wall_is_fixed else discretize(t, n_layers)
-        f = characteristic_on_wall(wall, om, as_float(a), fl, order, "taylor",
-                                   **family.arguments(m_safe))
+        f = characteristic.value(family, wall, om, as_float(a), fl, order, m_safe)
         return jnp.where(ok, f, jnp.nan)
 
     return continue_branch(residual, s0, omega, stop, max_points, max_step,

@@ -54,8 +54,8 @@ from ..params import (
     validate_positive,
     validate_roots,
 )
+from ..physics import characteristic
 from ..physics.base_state import inner_stretch_traced
-from ..physics.dispersion import characteristic_on_wall
 from ..physics.families import Face
 from ..physics.leaves import FLUID_LEAVES, TUBE_LEAVES, apply_parameters, check_names, get_parameter
 from ..physics.problem import family_of
@@ -406,7 +406,7 @@ def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_
         moved = dict(zip(jac_names, x[2:], strict=True), **held)
         t, a, f = apply_parameters(*point, moved)
         _, t, a, f = guard(t, as_float(a) + x[1], f)
-        return characteristic_on_wall(discretize(t, n_layers), x[0], a, f, nu, "taylor", m, family)
+        return characteristic.value(family, discretize(t, n_layers), x[0], a, f, nu, m)
 
     theta = [get_parameter(*point, name) for name in jac_names]
 

@@ -1,0 +1,164 @@
+"""The characteristic function: one contract for every family, unknown and dtype.
+
+A case is a :class:`~jaxdea.physics.problem.Problem` (family, inner face, Bessel order ν) on a
+discretised wall, with one unknown x and the other variable fixed (:class:`Unknown`):
+
+* ``omega``: x = Ω at a fixed α̂ (frequencies);
+* ``omega_squared``: x = w = Ω² of either sign at a fixed α̂ (w < 0: unstable modes);
+* ``growth``: x = s with Ω = i s, w = −s² (growth rates);
+* ``alpha``: x = α̂ at a fixed Ω (wavenumbers).
+
+With Y = A S the initial basis carried across the wall (A = T_N ⋯ T_1) and Out the outer-face
+rows, F(x) = det(Out A S) is the characteristic determinant (docs/theory/axisymmetric.md §4,
+docs/theory/order_m.md §4–§6): entire in Ω², polynomial in α̂ through the generators, pole-free with
+the fluid's denominators cleared. The library evaluates the scaled
+
+    f(x) = det(Out Q_N),   A S = Q_N R,   F = f · det R,   det R > 0,
+
+(the basis re-orthonormalised after every sublayer, :func:`jaxdea.physics.transfer.carry_basis`):
+|f| ≤ 1, the zeros of F, the sign of F for real x and the argument of F for complex x.
+
+Generic in dtype: a real x gives the real f of the solvers; a complex x (complex Ω, complex α̂)
+the complex f. f is not analytic in a complex x (R comes from Hermitian Gram–Schmidt), but the
+log-derivative of F is, and it is what a complex Newton step needs:
+
+    d ln F/dx = tr((Out Q_N)⁻¹ (Out' Q_N + Out Z)),   Z = Y' R⁻¹,
+
+with Z carried in the frame of Q (:func:`jaxdea.physics.transfer.carry_basis_tangent`), so the
+re-orthonormalisation is never differentiated. x ← x − 1/(d ln F/dx) is Newton's step on F
+(:func:`value_and_log_slope`). For real x, f' = f (d ln F/dx − d ln det R/dx).
+
+The real-Ω capabilities of the solvers (polynomials in α̂ and w, the decoupled electric block, the
+4×4 mechanical path: :func:`jaxdea.physics.dispersion.value_and_slope_on_wall`) evaluate this same
+f, to rounding; :func:`value` is the one entry for values.
+"""
+
+import enum
+
+import jax
+import jax.numpy as jnp
+
+from ..params import Fluid, Tube
+from .dispersion import (
+    characteristic_of_w,
+    characteristic_on_wall,
+    determinant,
+    initial_basis_of_w,
+    outer_conditions,
+)
+from .families import Family
+from .transfer import (
+    EXPONENTIALS,
+    Wall,
+    alpha_generators,
+    carry_basis,
+    carry_basis_tangent,
+    discretize,
+    generator_of_w,
+    generators_at_alpha,
+    wall_generators,
+)
+
+
+class Unknown(enum.StrEnum):
+    """The unknown x of the characteristic function, the other variable fixed (module docstring)."""
+
+    OMEGA = "omega"
+    OMEGA_SQUARED = "omega_squared"
+    GROWTH = "growth"
+    ALPHA = "alpha"
+
+    def point(self, x, fixed):
+        """(w, α̂) = (Ω², α̂) at x; ``fixed`` is α̂, or Ω for ``alpha``."""
+        if self is Unknown.ALPHA:
+            return fixed * fixed, x
+        if self is Unknown.OMEGA:
+            return x * x, fixed
+        if self is Unknown.GROWTH:
+            return -x * x, fixed
+        return x, fixed
+
+
+def value(family: Family, wall: Wall, x, fixed, fluid=None, order: int = 0, m=0,
+          unknown: Unknown = Unknown.OMEGA, method: str = "taylor"):
+    """f(x) = det(Out Q_N) (module docstring), real for real x, complex for complex x.
+
+    ``family``, ``order``, ``unknown`` and ``method`` (the sublayer exponential,
+    :data:`jaxdea.physics.transfer.EXPONENTIALS`) are static; ``m`` may be traced (``order_m``).
+    A real Ω, w or s takes the solvers' code path of the family (the 6×6 longitudinal system in Ω,
+    the order-m and torsional systems in w); x = α̂ the generators as polynomials in α̂
+    (:func:`jaxdea.physics.transfer.alpha_generators`), exact for complex α̂."""
+    family, unknown = Family(family), Unknown(unknown)
+    if unknown is Unknown.ALPHA:
+        basis, exponentials, out = _pieces(family, wall, x, fixed, fluid, order, m, unknown, method)
+        q, _ = carry_basis(basis, exponentials)
+        return determinant(out @ q)
+    if unknown is Unknown.OMEGA and not family.carries_m:
+        return characteristic_on_wall(wall, x, fixed, fluid, order, method)
+    w, alpha = unknown.point(x, fixed)
+    return characteristic_of_w(wall, w, alpha, fluid, order, method, m, family)
+
+
+def value_and_log_slope(family: Family, wall: Wall, x, fixed, fluid=None, order: int = 0, m=0,
+                        unknown: Unknown = Unknown.OMEGA):
+    """(f, d ln F/dx) at x, real or complex (module docstring).
+
+    f is the value of :func:`value` (the same zeros, sign and argument as F); d ln F/dx is the
+    analytic log-derivative of F = det(Out A S), so that x − 1/(d ln F/dx) is Newton's step on F
+    at a complex x too. Only the sublayer exponentials, the initial basis and the outer rows are
+    differentiated (forward mode, tangent 1 in x), never the re-orthonormalisation."""
+    family, unknown = Family(family), Unknown(unknown)
+    x = jnp.asarray(x, dtype=jnp.result_type(x, jnp.float64))
+    (basis, exponentials, out), (basis_dot, exponentials_dot, out_dot) = jax.jvp(
+        lambda y: _pieces(family, wall, y, fixed, fluid, order, m, unknown, "taylor"),
+        (x,), (jnp.ones_like(x),))
+    q, z = carry_basis_tangent(basis, basis_dot, exponentials, exponentials_dot)
+    outer_q = out @ q
+    log_slope = jnp.trace(jnp.linalg.solve(outer_q, out_dot @ q + out @ z))
+    return determinant(outer_q), log_slope
+
+
+def _pieces(family: Family, wall: Wall, x, fixed, fluid, order, m, unknown: Unknown, method):
+    """(S, T_k, Out) at x: the initial basis, the sublayer exponentials (N, n, n) and the outer
+    rows, in the dtype of x (analytic in x: the generators are polynomials in w and α̂)."""
+    w, alpha = unknown.point(x, fixed)
+    if unknown is Unknown.ALPHA:
+        coefficients = generators_at_alpha(alpha_generators(wall, m, family), alpha)
+    else:
+        coefficients = wall_generators(wall, alpha, m, family)
+    generators = jax.vmap(generator_of_w, (0, None))(coefficients, w)
+    exponentials = jax.vmap(EXPONENTIALS[method])(generators)
+    dtype = jnp.result_type(x, jnp.float64)
+    basis = initial_basis_of_w(wall, w, alpha, fluid, order, m, family)
+    out = outer_conditions(wall, alpha, m, family)
+    return basis.astype(dtype), exponentials.astype(dtype), out.astype(dtype)
+
+
+def problem_function(tube: Tube, alpha, fluid: Fluid | None, n_layers, order: int, m=0,
+                     family: Family = Family.LONGITUDINAL, variable: str = "omega"):
+    """(wall, f) with f the characteristic function of one case, for the root solvers (traceable).
+
+    :func:`value` for one public case: the wall is discretised once and f evaluates with the
+    adaptive exponential (values and forward-mode slopes). ``variable="omega"``: f(Ω) (even in Ω);
+    ``"omega_squared"``: f(w), w = Ω² of either sign (unstable modes). ``family`` and ``order``
+    static, ``m`` traced (``"order_m"``); where m is inadmissible
+    (:meth:`~jaxdea.physics.families.Family.admissible`) f is
+    NaN.
+    """
+    if variable not in ("omega", "omega_squared"):
+        raise ValueError(f"variable must be 'omega' or 'omega_squared', got {variable!r}")
+    wall = discretize(tube, n_layers)
+    family = Family(family)
+    if family is Family.LONGITUDINAL and variable == "omega":
+        return wall, lambda om: value(family, wall, om, alpha, fluid, order, 0, Unknown.OMEGA,
+                                      "adaptive")
+    ok = family.admissible(m, fluid)
+    m_safe = family.safe_m(m, ok)
+
+    def of_w(w):
+        f = value(family, wall, w, alpha, fluid, order, m_safe, Unknown.OMEGA_SQUARED, "adaptive")
+        return jnp.where(ok, f, jnp.nan)
+
+    if variable == "omega_squared":
+        return wall, of_w
+    return wall, lambda om: of_w(om * om)
