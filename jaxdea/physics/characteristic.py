@@ -39,11 +39,15 @@ import jax
 import jax.numpy as jnp
 
 from ..params import Fluid, Tube
+from . import dispersion
 from .dispersion import (
+    carried_jvp,
     characteristic_of_w,
     characteristic_on_wall,
     determinant,
+    generator_polynomials,
     initial_basis_of_w,
+    lane_generators,
     outer_conditions,
 )
 from .families import Family
@@ -116,6 +120,44 @@ def value_and_log_slope(family: Family, wall: Wall, x, fixed, fluid=None, order:
     outer_q = out @ q
     log_slope = jnp.trace(jnp.linalg.solve(outer_q, out_dot @ q + out @ z))
     return determinant(outer_q), log_slope
+
+
+def value_and_slope(family: Family, wall: Wall, omega, alpha, fluid=None, order: int = 0, m=0,
+                    decoupled=None, generators=None):
+    """(f, df/dΩ) at a real Ω, the slope carried across the wall (no forward mode through
+    Gram–Schmidt): the solvers' corrector lanes. The longitudinal family takes the 4×4 mechanical
+    path where the electric block decouples (``decoupled``), and ``generators`` (those of
+    :func:`lane_generators` at this α̂, from :func:`generator_polynomials`) spare forming them
+    (:func:`jaxdea.physics.dispersion.value_and_slope_on_wall`). f equals :func:`value` to rounding."""
+    return dispersion.value_and_slope_on_wall(wall, omega, alpha, fluid, order, m, Family(family),
+                                              decoupled, generators)
+
+
+def scaled(family: Family, wall: Wall, alpha, fluid=None, order: int = 0, m=0,
+           unknown: Unknown = Unknown.OMEGA, decoupled: bool = False, generators=None):
+    """x ↦ (f, ℓ) with F = f e^ℓ (ℓ = log det R) at a real Ω (``omega``) or w (``omega_squared``),
+    whose forward-mode slope is the carried one (f' and ℓ' = tr(QᵀZ)): the function the root scan
+    classifies (:func:`jaxdea.solve.roots.scanned_function`). ``decoupled`` and ``generators``: as
+    for :func:`value_and_slope` (the longitudinal family in Ω)."""
+    family, unknown = Family(family), Unknown(unknown)
+    if not family.carries_m and unknown is Unknown.OMEGA:
+        return dispersion.scale_and_slope_on_wall(wall, alpha, fluid, order, decoupled, generators)
+    return dispersion.scale_and_slope_of_w(wall, alpha, fluid, order, m, family, unknown.value,
+                                           generators)
+
+
+def at_rest_value_and_slope(family: Family, wall_of, exponentials_of, voltage, alpha, fluid=None,
+                            order: int = 0, m=0):
+    """(f, df/dV̂) at Ω = 0 on the wall ``wall_of``(V̂) with the sublayer exponentials
+    ``exponentials_of``(V̂), the slope carried across the wall: the critical-voltage search
+    (:func:`jaxdea.physics.dispersion.at_rest_value_and_slope`)."""
+    return dispersion.at_rest_value_and_slope(wall_of, exponentials_of, voltage, alpha, fluid, order,
+                                              m, Family(family))
+
+
+__all__ = ["Unknown", "at_rest_value_and_slope", "carried_jvp", "generator_polynomials",
+           "lane_generators", "problem_function", "scaled", "value", "value_and_log_slope",
+           "value_and_slope"]
 
 
 def _pieces(family: Family, wall: Wall, x, fixed, fluid, order, m, unknown: Unknown, method):

@@ -114,12 +114,7 @@ from ..params import (
 )
 from ..physics import characteristic
 from ..physics.base_state import voltage_limit
-from ..physics.characteristic import Unknown
-from ..physics.dispersion import (
-    generator_polynomials,
-    lane_generators,
-    value_and_slope_on_wall,
-)
+from ..physics.characteristic import Unknown, generator_polynomials, lane_generators
 from ..physics.families import Face
 from ..physics.problem import describe
 from ..physics.state_matrix import LONGITUDINAL, ORDER_M
@@ -273,8 +268,8 @@ def _omega_problem(problem, n_roots, m_safe, family, decoupled=None, polys=None,
     def at(x, s):  # (f, f') for the corrector lanes
         wall, a, fluid, order = problem(x, s)
         generators = None if polys is None else lane_generators(polys, a)
-        return lambda om: value_and_slope_on_wall(wall, om, a, fluid, order, m_safe, family,
-                                                  decoupled, generators)
+        return lambda om: characteristic.value_and_slope(family, wall, om, a, fluid, order,
+                                                         m_safe, decoupled, generators)
 
     def search(x, s):
         # the unnormalised determinant and, for the paper's coupling, points at its poles
@@ -480,8 +475,8 @@ def frequency_along(tube, alpha, guess, fluid, m=0.0, *, n_layers, order, family
         nan = jnp.full((1,), jnp.nan)
         lanes = start_lanes(x[None], x[None], nan, nan, nan, nan, jnp.array([3]), max_step=step,
                             pairs=False)
-        lanes = iterate_lanes(lambda om: value_and_slope_on_wall(
-            wall, om, a, fluid, order, m_safe, family, decoupled, generators), lanes,
+        lanes = iterate_lanes(lambda om: characteristic.value_and_slope(
+            family, wall, om, a, fluid, order, m_safe, decoupled, generators), lanes,
             with_slope=True)
         return jnp.where(lanes.status == Status.CONVERGED, lanes.x, jnp.nan)[0], lanes.status[0]
 

@@ -75,13 +75,7 @@ from ..params import (
 )
 from ..physics import characteristic
 from ..physics.base_state import voltage_limit
-from ..physics.characteristic import Unknown, problem_function
-from ..physics.dispersion import (
-    at_rest_value_and_slope,
-    carried_jvp,
-    scale_and_slope_of_w,
-    scale_and_slope_on_wall,
-)
+from ..physics.characteristic import Unknown, carried_jvp, problem_function
 from ..physics.families import Face
 from ..physics.problem import Problem, describe
 from ..physics.state_matrix import LONGITUDINAL, ORDER_M
@@ -304,10 +298,12 @@ def scanned_function(wall: Wall, alpha, fluid: Fluid | None, order: int, m=0.0,
     acoustic 9.0 → 8.1).
     """
     if not family.carries_m and variable == "omega":
-        return Scaled(scale_and_slope_on_wall(wall, alpha, fluid, order, decoupled, generators))
+        return Scaled(characteristic.scaled(family, wall, alpha, fluid, order, 0, Unknown.OMEGA,
+                                            decoupled, generators))
     ok = family.admissible(m, fluid)
     m_safe = family.safe_m(m, ok)
-    carried = scale_and_slope_of_w(wall, alpha, fluid, order, m_safe, family, variable, generators)
+    carried = characteristic.scaled(family, wall, alpha, fluid, order, m_safe, Unknown(variable),
+                                    decoupled, generators)
 
     def scaled(x):
         f, log_scale = carried(x)
@@ -1209,9 +1205,9 @@ def critical_function(tube, alpha, fluid, n_layers, order, v_end=None, m=0.0, fa
 
         # g' carried across the wall, not forward mode through Gram–Schmidt (first call 3.9 → 3.4
         # CPU s, first_instability 23 → 16, measured)
-        carried = carried_jvp(lambda v: at_rest_value_and_slope(
-            lambda u: wall_at_voltage(expansion, u), lambda u: voltage_exponentials(generators, u),
-            v, alpha, fluid, order, m_safe, family))
+        carried = carried_jvp(lambda v: characteristic.at_rest_value_and_slope(
+            family, lambda u: wall_at_voltage(expansion, u),
+            lambda u: voltage_exponentials(generators, u), v, alpha, fluid, order, m_safe))
 
     def g(v):  # f(Ω = 0; V̂ = v), the wall formed from its expansion in V̂ (the same function)
         if magnus:
