@@ -23,6 +23,7 @@ SECTION_TITLES = {
     "sweeps": "Sweeps",
     "accuracy": "Accuracy control",
     "counting": "Root counting",
+    "wavenumbers": "Complex wavenumbers",
     "modes": "Mode shapes",
     "base_state": "Static state",
     "design": "Design",

@@ -44,6 +44,7 @@ from .solve.roots import (
 )
 from .solve.stability import Stability, stability
 from .solve.trace import Branch, BranchEnd, trace_branch
+from .solve.wavenumbers import SearchStatus, Wavenumbers, wavenumbers
 from .studies.design import DesignResult, DesignStatus, design_for_frequency, maximise_tunability, tunability
 from .studies.fit import FitResult, FitStatus, IdentifiabilityWarning, fit, fitted_frequencies
 from .studies.peaks import read_peaks, write_peaks
@@ -65,10 +66,12 @@ __all__ = [
     "Instability",
     "RootCount",
     "Roots",
+    "SearchStatus",
     "Stability",
     "Status",
     "SweepResult",
     "Tube",
+    "Wavenumbers",
     "axial_wavenumber",
     "characteristic",
     "configure",
@@ -106,6 +109,7 @@ __all__ = [
     "trace_branch",
     "tunability",
     "units",
+    "wavenumbers",
     "with_thickness_ratio",
     "write_fit",
     "write_peaks",

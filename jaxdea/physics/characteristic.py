@@ -41,13 +41,10 @@ import jax.numpy as jnp
 from ..params import Fluid, Tube
 from . import dispersion
 from .dispersion import (
-    carried_jvp,
     characteristic_of_w,
     characteristic_on_wall,
     determinant,
-    generator_polynomials,
     initial_basis_of_w,
-    lane_generators,
     outer_conditions,
 )
 from .families import Family
@@ -127,7 +124,7 @@ def value_and_slope(family: Family, wall: Wall, omega, alpha, fluid=None, order:
     """(f, df/dΩ) at a real Ω, the slope carried across the wall (no forward mode through
     Gram–Schmidt): the solvers' corrector lanes. The longitudinal family takes the 4×4 mechanical
     path where the electric block decouples (``decoupled``), and ``generators`` (those of
-    :func:`lane_generators` at this α̂, from :func:`generator_polynomials`) spare forming them
+    :func:`jaxdea.physics.dispersion.lane_generators` at this α̂) spare forming them
     (:func:`jaxdea.physics.dispersion.value_and_slope_on_wall`). f equals :func:`value` to rounding."""
     return dispersion.value_and_slope_on_wall(wall, omega, alpha, fluid, order, m, Family(family),
                                               decoupled, generators)
@@ -153,11 +150,6 @@ def at_rest_value_and_slope(family: Family, wall_of, exponentials_of, voltage, a
     (:func:`jaxdea.physics.dispersion.at_rest_value_and_slope`)."""
     return dispersion.at_rest_value_and_slope(wall_of, exponentials_of, voltage, alpha, fluid, order,
                                               m, Family(family))
-
-
-__all__ = ["Unknown", "at_rest_value_and_slope", "carried_jvp", "generator_polynomials",
-           "lane_generators", "problem_function", "scaled", "value", "value_and_log_slope",
-           "value_and_slope"]
 
 
 def _pieces(family: Family, wall: Wall, x, fixed, fluid, order, m, unknown: Unknown, method):

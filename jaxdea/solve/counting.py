@@ -142,9 +142,32 @@ def _phase_count(phasor, lo, hi, height, symmetric, max_evaluations):
         (count, status, evaluations).
     """
     starts, ends, divisor, pieces = _contour(lo, hi, height, symmetric)
+    return winding_count(phasor, starts, ends, divisor, pieces, 2.0 * height,
+                         MIN_RELATIVE_LENGTH * jnp.maximum(jnp.abs(hi), height), max_evaluations)
+
+
+def rectangle(corner_lo, corner_hi):
+    """The sides (starts, ends), divisor 2π and initial pieces of the counter-clockwise rectangle
+    with corners ``corner_lo`` (lower left) and ``corner_hi`` (upper right) in the complex plane,
+    for :func:`winding_count`."""
+    lo, hi = jnp.asarray(corner_lo, complex), jnp.asarray(corner_hi, complex)
+    low_right = jnp.real(hi) + 1j * jnp.imag(lo)
+    up_left = jnp.real(lo) + 1j * jnp.imag(hi)
+    starts, ends = jnp.stack([lo, low_right, hi, up_left]), jnp.stack([low_right, hi, up_left, lo])
+    return starts, ends, 2.0 * np.pi, (15, 15, 15, 15)
+
+
+def winding_count(phasor, starts, ends, divisor, pieces, h_max, h_min, max_evaluations):
+    """Zeros inside the closed polygon with sides ``starts`` → ``ends``: the winding of the unit
+    phasor F/|F| (with a finiteness flag) that ``phasor(z)`` gives for z of shape (LANES,), divided
+    by ``divisor``/2π (π for the symmetric half-contour of :func:`_contour`). Sides are cut into
+    ``pieces`` (static, LANES points in all) and refined by bisection as the module docstring says,
+    to segments of at most ``h_max`` and at least ``h_min``.
+
+    Returns:
+        (count, status, evaluations).
+    """
     lengths = jnp.abs(ends - starts)
-    h_max = 2.0 * height
-    h_min = MIN_RELATIVE_LENGTH * jnp.maximum(jnp.abs(hi), height)
     side0, tau0 = _initial_points(pieces)
     lane = jnp.arange(LANES)
 

@@ -114,7 +114,8 @@ from ..params import (
 )
 from ..physics import characteristic
 from ..physics.base_state import voltage_limit
-from ..physics.characteristic import Unknown, generator_polynomials, lane_generators
+from ..physics.characteristic import Unknown
+from ..physics.dispersion import generator_polynomials, lane_generators
 from ..physics.families import Face
 from ..physics.problem import describe
 from ..physics.state_matrix import LONGITUDINAL, ORDER_M

@@ -75,7 +75,8 @@ from ..params import (
 )
 from ..physics import characteristic
 from ..physics.base_state import voltage_limit
-from ..physics.characteristic import Unknown, carried_jvp, problem_function
+from ..physics.characteristic import Unknown, problem_function
+from ..physics.dispersion import carried_jvp
 from ..physics.families import Face
 from ..physics.problem import Problem, describe
 from ..physics.state_matrix import LONGITUDINAL, ORDER_M

@@ -1,0 +1,271 @@
+"""Complex wavenumbers at a real frequency: propagating, attenuated and evanescent waves
+(API.md, "Real tubes"; docs/theory/real_tubes.md §5).
+
+At a real Ω the characteristic function is a function of α̂ (:mod:`jaxdea.physics.characteristic`,
+unknown ``alpha``): F(α̂) = det(Out A S) is entire in α̂ (the generators are polynomials in α̂, the
+fluid's pair entire in χ̂² = Ω²/ĉ_f² − α̂²) and F(−α̂) = ±F(α̂) (u_z ∝ sin α̂z), so the roots come in
+pairs ±α̂; the wave is reported by the root with Re α̂ ≥ 0. For a lossless tube F has real
+coefficients too, so the roots are real (propagating), purely imaginary (evanescent, ±iκ) or
+complex quartets.
+
+Search and certificate. The roots are sought in bands of the box [0, α_max] × [−B, B], the first
+through the real axis, each next one twice as high:
+
+* the right part [ε, α_max] of a band (ε = 1e-3 α_max): Newton on F (the contract's analytic
+  log-derivative, x ← x − 1/(d ln F/dx)) from a grid of starts over it;
+* the strip [−ε, ε] of a band about the imaginary axis (above η = 1e-3 B in the first band): Newton
+  from starts iκ on the axis.
+
+Each part's roots are counted by the argument principle on its contour
+(:func:`jaxdea.solve.counting.winding_count`); the grid of starts is refined until the distinct
+converged roots match the count (certified), or the result says it is not. B starts at max(1, Ω)
+and doubles until ``n_roots`` roots are certified, so the roots reported are the ``n_roots``
+nearest the real axis with Re α̂ ≤ α_max. The default α_max = 2Ω/min(c_min, ĉ_f) + 4 max(1, Ω)
+(c_min the slowest shear speed of the wall) holds the short waves, which travel near the
+surface-wave speed; a soft mode near an instability can be slower and needs a larger one.
+"""
+
+import enum
+import functools
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..compiled import serializable
+from ..numerics.scalar import Status
+from ..params import (
+    Fluid,
+    Tube,
+    as_float,
+    canonical,
+    validate_count,
+    validate_fluid,
+    validate_positive,
+)
+from ..physics import characteristic
+from ..physics.characteristic import Unknown
+from ..physics.families import Face
+from ..physics.problem import describe
+from ..physics.transfer import discretize, laminate
+from .counting import LANES, MIN_RELATIVE_LENGTH, CountStatus, rectangle, winding_count
+
+MAX_EVALUATIONS = 20_000
+"""Evaluations of f allowed per contour count."""
+NEWTON_STEPS = 40
+"""Newton steps from each start."""
+GRID = (8, 4)
+"""Starts over a band (along Re α̂, along Im α̂); doubled when the count is not met."""
+REFINEMENTS = 3
+"""Doublings of the grid of starts before a part is reported uncertified."""
+DOUBLINGS = 5
+"""Doublings of the box height B before the search gives up on ``n_roots``."""
+PAD = 32
+"""Starts are padded to a multiple of PAD (one compiled Newton program per multiple)."""
+ROOT_RTOL = 1e-10
+"""Relative Newton step at which a start has converged."""
+
+
+class SearchStatus(enum.IntEnum):
+    """How complete the list of :func:`wavenumbers` is."""
+
+    CERTIFIED = 0  # every root in the box was found: the argument-principle count is met
+    NOT_CERTIFIED = 1  # fewer distinct roots were found than the count says the box holds
+    COUNT_FAILED = 2  # the count itself failed (a zero on the contour, a non-finite value)
+
+
+@serializable
+class Wavenumbers(NamedTuple):
+    """The roots α̂ of :func:`wavenumbers` (complex, Re α̂ ≥ 0, by |Im α̂| then Re α̂, NaN-padded),
+    their ``attenuation`` |Im α̂| (per unit R_i), a per-root ``status`` (:class:`Status`:
+    CONVERGED, or NO_ROOT for padding) and the search's ``certificate`` (:class:`SearchStatus`)."""
+
+    alpha: jax.Array
+    attenuation: jax.Array
+    status: jax.Array
+    certificate: jax.Array
+
+
+def _phasor(problem, wall, omega, fluid, m):
+    def phasor(z):
+        f = jax.vmap(lambda x: characteristic.value(problem.family, wall, x, omega, fluid,
+                                                    problem.order, m, Unknown.ALPHA))(z)
+        size = jnp.abs(f)
+        finite = jnp.isfinite(size)
+        return jnp.where(size > 0, f / jnp.where(size > 0, size, 1.0), 0.0), finite
+
+    return phasor
+
+
+@functools.partial(jax.jit, static_argnames=("problem",))
+def _count(problem, wall, omega, fluid, m, corner_lo, corner_hi):
+    """Zeros of F(α̂) in the rectangle (corner_lo, corner_hi): (count, status)."""
+    starts, ends, divisor, pieces = rectangle(corner_lo, corner_hi)
+    size = jnp.abs(corner_hi - corner_lo)
+    count, status, _ = winding_count(_phasor(problem, wall, omega, fluid, m), starts, ends, divisor,
+                                     pieces, size / LANES, MIN_RELATIVE_LENGTH * size,
+                                     MAX_EVALUATIONS)
+    return count, status
+
+
+@functools.partial(jax.jit, static_argnames=("problem",))
+def _newton(problem, wall, omega, fluid, m, starts):
+    """Newton on F from every start: (roots, converged) (complex Newton with the analytic
+    log-derivative of :func:`jaxdea.physics.characteristic.value_and_log_slope`)."""
+    def one(x0):
+        def step(_, state):
+            x, done = state
+            _, log_slope = characteristic.value_and_log_slope(problem.family, wall, x, omega, fluid,
+                                                              problem.order, m, Unknown.ALPHA)
+            dx = jnp.where(done, 0.0, 1.0 / log_slope)
+            ok = jnp.isfinite(dx)
+            x_new = jnp.where(ok, x - dx, x)
+            return x_new, done | ~ok | (jnp.abs(dx) <= ROOT_RTOL * jnp.abs(x_new))
+
+        def going(state):
+            return (state[0] < NEWTON_STEPS) & ~state[2]
+
+        def counted(state):
+            k, x, done = state
+            return (k + 1, *step(k, (x, done)))
+
+        _, x, done = jax.lax.while_loop(going, counted, (0, x0, jnp.asarray(False)))
+        f = characteristic.value(problem.family, wall, x, omega, fluid, problem.order, m,
+                                 Unknown.ALPHA)
+        return x, done & jnp.isfinite(jnp.abs(x)) & (jnp.abs(f) < 1e-8)
+
+    return jax.vmap(one)(starts)
+
+
+def _distinct(roots, scale):
+    """The distinct roots (within 1e-7 of the box size) in first-found order."""
+    kept = []
+    for z in roots:
+        if all(abs(z - k) > 1e-7 * scale for k in kept):
+            kept.append(z)
+    return kept
+
+
+def _search(problem, wall, omega, fluid, m, lo, hi, starts_of):
+    """(roots inside the box lo–hi, certified?, count status) by Newton from the starts that
+    ``starts_of(k)`` gives at refinement k, until the distinct roots match the count."""
+    count, status = (int(v) for v in _count(problem, wall, omega, fluid, m, lo, hi))
+    if status != CountStatus.CERTIFIED:
+        return [], SearchStatus.COUNT_FAILED
+    inside = []
+    for k in range(REFINEMENTS + 1):
+        starts = np.asarray(starts_of(k), complex)
+        padded = np.resize(starts, -(-starts.size // PAD) * PAD)  # few programs: sizes in PADs
+        roots, ok = _newton(problem, wall, omega, fluid, m, jnp.asarray(padded))
+        found = [complex(z) for z, good in zip(np.asarray(roots), np.asarray(ok), strict=True)
+                 if good and lo.real <= z.real <= hi.real and lo.imag <= z.imag <= hi.imag]
+        inside = _distinct(inside + found, abs(hi - lo))
+        if len(inside) >= count:
+            break
+    return inside, SearchStatus.CERTIFIED if len(inside) == count else SearchStatus.NOT_CERTIFIED
+
+
+def wavenumbers(tube: Tube, omega, fluid: Fluid | None = None, n_roots: int = 4, m: int = 0,
+                n_layers: int | None = None, scheme: str | None = None, torsional: bool = False,
+                alpha_max=None) -> Wavenumbers:
+    """The ``n_roots`` complex wavenumbers α̂ at the real frequency Ω nearest the real axis.
+
+    Roots of F(α̂; Ω) (module docstring) with Re α̂ ≥ 0, ordered by |Im α̂|, then Re α̂: the
+    propagating waves (real α̂) first, then attenuated and evanescent ones. For a lossless tube the
+    real ones are exactly the α̂ at which :func:`jaxdea.frequencies` gives Ω, and a complex root
+    comes with its conjugate (both listed). u ∝ e^{i(Ωt − α̂z)} away from the ends: |Im α̂| is the
+    attenuation per unit R_i.
+
+    Args:
+        tube: the :class:`~jaxdea.Tube`.
+        omega: Ω > 0, real.
+        fluid: None or an ``"acoustic"`` :class:`~jaxdea.Fluid` (the paper's coupling has poles in
+            α̂ and is not supported: ValueError).
+        n_roots: how many roots, an integer ≥ 1.
+        m, torsional, n_layers, scheme: the family and discretisation, as for
+            :func:`jaxdea.frequencies` (the default discretisation is resolved at |α̂| = the box's
+            far corner).
+        alpha_max: the largest Re α̂ searched (default: module docstring).
+
+    Returns:
+        :class:`Wavenumbers`; ``certificate`` CERTIFIED when the argument-principle counts of the
+        searched box were met by the roots found.
+
+    Raises:
+        ValueError: naming the parameter, for invalid inputs.
+
+    Examples:
+        >>> w = wavenumbers(Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0), 1.0, n_roots=3, m=1)
+    """
+    validate_positive("omega", omega)
+    validate_count("n_roots", n_roots)
+    if alpha_max is not None:
+        validate_positive("alpha_max", alpha_max)
+    validate_fluid(fluid)
+    if Face.of(fluid).has_poles:
+        raise ValueError("fluid: wavenumbers needs the 'acoustic' coupling (the 'paper' coupling "
+                         "has poles in alpha), got coupling='paper'")
+    problem = describe(tube, None, fluid, n_layers, scheme, m, torsional)
+    tube, omega, fluid = canonical(tube, omega, fluid)
+    omega = float(omega)
+    m_value = as_float(float(m))
+    height = max(1.0, omega)
+    if alpha_max is None:
+        probe = discretize(tube, 8)
+        c_min = float(jnp.sqrt(problem.family.slowest_shear(probe.coef)))
+        if fluid is not None:
+            c_min = min(c_min, float(fluid.speed_ratio))
+        alpha_max = 2.0 * omega / c_min + 4.0 * height
+    roots, certificate, low = [], SearchStatus.CERTIFIED, 0.0
+    for _ in range(DOUBLINGS + 1):  # bands of the box, each twice as high as the last
+        band, certificate = _box(problem, tube, omega, fluid, m_value, n_layers, scheme, low,
+                                 height, float(alpha_max))
+        roots += band
+        if certificate != SearchStatus.CERTIFIED or len(roots) >= n_roots:
+            break
+        low, height = height, 2.0 * height
+    # by |Im α̂|, then Re α̂; of a conjugate pair the root with Im α̂ < 0 (decaying along +z) first
+    roots = sorted(roots, key=lambda z: (round(abs(z.imag), 9), round(z.real, 9), z.imag))[:n_roots]
+    pad = n_roots - len(roots)
+    alpha = jnp.asarray(np.array(roots + [complex(np.nan, np.nan)] * pad, dtype=complex))
+    status = jnp.asarray([Status.CONVERGED] * len(roots) + [Status.NO_ROOT] * pad, jnp.int32)
+    if len(roots) < n_roots and certificate == SearchStatus.CERTIFIED:
+        certificate = SearchStatus.NOT_CERTIFIED
+    return Wavenumbers(alpha, jnp.abs(jnp.imag(alpha)), status,
+                       jnp.asarray(int(certificate), jnp.int32))
+
+
+def _box(problem, tube, omega, fluid, m, n_layers, scheme, low, high, alpha_max):
+    """The roots with Re α̂ ≥ 0 and low ≤ |Im α̂| ≤ high (the band of the box [0, α_max] between
+    those heights, both signs; low = 0: the band through the real axis) and its certificate."""
+    layers = laminate(n_layers, scheme, tube, abs(complex(alpha_max, high)), m=int(m))
+    wall = discretize(tube, layers)
+    eps, eta = 1e-3 * alpha_max, 1e-3 * high
+
+    def grid(lo_im, hi_im, k):  # starts over one band (Newton stays on the real axis from it)
+        re = np.linspace(eps, alpha_max, GRID[0] * 2**k + 2)[1:-1]
+        im = np.linspace(lo_im, hi_im, GRID[1] * 2**k + 1)
+        return (re[:, None] + 1j * im[None, :]).ravel()
+
+    def axis(lo_im, hi_im):
+        def starts(k):
+            return 1j * np.linspace(lo_im, hi_im, GRID[0] * 2**k + 2)[1:-1]
+        return starts
+
+    if low == 0.0:  # one band across the real axis, and the imaginary axis above and below η
+        parts = [((complex(eps, -high), complex(alpha_max, high)),
+                  lambda k: grid(-high, high, k)),
+                 ((complex(-eps, eta), complex(eps, high)), axis(eta, high)),
+                 ((complex(-eps, -high), complex(eps, -eta)), axis(-high, -eta))]
+    else:
+        parts = [((complex(eps, low), complex(alpha_max, high)), lambda k: grid(low, high, k)),
+                 ((complex(eps, -high), complex(alpha_max, -low)), lambda k: grid(-high, -low, k)),
+                 ((complex(-eps, low), complex(eps, high)), axis(low, high)),
+                 ((complex(-eps, -high), complex(eps, -low)), axis(-high, -low))]
+    roots, status = [], SearchStatus.CERTIFIED
+    for (lo, hi), starts in parts:
+        found, part_status = _search(problem, wall, omega, fluid, m, lo, hi, starts)
+        roots += [z for z in found if z.real >= -1e-9 * abs(z)]
+        status = max(status, part_status)
+    return roots, SearchStatus(status)

@@ -1,0 +1,60 @@
+"""jaxdea.wavenumbers: complex α̂ at a real Ω, against the public check values (theory_next.md §7e)
+and the real solver both ways (the real roots are the α̂ of the dispersion curve through Ω)."""
+
+import numpy as np
+import pytest
+
+import jaxdea as jd
+
+UNSTRETCHED = jd.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, eta=0.85)
+PAPER = jd.Tube(voltage=0.05, lambda_i=1.1, lambda_z=1.2)
+
+
+def test_unstretched_tube_public_values():
+    """theory_next.md §7(e): m = 1, Ω = 1, the 4 roots nearest the real axis (conjugates included),
+    certified by the argument principle; their order by |Im α̂|, then Re α̂."""
+    res = jd.wavenumbers(UNSTRETCHED, 1.0, n_roots=4, m=1)
+    expected = [0.24345995, 1.52440015, 2.24742018 - 2.71976903j, 2.24742018 + 2.71976903j]
+    np.testing.assert_allclose(np.asarray(res.alpha), expected, rtol=0, atol=2e-8)
+    np.testing.assert_allclose(np.asarray(res.attenuation), np.abs(np.imag(expected)), atol=2e-8)
+    assert int(res.certificate) == jd.SearchStatus.CERTIFIED
+    assert np.all(np.asarray(res.status) == jd.Status.CONVERGED)
+
+
+def test_real_wavenumbers_invert_the_dispersion_curve():
+    """The paper's tube (pre-stretched, V̂ = 0.05), m = 2: Ω₀ = the second frequency at α̂₀ = 0.445;
+    the real roots of wavenumbers at Ω₀ include α̂₀, and at each real root the real solver gives
+    Ω₀ back."""
+    alpha0 = 0.445
+    omega0 = float(jd.frequencies(PAPER, alpha0, m=2, n_roots=2)[1])
+    res = jd.wavenumbers(PAPER, omega0, n_roots=6, m=2)
+    alpha = np.asarray(res.alpha)
+    real = alpha[np.isfinite(alpha) & (np.abs(alpha.imag) < 1e-12)].real
+    assert real.size >= 1 and np.min(np.abs(real - alpha0)) < 1e-10
+    for a in real:
+        omega = np.asarray(jd.frequencies(PAPER, float(a), m=2, n_roots=6))
+        assert np.nanmin(np.abs(omega - omega0)) < 1e-10 * omega0, (a, omega)
+    assert int(res.certificate) == jd.SearchStatus.CERTIFIED
+
+
+def test_filled_tube_real_root_is_the_curve_point():
+    """Acoustic filling, m = 0: the α̂ at which the lowest frequency is Ω₀ comes back as a real root."""
+    fluid = jd.Fluid(density_ratio=0.5, speed_ratio=2.0)
+    alpha0 = 0.6
+    omega0 = float(jd.frequencies(PAPER, alpha0, fluid, n_roots=1)[0])
+    res = jd.wavenumbers(PAPER, omega0, fluid, n_roots=3)
+    alpha = np.asarray(res.alpha)
+    assert np.min(np.abs(alpha - alpha0)) < 1e-10
+    assert int(res.certificate) == jd.SearchStatus.CERTIFIED
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(omega=0.0), "omega"),
+    (dict(omega=1.0, n_roots=0), "n_roots"),
+    (dict(omega=1.0, fluid=jd.Fluid(coupling="paper")), "fluid"),
+    (dict(omega=1.0, alpha_max=-1.0), "alpha_max"),
+    (dict(omega=1.0, m=-1), "m"),
+])
+def test_bad_input_names_the_parameter(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        jd.wavenumbers(UNSTRETCHED, **kwargs)
