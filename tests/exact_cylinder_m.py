@@ -137,12 +137,15 @@ def _radial(kind, n, beta2, r, a, b):
     return out
 
 
-def _family(kind, beta2, r, a, b, ns):
-    """{n: Z_n(r)} of the family Jh ("J") or Yh ("Y") at the parameter beta^2 (an array)."""
+def _family(kind, beta2, r, a, b, ns, analytic=False):
+    """{n: Z_n(r)} of the family Jh ("J") or Yh ("Y") at the parameter beta^2 (an array);
+    ``analytic``: complex and unscaled (:func:`_radial_complex`)."""
+    if analytic:
+        return {n: _radial_complex(kind, n, beta2, r) for n in ns}
     return {n: _radial(kind, n, beta2, r, a, b) for n in ns}
 
 
-def _columns(omega, alpha, a, b, m):
+def _columns(omega, alpha, a, b, m, analytic=False):
     """Tractions (sigma_rr, sigma_rtheta, sigma_rz at a, then at b) of the six basis fields.
 
     Every traction is written with the recurrences of the module docstring so that no
@@ -156,21 +159,26 @@ def _columns(omega, alpha, a, b, m):
       chi[Z_m]:   U = m Z_m/r,  V = -(m Z_m/r - R Z_{m+1}),  W = 0;
       (psi - alpha chi)[Jh_m]/beta^2 and (psi + alpha chi)[Yh_m]/beta^2: see below.
 
+    ``analytic``: complex arithmetic with the unscaled functions of :func:`_radial_complex` (a
+    complex α̂; the tractions are then analytic in α̂).
+
     Returns an array (N, 6, 6) of tractions and (N, 6) of the Euclidean norm of each
     column's (U, V, W, tractions) at both faces.
     """
-    omega = np.atleast_1d(np.asarray(omega, dtype=float))
+    dtype = complex if analytic else float
+    omega = np.atleast_1d(np.asarray(omega, dtype=dtype))
     om2 = omega * omega
     s = om2 - alpha * alpha
     n = omega.size
-    sphi = np.full(n, -alpha * alpha)
-    sig = np.zeros((n, 6, 6))
-    disp = np.zeros((n, 6, 6))
-    zero = np.zeros(n)
+    sphi = np.full(n, -alpha * alpha, dtype=dtype)
+    sig = np.zeros((n, 6, 6), dtype=dtype)
+    disp = np.zeros((n, 6, 6), dtype=dtype)
+    zero = np.zeros(n, dtype=dtype)
+    family = lambda kind, beta2, r, a, b, ns: _family(kind, beta2, r, a, b, ns, analytic)  # noqa: E731
     for i, r in enumerate((a, b)):
         cols = []  # each: (U, V, W, sigma_rr, sigma_rtheta, sigma_rz)
         for kind in ("J", "Y"):  # phi: I_m(alpha r) / alpha^m and -alpha^m K_m(alpha r)
-            z = _family(kind, sphi, r, a, b, (m, m + 1))
+            z = family(kind, sphi, r, a, b, (m, m + 1))
             rr = -alpha * alpha if kind == "J" else 1.0
             du = m * z[m] / r - rr * z[m + 1]
             d2f = m * (m - 1) * z[m] / r**2 + alpha * alpha * z[m] + rr * z[m + 1] / r
@@ -180,18 +188,18 @@ def _columns(omega, alpha, a, b, m):
                          -2.0 * alpha * du))
         if m == 0:
             for kind in ("J", "Y"):  # chi[Jh_0] / beta^2 and chi[Yh_0]: V = Z_1
-                z = _family(kind, s, r, a, b, (1, 2))
+                z = family(kind, s, r, a, b, (1, 2))
                 rr = s if kind == "J" else 1.0
                 cols.append((zero, z[1], zero, zero, -rr * z[2], zero))
-            z = _family("J", s, r, a, b, (0, 1))  # psi[Jh_0] / beta^2: U = -alpha Z_1, W = Z_0
+            z = family("J", s, r, a, b, (0, 1))  # psi[Jh_0] / beta^2: U = -alpha Z_1, W = Z_0
             cols.append((-alpha * z[1], zero, z[0], -2.0 * alpha * (z[0] - z[1] / r), zero,
                          (alpha * alpha - s) * z[1]))
-            z = _family("Y", s, r, a, b, (0, 1))  # psi[Yh_0]: U = -alpha Z_1, W = beta^2 Z_0
+            z = family("Y", s, r, a, b, (0, 1))  # psi[Yh_0]: U = -alpha Z_1, W = beta^2 Z_0
             cols.append((-alpha * z[1], zero, s * z[0], -2.0 * alpha * (s * z[0] - z[1] / r),
                          zero, (alpha * alpha - s) * z[1]))
         else:
             for kind in ("J", "Y"):  # chi[Z_m]
-                z = _family(kind, s, r, a, b, (m, m + 1))
+                z = family(kind, s, r, a, b, (m, m + 1))
                 rr = s if kind == "J" else 1.0
                 cols.append((m * z[m] / r, -(m * z[m] / r - rr * z[m + 1]), zero,
                              2.0 * m * (-rr * z[m + 1] + (m - 1) * z[m] / r) / r,
@@ -199,13 +207,13 @@ def _columns(omega, alpha, a, b, m):
                              + s * z[m],
                              -alpha * m * z[m] / r))
             # (psi - alpha chi)[Jh_m] / beta^2: U = V = -alpha Jh_{m+1}, W = Jh_m
-            z = _family("J", s, r, a, b, (m, m + 1, m + 2))
+            z = family("J", s, r, a, b, (m, m + 1, m + 2))
             cols.append((-alpha * z[m + 1], -alpha * z[m + 1], z[m],
                          -2.0 * alpha * (z[m] - (m + 1) * z[m + 1] / r),
                          alpha * s * z[m + 2],
                          m * z[m] / r + (alpha * alpha - s) * z[m + 1]))
             # (psi + alpha chi)[Yh_m] / beta^2: U = -V = alpha Yh_{m-1}, W = Yh_m
-            z = _family("Y", s, r, a, b, (max(m - 2, 0), m - 1, m, 1))
+            z = family("Y", s, r, a, b, (max(m - 2, 0), m - 1, m, 1))
             srt = alpha * z[1] if m == 1 else -alpha * s * z[m - 2]
             cols.append((alpha * z[m - 1], -alpha * z[m - 1], z[m],
                          2.0 * alpha * ((m - 1) * z[m - 1] / r - z[m]),
@@ -214,7 +222,7 @@ def _columns(omega, alpha, a, b, m):
         for j, (u, v, w, srr, srt, srz) in enumerate(cols):
             sig[:, 3 * i, j], sig[:, 3 * i + 1, j], sig[:, 3 * i + 2, j] = srr, srt, srz
             disp[:, 3 * i, j], disp[:, 3 * i + 1, j], disp[:, 3 * i + 2, j] = u, v, w
-    norm = np.sqrt(np.sum(sig**2, axis=1) + np.sum(disp**2, axis=1))
+    norm = np.sqrt(np.sum(np.abs(sig)**2, axis=1) + np.sum(np.abs(disp)**2, axis=1))
     return sig, norm
 
 
@@ -369,3 +377,33 @@ if __name__ == "__main__":
         print(f"m={m0} alpha={k}: " + " ".join(f"{w:.12f}" for w in got)
               + f"  max rel={rel.max():.2e}")
     print(f"({time.perf_counter() - t0:.2f} s)")
+
+
+def _radial_complex(kind, n, beta2, r):
+    """Jh_n = J_n(βr)/β^n or Yh_n = (π/2) β^n Y_n(βr) at complex β² (principal β), unscaled:
+    the same two solutions as :func:`_radial`, analytic in β² off the negative real axis."""
+    be = np.sqrt(np.asarray(beta2, dtype=complex))
+    if kind == "J":
+        return jv(n, be * r) / be**n
+    return 0.5 * np.pi * be**n * yv(n, be * r)
+
+
+def determinant_complex(omega, alpha, a, b, m):
+    """The unnormalised 6x6 traction determinant of :func:`characteristic_m` at a complex α̂ (and
+    Ω): analytic in α̂ away from the cuts of the principal square roots (β² ≤ 0, α̂² ≥ 0 real),
+    with the zeros of the frequency equation (theory_next.md §5, complex wavenumbers)."""
+    sig, _ = _columns(omega, complex(alpha), a, b, m, analytic=True)
+    return complex(np.linalg.det(sig[0]))
+
+
+def complex_root(omega, alpha0, a, b, m, tol=1e-13, steps=60):
+    """A complex wavenumber of the exact cylinder near ``alpha0`` by the secant method on
+    :func:`determinant_complex`."""
+    x0, x1 = complex(alpha0), complex(alpha0) * (1 + 1e-6)
+    f0, f1 = determinant_complex(omega, x0, a, b, m), determinant_complex(omega, x1, a, b, m)
+    for _ in range(steps):
+        x2 = x1 - f1 * (x1 - x0) / (f1 - f0)
+        if abs(x2 - x1) < tol * abs(x2):
+            return x2
+        x0, f0, x1, f1 = x1, f1, x2, determinant_complex(omega, x2, a, b, m)
+    raise RuntimeError("secant did not converge")

@@ -3,6 +3,9 @@ and the real solver both ways (the real roots are the α̂ of the dispersion cur
 
 import numpy as np
 import pytest
+from exact_cylinder_m import complex_root
+from scipy.optimize import brentq
+from scipy.special import jv, yv
 
 import jaxdea as jd
 
@@ -19,6 +22,26 @@ def test_unstretched_tube_public_values():
     np.testing.assert_allclose(np.asarray(res.attenuation), np.abs(np.imag(expected)), atol=2e-8)
     assert int(res.certificate) == jd.SearchStatus.CERTIFIED
     assert np.all(np.asarray(res.status) == jd.Status.CONVERGED)
+
+
+def test_evanescent_and_attenuated_roots_against_the_exact_cylinder():
+    """Unstretched, V̂ = 0, m = 1, Ω = 1, the 8 roots nearest the real axis. Each mechanical root is
+    a zero of the exact incompressible cylinder's determinant at complex α̂ (tests/exact_cylinder_m.py,
+    secant from jaxdea's root, to 1e-9). One evanescent pair has no mechanical motion: at V̂ = 0 the
+    electric block decouples, and the potential with Φ = 0 on both electrodes solves Laplace's
+    equation when J_1(κa)Y_1(κb) = J_1(κb)Y_1(κa): κ = 17.8201826 (κh ≈ π)."""
+    a, b = 1.0, 1.0 / 0.85
+    res = jd.wavenumbers(UNSTRETCHED, 1.0, n_roots=8, m=1)
+    alpha = np.asarray(res.alpha)
+    assert np.all(np.isfinite(alpha)) and int(res.certificate) == jd.SearchStatus.CERTIFIED
+    kappa_e = brentq(lambda k: jv(1, k * a) * yv(1, k * b) - jv(1, k * b) * yv(1, k * a), 17.0, 18.5)
+    electric = np.abs(np.abs(alpha) - kappa_e) < 1e-8 * kappa_e
+    assert np.sum(electric) == 2 and np.all(np.abs(alpha[electric].real) < 1e-12)
+    mechanical = alpha[~electric]
+    assert np.sum(np.abs(mechanical.imag) > 10.0) == 2  # the evanescent pair ±17.8878i
+    for z in mechanical:
+        exact = complex_root(1.0, z, a, b, 1)
+        assert abs(z - exact) < 1e-9 * abs(exact), (z, exact)
 
 
 def test_real_wavenumbers_invert_the_dispersion_curve():
