@@ -15,6 +15,7 @@ from jaxdea.physics.transfer import discretize, laminate
 
 UNSTRETCHED = jd.Tube(lambda_i=1.0, lambda_z=1.0, voltage=0.0, eta=0.85)
 PAPER = jd.Tube(lambda_i=1.1, lambda_z=1.2, voltage=0.05, eta=0.85)
+LAYERS = laminate(24, "magnus6")  # one laminate: the tests share their compiled programs
 ACOUSTIC = jd.Fluid(density_ratio=0.9, speed_ratio=0.8)
 CASES = [(Family.LONGITUDINAL, 0.0), (Family.ORDER_M, 1.0), (Family.ORDER_M, 2.0),
          (Family.TORSIONAL, 0.0)]
@@ -39,7 +40,7 @@ def reference(family, wall, x, fixed, fluid, m, unknown):
 def test_log_slope_is_the_analytic_derivative_of_the_determinant(family, m, unknown, x, fixed):
     """d ln F/dx against central differences of det(Out A S) along the real and the imaginary
     axis: equal there only for an analytic F, and the contract's slope matches both."""
-    wall = discretize(PAPER, laminate(24, "magnus6"))
+    wall = discretize(PAPER, LAYERS)
     f, log_slope = value_and_log_slope(family, wall, x, fixed, None, 0, m, unknown)
     h = 1e-5
     f0 = reference(family, wall, x, fixed, None, m, unknown)
@@ -57,7 +58,7 @@ def test_log_slope_is_the_analytic_derivative_of_the_determinant(family, m, unkn
 @pytest.mark.parametrize("family, m", CASES)
 def test_lossless_function_is_real_on_the_axis_and_reflects(family, m):
     """A lossless tube: f(x̄) = conj f(x) (Schwarz reflection) and the same for d ln F/dx."""
-    wall = discretize(PAPER, laminate(16, "magnus6"))
+    wall = discretize(PAPER, LAYERS)
     for unknown, x, fixed in POINTS:
         f, s = value_and_log_slope(family, wall, x, fixed, None, 0, m, unknown)
         g, t = value_and_log_slope(family, wall, np.conj(x), fixed, None, 0, m, unknown)
@@ -69,7 +70,7 @@ def test_lossless_function_is_real_on_the_axis_and_reflects(family, m):
 def test_value_in_alpha_equals_value_in_omega(family, m):
     """x = α̂ (generators as polynomials in α̂) against x = Ω (generators formed at α̂), at the
     same real point: two routes to one f."""
-    wall = discretize(PAPER, laminate(16, "magnus6"))
+    wall = discretize(PAPER, LAYERS)
     for omega, alpha in ((0.7, 0.445), (2.3, 1.9)):
         by_alpha = value(family, wall, alpha, omega, None, 0, m, ch.Unknown.ALPHA)
         by_omega = value(family, wall, omega, alpha, None, 0, m, ch.Unknown.OMEGA)
@@ -121,7 +122,7 @@ def test_complex_newton_with_a_fluid_beyond_the_series_range():
 
 def test_contract_value_is_the_public_characteristic():
     """value() on a real Ω against jaxdea.characteristic (its own jit, guard and family choice)."""
-    layers = laminate(16, "magnus6")
+    layers = LAYERS
     wall = discretize(PAPER, layers)
     for family, m in CASES:
         public = jd.characteristic(PAPER, 1.1, 0.445, n_layers=layers, m=int(m),

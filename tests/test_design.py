@@ -151,8 +151,12 @@ def _check_frequency_design(res, target, rtol):
 
 @pytest.mark.slow
 def test_frequency_design_converges_from_several_starts():
+    """Ω = 0.72 with L/R_o held (α̂ follows the wall). With the default hold="length" (L/R_i held,
+    α̂ fixed) this tube's lowest Ω stays above about 0.75 over the allowed thicknesses, so the target
+    is out of reach there."""
     target, rtol = 0.72, 1e-6
-    results = [design.design_for_frequency(TUBE, target, thickness=h0, voltage_fraction=s0, rtol=rtol)
+    results = [design.design_for_frequency(TUBE, target, thickness=h0, voltage_fraction=s0, rtol=rtol,
+                                           hold="length_ratio")
                for h0, s0 in [(0.176, 0.5), (0.1, 0.2), (0.6, 0.8)]]
     for res in results:
         _check_frequency_design(res, target, rtol)
@@ -167,8 +171,9 @@ def test_frequency_design_converges_from_several_starts():
 
 @pytest.mark.slow
 def test_frequency_design_with_the_axisymmetric_bound_only():
-    """m_max = 0, n_max = 1: the bound is the designed mode's own V̂_cr (the paper's constraint)."""
-    res = design.design_for_frequency(TUBE, 0.72, m_max=0, n_max=1)
+    """m_max = 0, n_max = 1: the bound is the designed mode's own V̂_cr (the paper's constraint);
+    L/R_o held, as the target needs (previous test)."""
+    res = design.design_for_frequency(TUBE, 0.72, m_max=0, n_max=1, hold="length_ratio")
     assert res.converged, res.status
     assert res.unstable_mode == (0, 1)
     v_cr = float(jd.critical_voltage(res.tube, res.alpha))
