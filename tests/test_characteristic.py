@@ -56,7 +56,7 @@ def test_log_slope_is_the_analytic_derivative_of_the_determinant(family, m, unkn
 
 
 @pytest.mark.parametrize("family, m", CASES)
-def test_lossless_function_is_real_on_the_axis_and_reflects(family, m):
+def test_lossless_function_reflects_in_the_real_axis(family, m):
     """A lossless tube: f(x̄) = conj f(x) (Schwarz reflection) and the same for d ln F/dx."""
     wall = discretize(PAPER, LAYERS)
     for unknown, x, fixed in POINTS:

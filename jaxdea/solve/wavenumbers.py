@@ -114,23 +114,17 @@ def _newton(problem, wall, omega, fluid, m, starts):
     """Newton on F from every start: (roots, converged) (complex Newton with the analytic
     log-derivative of :func:`jaxdea.physics.characteristic.value_and_log_slope`)."""
     def one(x0):
-        def step(_, state):
-            x, done = state
+        def step(state):
+            k, x, done = state
             _, log_slope = characteristic.value_and_log_slope(problem.family, wall, x, omega, fluid,
                                                               problem.order, m, Unknown.ALPHA)
             dx = jnp.where(done, 0.0, 1.0 / log_slope)
             ok = jnp.isfinite(dx)
             x_new = jnp.where(ok, x - dx, x)
-            return x_new, done | ~ok | (jnp.abs(dx) <= ROOT_RTOL * jnp.abs(x_new))
+            return k + 1, x_new, done | ~ok | (jnp.abs(dx) <= ROOT_RTOL * jnp.abs(x_new))
 
-        def going(state):
-            return (state[0] < NEWTON_STEPS) & ~state[2]
-
-        def counted(state):
-            k, x, done = state
-            return (k + 1, *step(k, (x, done)))
-
-        _, x, done = jax.lax.while_loop(going, counted, (0, x0, jnp.asarray(False)))
+        _, x, done = jax.lax.while_loop(lambda state: (state[0] < NEWTON_STEPS) & ~state[2], step,
+                                        (0, x0, jnp.asarray(False)))
         f = characteristic.value(problem.family, wall, x, omega, fluid, problem.order, m,
                                  Unknown.ALPHA)
         return x, done & jnp.isfinite(jnp.abs(x)) & (jnp.abs(f) < 1e-8)
@@ -148,8 +142,8 @@ def _distinct(roots, scale):
 
 
 def _search(problem, wall, omega, fluid, m, lo, hi, starts_of):
-    """(roots inside the box lo–hi, certified?, count status) by Newton from the starts that
-    ``starts_of(k)`` gives at refinement k, until the distinct roots match the count."""
+    """(the distinct roots inside the box lo–hi, :class:`SearchStatus`) by Newton from the starts
+    that ``starts_of(k)`` gives at refinement k, until they match the box's count."""
     count, status = (int(v) for v in _count(problem, wall, omega, fluid, m, lo, hi))
     if status != CountStatus.CERTIFIED:
         return [], SearchStatus.COUNT_FAILED
