@@ -1,6 +1,7 @@
 """jaxdea.wavenumbers: complex α̂ at a real Ω, against the public check values (theory_next.md §7e)
 and the real solver both ways (the real roots are the α̂ of the dispersion curve through Ω)."""
 
+import jax
 import numpy as np
 import pytest
 from exact_cylinder_m import complex_root
@@ -81,3 +82,8 @@ def test_filled_tube_real_root_is_the_curve_point():
 def test_bad_input_names_the_parameter(kwargs, name):
     with pytest.raises(ValueError, match=name):
         jd.wavenumbers(UNSTRETCHED, **kwargs)
+
+
+def test_traced_input_is_refused_in_words():
+    with pytest.raises(ValueError, match="omega"):
+        jax.jit(lambda om: jd.wavenumbers(UNSTRETCHED, om).alpha)(1.0)

@@ -40,6 +40,7 @@ from ..params import (
     Tube,
     as_float,
     canonical,
+    traced,
     validate_count,
     validate_fluid,
     validate_positive,
@@ -187,11 +188,16 @@ def wavenumbers(tube: Tube, omega, fluid: Fluid | None = None, n_roots: int = 4,
         searched box were met by the roots found.
 
     Raises:
-        ValueError: naming the parameter, for invalid inputs.
+        ValueError: naming the parameter, for invalid inputs, and for traced inputs (a Python
+            search: call it outside ``jit``, ``grad`` and ``vmap``).
 
     Examples:
         >>> w = wavenumbers(Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0), 1.0, n_roots=3, m=1)
     """
+    if traced((tube, omega, fluid, m)):
+        raise ValueError("tube, omega, fluid and m must be concrete: wavenumbers searches the "
+                         "complex plane band by band in Python and cannot run under jit, grad or "
+                         "vmap (call it outside, once per frequency)")
     validate_positive("omega", omega)
     validate_count("n_roots", n_roots)
     if alpha_max is not None:
