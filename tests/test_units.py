@@ -56,6 +56,10 @@ def test_closed_forms_by_hand():
     np.testing.assert_allclose(VHB.pressure_to_si(0.25), 5e3, rtol=1e-15)
     np.testing.assert_allclose(VHB.wavenumber_to_si(0.5), 100.0, rtol=1e-15)
     np.testing.assert_allclose(VHB.wavelength_to_si(2 * math.pi), RI, rtol=1e-15)
+    # an attenuation |Im α̂| = 0.5 (per R_i = 5 mm): the amplitude e^{-100 z/m}, over 1 cm a factor
+    # e^{-1}; in dB, 20 log10 of the amplitude ratio
+    db = float(VHB.attenuation_to_db_per_m(0.5))
+    np.testing.assert_allclose(10.0 ** (-db * 0.01 / 20.0), math.exp(-1.0), rtol=1e-14)
     # long-wave bar speed of the unstretched tube, Ω/α̂ → sqrt(3) (theory.md §5(ii)): sqrt(E/ρ_s)
     np.testing.assert_allclose(VHB.speed_to_si(math.sqrt(3.0)), math.sqrt(3 * MU / RHO), rtol=1e-15)
     np.testing.assert_allclose(VHB.displacement_field_to_si(1.0), math.sqrt(MU * EPS), rtol=1e-15)

@@ -64,6 +64,7 @@ VACUUM_PERMITTIVITY = 8.8541878188e-12
 """ε_0 in F/m (CODATA 2022)."""
 
 _TWO_PI = 2.0 * math.pi
+_DB_PER_NEPER = 20.0 / math.log(10.0)  # dB of an amplitude ratio of e
 
 
 def _number(name: str, x):
@@ -250,6 +251,11 @@ class Scales:
     def wavenumber_from_si(self, alpha):
         """α̂ = α R_i from a wavenumber α in rad/m."""
         return self._argument("alpha", alpha) * self._values()[3]
+
+    def attenuation_to_db_per_m(self, attenuation):
+        """The attenuation |Im α|·20 log10(e) in dB/m of a dimensionless |Im α̂| (the ``attenuation``
+        of :func:`jaxdea.wavenumbers`): the amplitude falls by that many dB per metre along z."""
+        return _DB_PER_NEPER * self.wavenumber_to_si(self._argument("attenuation", attenuation))
 
     def wavelength_to_si(self, alpha):
         """The axial wavelength 2π/α = 2π R_i/α̂ in m of a dimensionless α̂ > 0 (NaN stays NaN)."""
