@@ -12,6 +12,18 @@ from . import compiled, units
 from .apps.explore import explore  # ipywidgets is imported on the first call only
 from .compiled import Configuration, configure
 from .io.fit_io import plot_fit, write_fit
+from .materials import (
+    Energy,
+    FractionalKelvinVoigt,
+    Gent,
+    GentGent,
+    Hysteretic,
+    KelvinVoigt,
+    MooneyRivlin,
+    NeoHookean,
+    Ogden,
+    Prony,
+)
 from .numerics.scalar import Status
 from .params import Fluid, Tube, axial_wavenumber
 from .physics.base_state import (
@@ -23,6 +35,7 @@ from .physics.base_state import (
 )
 from .physics.dispersion import characteristic
 from .solve.accuracy import Estimate, frequencies_with_error
+from .solve.complex_frequencies import ComplexRoots, complex_frequencies
 from .solve.counting import CountStatus, RootCount, count_roots
 from .solve.curves import Curve, dispersion_curve
 from .solve.instability import first_instability
@@ -52,18 +65,29 @@ from .studies.sweeps import SweepResult, sweep
 
 __all__ = [
     "Branch",
+    "ComplexRoots",
     "BranchEnd",
     "Configuration",
     "CountStatus",
     "Curve",
     "DesignResult",
     "DesignStatus",
+    "Energy",
     "Estimate",
     "FitResult",
     "FitStatus",
     "Fluid",
+    "FractionalKelvinVoigt",
+    "Gent",
+    "GentGent",
+    "Hysteretic",
     "IdentifiabilityWarning",
     "Instability",
+    "KelvinVoigt",
+    "MooneyRivlin",
+    "NeoHookean",
+    "Ogden",
+    "Prony",
     "RootCount",
     "Roots",
     "SearchStatus",
@@ -74,6 +98,7 @@ __all__ = [
     "Wavenumbers",
     "axial_wavenumber",
     "characteristic",
+    "complex_frequencies",
     "configure",
     "count_roots",
     "critical_voltage",

@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .compiled import jit, serializable
+from .materials import Damping, Gent, Material, NeoHookean
 
 COUPLINGS = ("acoustic", "paper")
 MATERIALS = ("gent", "neo_hookean")
@@ -53,8 +54,6 @@ TINY = float(np.finfo(np.float64).tiny)
 validated as XLA will see them (a subnormal α̂ or λ is 0 inside the solvers)."""
 
 
-@serializable
-@jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class Tube:
     """A pre-stretched dielectric elastomer tube (all quantities dimensionless, docs/theory/axisymmetric.md §0).
@@ -66,7 +65,14 @@ class Tube:
         eta: undeformed radius ratio η = R_i / R_o, in (0, 1).
         gent: Gent constant G >= GENT_MIN = 1e-6 (``jnp.inf`` gives the neo-Hookean limit).
         length_ratio: L / R_o (the paper uses 10); enters only :func:`jaxdea.axial_wavenumber`.
-        material: static name of the elastic energy W(I_1) (``"gent"`` or ``"neo_hookean"``).
+        material: the elastic energy. A static name, ``"gent"`` (W of the Gent constant ``gent``,
+            the default) or ``"neo_hookean"``, or a material object (:mod:`jaxdea.materials`:
+            ``MooneyRivlin``, ``GentGent``, ``Ogden``, ``Energy``) whose parameters are
+            differentiable leaves. ``Gent(G)`` means ``material="gent", gent=G`` and
+            ``NeoHookean()`` means ``material="neo_hookean"`` (the closed forms of those energies).
+        damping: None (elastic) or a damping law of :mod:`jaxdea.materials` (``Prony``,
+            ``FractionalKelvinVoigt``, ``KelvinVoigt``, ``Hysteretic``) on the relaxed base state;
+            a damped tube's roots are complex (:func:`jaxdea.complex_frequencies`).
     """
 
     voltage: float = 0.0
@@ -75,11 +81,49 @@ class Tube:
     eta: float = 0.85
     gent: float = 97.2
     length_ratio: float = 10.0
-    material: str = dataclasses.field(default="gent", metadata=dict(static=True))
+    material: object = "gent"
+    damping: object = None
+
+    def __post_init__(self):
+        material = self.material
+        if isinstance(material, Gent):
+            object.__setattr__(self, "gent", material.gent)
+            object.__setattr__(self, "material", "gent")
+        elif isinstance(material, NeoHookean):
+            object.__setattr__(self, "material", "neo_hookean")
 
     def replace(self, **changes) -> Tube:
         """A copy with some fields changed."""
         return dataclasses.replace(self, **changes)
+
+
+TUBE_FIELDS = ("voltage", "lambda_i", "lambda_z", "eta", "gent", "length_ratio")
+"""The float leaves of a :class:`Tube`; a material object's parameters follow them."""
+
+
+def _flatten_tube(tube: Tube):
+    """Children: the float fields, then the material object if there is one; auxiliary data: the
+    material's static name (or None for an object)."""
+    children = [(jax.tree_util.GetAttrKey(k), getattr(tube, k)) for k in TUBE_FIELDS]
+    children.append((jax.tree_util.GetAttrKey("damping"), tube.damping))
+    if isinstance(tube.material, str):
+        return children, (tube.material,)
+    return [*children, (jax.tree_util.GetAttrKey("material"), tube.material)], (None,)
+
+
+def _unflatten_tube(aux, children) -> Tube:
+    (name,) = aux
+    tube = object.__new__(Tube)
+    for key, value in zip(TUBE_FIELDS, children, strict=False):
+        object.__setattr__(tube, key, value)
+    count = len(TUBE_FIELDS)
+    object.__setattr__(tube, "damping", children[count])
+    object.__setattr__(tube, "material", name if name is not None else children[count + 1])
+    return tube
+
+
+jax.tree_util.register_pytree_with_keys(Tube, _flatten_tube, _unflatten_tube)
+serializable(Tube)
 
 
 @serializable
@@ -250,9 +294,10 @@ def admissible(tube: Tube, alpha=1.0, fluid: Fluid | None = None) -> jax.Array:
                                                     g >= GENT_MIN]
     ok = functools.reduce(jnp.logical_and, finite + positive) & ~jnp.isnan(g)
     ok &= wall_width(li, lz, eta) <= WIDTH_MAX  # NaN and inf fail
-    if tube.material == "gent":
+    locking = locking_constant(tube)
+    if locking is not None:
         excess = _face_excess(li, lz, eta, jnp)
-        ok &= jnp.isfinite(excess) & (excess < g)
+        ok &= jnp.isfinite(excess) & (excess < as_float(locking))
     if fluid is not None:
         rho, c = as_float(fluid.density_ratio), as_float(fluid.speed_ratio)
         ok &= jnp.isfinite(rho) & jnp.isfinite(c) & (rho > 0) & (c > 0)
@@ -265,7 +310,7 @@ def guard(tube: Tube, alpha, fluid: Fluid | None):
     returns NaN, with status INVALID, there)."""
     ok = admissible(tube, alpha, fluid)
     swap = lambda x, d: jnp.where(ok, as_float(x), d)  # noqa: E731
-    tube = jax.tree_util.tree_map(swap, tube, Tube(material=tube.material))
+    tube = jax.tree_util.tree_map(swap, tube, Tube(material=tube.material, damping=tube.damping))
     if fluid is not None:
         default = Fluid(coupling=fluid.coupling, bessel_order=fluid.bessel_order)
         fluid = jax.tree_util.tree_map(swap, fluid, default)
@@ -291,8 +336,8 @@ def validate_tube(tube: Tube, scalar: bool = True) -> dict:
     """
     if not isinstance(tube, Tube):
         raise ValueError(f"tube must be a jaxdea.Tube, got {type(tube).__name__}")
-    if not isinstance(tube.material, str) or tube.material not in MATERIALS:
-        raise ValueError(f"material must be one of {MATERIALS}, got {tube.material!r}")
+    validate_material(tube.material)
+    validate_damping(tube.damping)
     checks = dict(
         voltage=_check("voltage", tube.voltage, "a finite real number", lambda v: np.isreal(v),
                        scalar=scalar),
@@ -319,7 +364,11 @@ def validate_tube(tube: Tube, scalar: bool = True) -> dict:
             f"lambda_z * r_o**2 must be <= {WIDTH_MAX:g} (r_o the deformed outer radius over R_i; "
             f"rounding perturbs the stretches by about 2.2e-16 * lambda_z * r_o**2), got {worst:.6e}"
         )
-    if g is None or tube.material != "gent":
+    locking = locking_constant(tube)
+    if locking is None or isinstance(locking, jax.core.Tracer):
+        return checks
+    g = checks["gent"] if locking is tube.gent else np.asarray(locking, np.float64)
+    if g is None:
         return checks
     excess = gent_limit_excess(li, lz, eta)
     if np.any(excess >= g):
@@ -329,6 +378,100 @@ def validate_tube(tube: Tube, scalar: bool = True) -> dict:
             f"gent = {float(np.min(g))!r} everywhere in the wall, but reaches {worst:.6g}"
         )
     return checks
+
+
+def locking_constant(tube: Tube):
+    """The Gent locking constant G of the tube's energy (I_1 − 3 < G in the wall), or None for an
+    energy without locking: ``gent`` for ``material="gent"``, a GentGent object's own ``gent``."""
+    if isinstance(tube.material, str):
+        return tube.gent if tube.material == "gent" else None
+    return getattr(tube.material, "gent", None)
+
+
+SHEAR_RTOL = 1e-9
+"""How far 2(W_1 + W_2) at rest may be from 1 (the normalisation of a material object)."""
+
+
+def validate_material(material) -> None:
+    """A static name of :data:`MATERIALS` or a material object with finite parameters, an energy
+    finite at rest and unit small-strain shear modulus 2(W_1 + W_2) = 1 at I_1 = I_2 = 3 (Ogden:
+    Σ μ_kα_k = 2). Traced parameters are not checked.
+
+    Raises:
+        ValueError: naming ``material`` (and the parameter, or the value of 2(W_1 + W_2) at rest).
+    """
+    if isinstance(material, str):
+        if material not in MATERIALS:
+            raise ValueError(f"material must be one of {MATERIALS} or a material object "
+                             f"(jaxdea.MooneyRivlin, GentGent, Ogden, Energy), got {material!r}")
+        return
+    if not isinstance(material, Material):
+        raise ValueError("material must be a name or a material object (jaxdea.MooneyRivlin, "
+                         f"GentGent, Ogden, Energy), got {type(material).__name__}")
+    name = type(material).__name__
+    leaves = jax.tree_util.tree_leaves(material)
+    if any(isinstance(x, jax.core.Tracer) for x in leaves):
+        return
+    for leaf in leaves:
+        value = np.asarray(leaf)
+        if not (np.issubdtype(value.dtype, np.number) and np.isrealobj(value)
+                and np.all(np.isfinite(value))):
+            raise ValueError(f"material {name}: every parameter must be a finite real number, "
+                             f"got {leaf!r}")
+    fields = {f.name: getattr(material, f.name) for f in dataclasses.fields(material)}
+    if "beta" in fields and not 0.0 <= float(fields["beta"]) <= 1.0:
+        raise ValueError(f"material {name}: beta must be in [0, 1], got {fields['beta']!r}")
+    if "gent" in fields and not float(fields["gent"]) > 0.0:
+        raise ValueError(f"material {name}: gent must be > 0, got {fields['gent']!r}")
+    if "mu" in fields:
+        mu, alpha = tuple(fields["mu"]), tuple(fields["alpha"])
+        if not mu or len(mu) != len(alpha) or any(float(a) == 0.0 for a in alpha):
+            raise ValueError(f"material {name}: mu and alpha must be tuples of one length >= 1 "
+                             f"with every alpha != 0, got mu={mu!r}, alpha={alpha!r}")
+    at_rest = float(material.energy(jnp.ones(3)))
+    shear = float(material.shear_modulus())
+    if not math.isfinite(at_rest):
+        raise ValueError(f"material {name}: the energy is not finite at rest (W = {at_rest!r})")
+    if not abs(shear - 1.0) <= SHEAR_RTOL:
+        raise ValueError(f"material {name} is not normalised to unit shear modulus: "
+                         f"2(W_1 + W_2) at I_1 = I_2 = 3 is {shear!r}, it must be 1")
+
+
+_DAMPING_RANGES = {
+    "moduli": (">= 0", lambda v: v >= 0), "times": ("> 0", lambda v: v > 0),
+    "modulus": (">= 0", lambda v: v >= 0), "time": ("> 0", lambda v: v > 0),
+    "order": ("in (0, 1]", lambda v: (v > 0) & (v <= 1)), "stretch_coupling": ("finite", np.isfinite),
+    "viscosity": (">= 0", lambda v: v >= 0), "loss": (">= 0", lambda v: v >= 0),
+}
+
+
+def validate_damping(damping) -> None:
+    """None or a damping law of :mod:`jaxdea.materials` with parameters in range (traced ones are
+    not checked).
+
+    Raises:
+        ValueError: naming ``damping`` and the parameter with its allowed range.
+    """
+    if damping is None:
+        return
+    if not isinstance(damping, Damping):
+        raise ValueError("damping must be None or a damping law (jaxdea.Prony, "
+                         "FractionalKelvinVoigt, KelvinVoigt, Hysteretic), got "
+                         f"{type(damping).__name__}")
+    name = type(damping).__name__
+    fields = {f.name: getattr(damping, f.name) for f in dataclasses.fields(damping)}
+    if "times" in fields and len(tuple(fields["times"])) != len(tuple(fields["moduli"])):
+        raise ValueError(f"damping {name}: moduli and times must have one length, got "
+                         f"{fields['moduli']!r} and {fields['times']!r}")
+    for key, value in fields.items():
+        for leaf in jax.tree_util.tree_leaves(value):
+            if isinstance(leaf, jax.core.Tracer):
+                continue
+            allowed, ok = _DAMPING_RANGES[key]
+            v = np.asarray(leaf)
+            if not (np.issubdtype(v.dtype, np.number) and np.isrealobj(v) and np.all(np.isfinite(v))
+                    and np.all(ok(v))):
+                raise ValueError(f"damping {name}: {key} must be {allowed}, got {value!r}")
 
 
 def validate_fluid(fluid: Fluid | None, scalar: bool = True) -> None:

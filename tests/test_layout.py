@@ -11,7 +11,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "jaxdea"
 
 RANK = {"": 0, "numerics": 1, "physics": 2, "solve": 3, "studies": 4, "io": 5, "apps": 6}
 """A module may import its own folder and lower ranks. "" is the base layer, jaxdea/*.py."""
-BASE = {"__init__", "__main__", "compiled", "files", "params", "units"}
+BASE = {"__init__", "__main__", "compiled", "files", "materials", "params", "units"}
 """The modules of the base layer; the entry points __init__ (re-exports) and __main__ (``python -m
 jaxdea``) may import anything."""
 ENTRY_POINTS = {"jaxdea", "jaxdea.__main__", "jaxdea.units"}

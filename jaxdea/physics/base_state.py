@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..compiled import jit
+from ..materials import Material
 from ..numerics.scalar import Status, bracketed_root, implicit_root, value_and_slope
 from ..params import (
     Tube,
@@ -29,7 +30,7 @@ from ..params import (
     validate_tube,
     wall_constant,
 )
-from .moduli import energy_derivatives
+from .moduli import energy_derivatives, radial_stress_parts
 
 GAUSS_ORDER = 8
 PANELS = 16
@@ -71,7 +72,15 @@ def electric_displacement(tube: Tube, r):
 
 
 def w1_at(tube: Tube, r):
+    """(W_1, λ) at radii r̂ for an energy W(I_1) of a static name; for a material object, the
+    stiffness Q_rz/2 (= W_1 + W_2λ² for W(I_1, I_2), docs/theory/real_tubes.md §1) in place of W_1:
+    the quantity whose boundary layer near locking the grading resolves."""
     lam, lz = stretch(tube, r), as_float(tube.lambda_z)
+    if isinstance(tube.material, Material):
+        def pair(x):
+            stretches = jnp.stack([1.0 / (x * lz), x, lz])
+            return 0.5 * tube.material.derivatives(stretches)[2][0, 2]
+        return jnp.reshape(jax.vmap(pair)(jnp.ravel(lam)), jnp.shape(r)), lam
     i1 = (lam * lz) ** -2 + lam**2 + lz**2
     w1, _ = jax.vmap(energy_derivatives, (0, None, None))(
         jnp.ravel(i1), as_float(tube.gent), tube.material
@@ -82,6 +91,10 @@ def w1_at(tube: Tube, r):
 def _elastic_integrand(tube: Tube, r):
     """2W_1(λ² − λ_r²)/r̂, the elastic part of the radial equilibrium integrand (docs/theory/axisymmetric.md
     1.1)."""
+    if isinstance(tube.material, Material):
+        lam, lz = stretch(tube, r), as_float(tube.lambda_z)
+        parts = jax.vmap(lambda x: radial_stress_parts(tube.material, x, lz))(jnp.ravel(lam))
+        return jnp.reshape(parts[0], jnp.shape(r)) / r
     w1, lam = w1_at(tube, r)
     lam_r = 1.0 / (lam * as_float(tube.lambda_z))
     return 2.0 * w1 * (lam**2 - lam_r**2) / r
@@ -239,12 +252,16 @@ def base_state(tube: Tube, r) -> BaseState:
     p̂ = 2W_1λ_r² + D̂_r² − τ̂_rr, τ̂_rr(r̂) = −ΔP̂ + ∫_{r̂_i}^{r̂} [2W_1(λ² − λ_r²) − D̂_r²] dr̂/r̂.
     """
     r = jnp.asarray(r, jnp.float64)
-    w1, lam = w1_at(tube, r)
-    lam_r = 1.0 / (lam * as_float(tube.lambda_z))
     d = electric_displacement(tube, r)
     width = r - as_float(tube.lambda_i)
     tau_rr = -pressure_difference_unchecked(tube) + _elastic_integral(tube, width) - _electric_integral(
         tube, width)
+    if isinstance(tube.material, Material):  # p = λ_rW_r + d² − τ_rr (docs/theory/real_tubes.md §3)
+        lam, lz = stretch(tube, r), as_float(tube.lambda_z)
+        radial = jax.vmap(lambda x: radial_stress_parts(tube.material, x, lz)[1])(jnp.ravel(lam))
+        return BaseState(r, lam, d, jnp.reshape(radial, jnp.shape(r)) + d**2 - tau_rr)
+    w1, lam = w1_at(tube, r)
+    lam_r = 1.0 / (lam * as_float(tube.lambda_z))
     return BaseState(r, lam, d, 2.0 * w1 * lam_r**2 + d**2 - tau_rr)
 
 

@@ -54,6 +54,7 @@ from .transfer import (
     alpha_generators,
     carry_basis,
     carry_basis_tangent,
+    damped_wall,
     discretize,
     generator_of_w,
     generators_at_alpha,
@@ -79,6 +80,17 @@ class Unknown(enum.StrEnum):
             return -x * x, fixed
         return x, fixed
 
+    def frequency(self, x, fixed):
+        """Ω at x (complex where the unknown is): x, the fixed Ω, i s, or √w (principal root,
+        i√(−w) for real w < 0, the growth rates' Ω)."""
+        if self is Unknown.ALPHA:
+            return fixed
+        if self is Unknown.OMEGA:
+            return x
+        if self is Unknown.GROWTH:
+            return 1j * x
+        return jnp.sqrt(x.astype(jnp.result_type(x, jnp.complex128)))
+
 
 def value(family: Family, wall: Wall, x, fixed, fluid=None, order: int = 0, m=0,
           unknown: Unknown = Unknown.OMEGA, method: str = "taylor"):
@@ -90,7 +102,7 @@ def value(family: Family, wall: Wall, x, fixed, fluid=None, order: int = 0, m=0,
     the order-m and torsional systems in w); x = α̂ the generators as polynomials in α̂
     (:func:`jaxdea.physics.transfer.alpha_generators`), exact for complex α̂."""
     family, unknown = Family(family), Unknown(unknown)
-    if unknown is Unknown.ALPHA:
+    if unknown is Unknown.ALPHA or wall.damping is not None or jnp.iscomplexobj(x):
         basis, exponentials, out = _pieces(family, wall, x, fixed, fluid, order, m, unknown, method)
         q, _ = carry_basis(basis, exponentials)
         return determinant(out @ q)
@@ -156,15 +168,16 @@ def _pieces(family: Family, wall: Wall, x, fixed, fluid, order, m, unknown: Unkn
     """(S, T_k, Out) at x: the initial basis, the sublayer exponentials (N, n, n) and the outer
     rows, in the dtype of x (analytic in x: the generators are polynomials in w and α̂)."""
     w, alpha = unknown.point(x, fixed)
+    wall = damped_wall(wall, unknown.frequency(x, fixed))
     if unknown is Unknown.ALPHA:
         coefficients = generators_at_alpha(alpha_generators(wall, m, family), alpha)
     else:
         coefficients = wall_generators(wall, alpha, m, family)
     generators = jax.vmap(generator_of_w, (0, None))(coefficients, w)
     exponentials = jax.vmap(EXPONENTIALS[method])(generators)
-    dtype = jnp.result_type(x, jnp.float64)
     basis = initial_basis_of_w(wall, w, alpha, fluid, order, m, family)
     out = outer_conditions(wall, alpha, m, family)
+    dtype = jnp.result_type(x, exponentials, basis, out, jnp.float64)
     return basis.astype(dtype), exponentials.astype(dtype), out.astype(dtype)
 
 

@@ -17,7 +17,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .materials import ENERGIES
+from ..materials import ENERGIES, Material
 
 R, T, Z = 0, 1, 2
 
@@ -30,6 +30,20 @@ class Moduli(NamedTuple):
     K: jax.Array
 
 
+class Shear(NamedTuple):
+    """The moduli of a general energy W(I_1, I_2) or Ogden that differ from their W(I_1) partners
+    (docs/theory/real_tubes.md §1, the table of new symbols): c_θ = A_rθrθ (+ d²), e_z = A_θzθz,
+    a_θ = A_zθzθ, p_θ = p + A_rθθr, p_z = p + A_rzzr, p_θz = p + A_θzzθ. For W(I_1) they equal
+    c, e, a and p."""
+
+    c_t: jax.Array
+    e_z: jax.Array
+    a_t: jax.Array
+    p_t: jax.Array
+    p_z: jax.Array
+    p_tz: jax.Array
+
+
 class Coefficients(NamedTuple):
     """State-matrix coefficients at one radius (docs/theory/axisymmetric.md §3); each a scalar (or batch) array.
 
@@ -37,6 +51,8 @@ class Coefficients(NamedTuple):
     g = 2A_rrzz − 2A_θθzz + A_θθθθ − A_rrrr, q = A_rrrr − A_rrzz + A_θθzz − A_rrθθ, eps = 1/K_rr,
     p = Lagrange multiplier of the base state, e = A_θrθr = 2W_1λ² (docs/theory/order_m.md §2: enters only
     the order-m and torsional state matrices; the axisymmetric 6×6 matrix does not read it).
+    ``shear``: None for an energy W(I_1) (the static names), else the :class:`Shear` moduli of a
+    material object, whose a, c, e are then a_r = A_zrzr, c_z = A_rzrz, e_r = A_θrθr.
     """
 
     a: jax.Array
@@ -48,6 +64,7 @@ class Coefficients(NamedTuple):
     eps: jax.Array
     p: jax.Array
     e: jax.Array
+    shear: Shear | None = None
 
 
 def energy_derivatives(i1, gent_constant, material="gent"):
@@ -118,3 +135,50 @@ def closed_form_coefficients(lam, lam_z, D_r, p, gent_constant, material="gent")
         p=p,
         e=2 * w1 * lam**2,
     )
+
+
+def material_coefficients(material: Material, lam, lam_z, D_r, p) -> Coefficients:
+    """The coefficients of a material object at one point, from its principal-stretch derivatives
+    (automatic differentiation, :meth:`jaxdea.materials.Material.derivatives`) by the
+    push-forward of docs/theory/real_tubes.md §1 (Ogden 1984), with (1, 2, 3) = (r, θ, z):
+
+        A_iijj = λ_iλ_jW_ij,  A_ijij = λ_i²Q_ij,  A_ijji = λ_i²Q_ij − λ_iW_i  (i ≠ j),
+
+    plus the ideal dielectric's d² in A_rrrr, A_rθrθ, A_rzrz (d = D̂_r). ``p`` is the base state's
+    p = λ_rW_r + d² − τ_rr of the same (unconstrained) extension (§1, pitfall)."""
+    lam_r = 1.0 / (lam * lam_z)
+    stretches = jnp.stack([lam_r, lam, lam_z])
+    w, hess, pair = material.derivatives(stretches)
+    big = stretches[:, None] * stretches[None, :] * hess  # A_iijj
+    dD = D_r * D_r
+    a_rrrr = big[R, R] + dD
+    sq = stretches * stretches
+    ok = jnp.isfinite(jnp.sum(big)) & jnp.isfinite(jnp.sum(pair)) & (jnp.min(pair + jnp.eye(3)) > 0)
+    nan = jnp.where(ok, 1.0, jnp.nan)
+    return Coefficients(
+        a=sq[Z] * pair[Z, R] * nan,
+        b=0.5 * (a_rrrr + big[Z, Z] - 2.0 * big[R, Z]),
+        c=sq[R] * pair[R, Z] + dD,
+        d=D_r,
+        g=2.0 * big[R, Z] - 2.0 * big[T, Z] + big[T, T] - a_rrrr,
+        q=a_rrrr - big[R, Z] + big[T, Z] - big[R, T],
+        eps=jnp.ones_like(lam),
+        p=p,
+        e=sq[T] * pair[T, R],
+        shear=Shear(
+            c_t=sq[R] * pair[R, T] + dD,
+            e_z=sq[T] * pair[T, Z],
+            a_t=sq[Z] * pair[Z, T],
+            p_t=p + sq[R] * pair[R, T] - lam_r * w[R],
+            p_z=p + sq[R] * pair[R, Z] - lam_r * w[R],
+            p_tz=p + sq[T] * pair[T, Z] - lam * w[T],
+        ),
+    )
+
+
+def radial_stress_parts(material: Material, lam, lam_z):
+    """(λ_θW_θ − λ_rW_r, λ_rW_r): the elastic σ_θθ − σ_rr of the base state and the elastic part of
+    its p (docs/theory/real_tubes.md §3, one layer)."""
+    lam_r = 1.0 / (lam * lam_z)
+    w = jax.grad(material.energy)(jnp.stack([lam_r, lam, lam_z]))
+    return lam * w[T] - lam_r * w[R], lam_r * w[R]

@@ -40,7 +40,8 @@ class Problem:
         return self.family.arguments(m)
 
 
-def describe(tube, alpha, fluid, n_layers, scheme=None, m=0, torsional=False) -> Problem:
+def describe(tube, alpha, fluid, n_layers, scheme=None, m=0, torsional=False,
+             damped: bool = False) -> Problem:
     """Validate the public inputs (concrete values) and describe the problem.
 
     ``alpha`` None where a solver takes no α̂ of its own (the Bessel order is then resolved at
@@ -49,9 +50,15 @@ def describe(tube, alpha, fluid, n_layers, scheme=None, m=0, torsional=False) ->
 
     Raises:
         ValueError: naming the parameter, for invalid concrete inputs (the tube, α̂, fluid,
-            discretisation, m, torsional, and m ≥ 1 with the paper's coupling).
+            discretisation, m, torsional, and m ≥ 1 with the paper's coupling), and for a damped
+            tube unless ``damped`` (the solvers of complex roots).
     """
     order = validated_order(tube, alpha, fluid, n_layers, scheme)
+    if not damped and getattr(tube, "damping", None) is not None:
+        raise ValueError(
+            "tube.damping: a damped tube has complex frequencies; this solver finds real roots of "
+            "the elastic tube. Use jaxdea.complex_frequencies (complex Omega at a real alpha) or "
+            "jaxdea.wavenumbers (complex alpha at a real Omega), or tube.replace(damping=None)")
     return Problem(family_of(m, torsional, fluid), Face.of(fluid), order)
 
 

@@ -29,6 +29,8 @@ def state_matrix(coef: Coefficients, r, omega, alpha):
     δ1 = (p − εd²)/(c − εd²), δ2 = εd/(c − εd²), δ3 = 1/(c − εd²), δ4 = 2d, δ5 = εc/(c − εd²),
     β1 = g + 2q + 2p, β2 = a − εd² − (p − εd²)²/(c − εd²), β3 = q + p, β4 = p − c, β5 = 2b + 2p.
     """
+    if coef.shear is not None:
+        return _block(general_matrix(coef, r, omega * omega, alpha, 0.0), LONGITUDINAL_INDICES)
     a, b, c, d, g, q, eps, p = coef.a, coef.b, coef.c, coef.d, coef.g, coef.q, coef.eps, coef.p
     shear = c - eps * d * d  # = 2 W_1 λ_r² > 0
     d1 = (p - eps * d * d) / shear
@@ -56,7 +58,7 @@ def state_matrix(coef: Coefficients, r, omega, alpha):
 def _combinations(coef: Coefficients):
     """(δ1 … δ5, β1 … β6) of docs/theory/order_m.md §3 (β1 … β5 as docs/theory/axisymmetric.md §3; β6 = e − εd²
     − (p − εd²)²/(c − εd²))."""
-    a, b, c, d, g, q, eps, p, e = coef
+    a, b, c, d, g, q, eps, p, e = coef[:9]
     shear = c - eps * d * d  # = 2 W_1 λ_r² > 0
     d1 = (p - eps * d * d) / shear
     deltas = (d1, eps * d / shear, 1.0 / shear, 2.0 * d, eps * c / shear)
@@ -82,6 +84,8 @@ def state_matrix_m(coef: Coefficients, r, omega_squared, alpha, m):
     be traced. At m = 0 the (V, Q) rows and columns decouple (torsion) and the other 6×6 block is
     :func:`state_matrix` (tests).
     """
+    if coef.shear is not None:
+        return general_matrix(coef, r, omega_squared, alpha, m)
     (d1, d2, d3, d4, d5), (b1, b2, b3, b4, b5, b6) = _combinations(coef)
     a, e, p, eps = coef.a, coef.e, coef.p, coef.eps
     al, w = alpha, omega_squared
@@ -109,6 +113,8 @@ def torsion_matrix(coef: Coefficients, r, omega_squared, alpha):
 
     V' = δ1V/r̂ + δ3Q,  Q' = (β6/r̂² + α̂²a − Ω²)V − (1 + δ1)Q/r̂.
     """
+    if coef.shear is not None:
+        return _block(general_matrix(coef, r, omega_squared, alpha, 0.0), TORSION_ROWS)
     (d1, _, d3, _, _), betas = _combinations(coef)
     zero = jnp.zeros_like(r * alpha * omega_squared * coef.a)
     rows = [[d1 / r, d3], [betas[5] / r**2 + alpha**2 * coef.a - omega_squared, -(1.0 + d1) / r]]
@@ -117,6 +123,52 @@ def torsion_matrix(coef: Coefficients, r, omega_squared, alpha):
 
 TORSION_ROWS = (1, 5)
 """Rows V', Q' of M_m: switched off at m = 0 in the order-m family (:func:`order_m_matrix`)."""
+LONGITUDINAL_INDICES = (0, 2, 3, 4, 6, 7)
+"""Rows and columns U, W, Φ, T, S, D of M_m: at m = 0 the longitudinal 6×6 matrix."""
+
+
+def _block(matrix, indices):
+    index = jnp.asarray(indices)
+    return matrix[..., index[:, None], index[None, :]]
+
+
+def general_matrix(coef: Coefficients, r, omega_squared, alpha, m):
+    """M_m(r̂) for general moduli (a material object's :class:`~jaxdea.physics.moduli.Shear`
+    moduli), docs/theory/real_tubes.md §2, entry by entry; Y = [U, V, W, Φ, T, Q, S, D].
+
+    One set of δ's per shear pair, s_θ = c_θ − εd², s_z = c_z − εd²:
+    δ1θ = (p_θ − εd²)/s_θ, δ2θ = εd/s_θ, δ3θ = 1/s_θ, δ5θ = εc_θ/s_θ, β4θ = p_θ − c_θ,
+    β6 = e_r − εd² − (p_θ − εd²)²/s_θ (and the z set with c_z, p_z, a_r → β2);
+    δ4 = 2d; β1 = g + 2q + 2p, β3 = q + p, β5 = 2b + 2p; X = (m²/r̂²)δ2θβ4θ + α̂²δ2zβ4z.
+    For W(I_1) it is :func:`state_matrix_m` entry for entry (tests)."""
+    sh = coef.shear
+    a_r, b, c_z, d, g, q, eps, p, e_r = coef[:9]
+    ed2 = eps * d * d
+    s_t, s_z = sh.c_t - ed2, c_z - ed2
+    d1t, d2t, d3t, d5t = (sh.p_t - ed2) / s_t, eps * d / s_t, 1.0 / s_t, eps * sh.c_t / s_t
+    d1z, d2z, d3z, d5z = (sh.p_z - ed2) / s_z, eps * d / s_z, 1.0 / s_z, eps * c_z / s_z
+    b4t, b4z = sh.p_t - sh.c_t, sh.p_z - c_z
+    b6 = e_r - ed2 - (sh.p_t - ed2) ** 2 / s_t
+    b2 = a_r - ed2 - (sh.p_z - ed2) ** 2 / s_z
+    b1, b3, b5, d4 = g + 2.0 * q + 2.0 * p, q + p, 2.0 * b + 2.0 * p, 2.0 * d
+    al, w = alpha, omega_squared
+    zero = jnp.zeros_like(r * al * w * m * a_r)
+    n = m / r
+    x = n * n * d2t * b4t + al * al * d2z * b4z
+    rows = [
+        [-1.0 / r, -n, -al, zero, zero, zero, zero, zero],
+        [n * d1t, d1t / r, zero, -n * d2t, zero, d3t, zero, zero],
+        [al * d1z, zero, zero, -al * d2z, zero, zero, d3z, zero],
+        [d4 / r, n * d4, al * d4, zero, zero, zero, zero, -1.0 / eps],
+        [(b1 + m * m * b6) / r**2 + al**2 * b2 - w, n * (b1 + b6) / r, al * b3 / r, x,
+         zero, -n * d1t, -al * d1z, -d4 / r],
+        [n * (b1 + b6) / r, (m * m * b1 + b6) / r**2 + al**2 * sh.a_t - w, n * al * (b3 + sh.p_tz) ,
+         n * d2t * b4t / r, n, -(1.0 + d1t) / r, zero, -n * d4],
+        [al * b3 / r, n * al * (b3 + sh.p_tz), al**2 * b5 + n * n * sh.e_z - w, zero, al + zero, zero,
+         -1.0 / r, -al * d4],
+        [x, n * d2t * b4t / r, zero, -n * n * d5t - al * al * d5z, zero, n * d2t, al * d2z, -1.0 / r],
+    ]
+    return jnp.stack([jnp.stack([jnp.broadcast_to(v, zero.shape) for v in row], -1) for row in rows], -2)
 
 
 def torsion_switch(m):

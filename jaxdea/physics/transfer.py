@@ -53,9 +53,17 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..compiled import jit
+from ..materials import Material
 from ..params import Tube, admissible, as_float
-from .base_state import base_state, geometry, pressure_difference_unchecked, w1_at
-from .moduli import Coefficients, closed_form_coefficients, coefficients, push_forward_moduli
+from .base_state import base_state, geometry, pressure_difference_unchecked, stretch, w1_at
+from .moduli import (
+    Coefficients,
+    Shear,
+    closed_form_coefficients,
+    coefficients,
+    material_coefficients,
+    push_forward_moduli,
+)
 from .state_matrix import (
     LONGITUDINAL,
     ORDER_M,
@@ -176,6 +184,8 @@ _wall_lengths = jit(jax.vmap(_wall_lengths_of, (0, 0, 0, 0, None)), static_argnu
 """The lengths of :func:`wall_lengths` for a batch of concrete tubes, compiled with jaxdea's options
 (:func:`jaxdea.compiled.jit`): a first call of any solver compiles it before its own program
 (0.19–0.21 s against 0.27–0.29 s with XLA's defaults, measured)."""
+_material_wall_lengths = jit(jax.vmap(_wall_lengths_of, (0, 0, 0, 0, None)))
+""":data:`_wall_lengths` for a material object (a pytree of parameters, traced)."""
 
 
 def point_lengths(tube: Tube):
@@ -187,7 +197,9 @@ def point_lengths(tube: Tube):
         return None
     arrays = np.broadcast_arrays(*[np.asarray(x, dtype=np.float64) for x in leaves])
     try:  # inside a caller's trace the lengths are staged too: then unknown
-        lengths = _wall_lengths(*[a.ravel() for a in arrays], tube.material)
+        lengths = (_wall_lengths(*[a.ravel() for a in arrays], tube.material)
+                   if isinstance(tube.material, str)
+                   else _material_wall_lengths(*[a.ravel() for a in arrays], tube.material))
         return tuple(np.asarray(x).reshape(arrays[0].shape) for x in lengths)
     except (jax.errors.TracerArrayConversionError, jax.errors.ConcretizationTypeError):
         return None
@@ -359,6 +371,9 @@ class Wall(NamedTuple):
         step: sublayer thickness h = ĥ/N, or (N,) the thicknesses of graded sublayers.
         coef: :class:`Coefficients` with arrays shaped like ``radii``.
         pressure_inner: P̂_i = ΔP̂ (gauge P̂_o = 0).
+        damping: None (elastic) or the tube's damping law (:mod:`jaxdea.materials`).
+        damping_pattern: None, or the :class:`Coefficients` added per unit η* (the stretch
+            coupling f_ij at the radii; :func:`damping_pattern`).
     """
 
     r_inner: jax.Array
@@ -367,6 +382,8 @@ class Wall(NamedTuple):
     step: jax.Array
     coef: Coefficients
     pressure_inner: jax.Array
+    damping: object = None
+    damping_pattern: Coefficients | None = None
 
     @property
     def thickness(self):
@@ -386,6 +403,11 @@ def layer_coefficients(tube: Tube, r, moduli: str = "closed") -> Coefficients:
     """
     bs = base_state(tube, r)
     lz, gent = as_float(tube.lambda_z), as_float(tube.gent)
+    if isinstance(tube.material, Material):
+        one = partial(material_coefficients, tube.material, lam_z=lz)
+        flat = jax.vmap(lambda lam, d, p: one(lam, D_r=d, p=p))(
+            *(jnp.ravel(x) for x in (bs.stretch, bs.displacement, bs.pressure)))
+        return jax.tree_util.tree_map(lambda x: jnp.reshape(x, jnp.shape(r)), flat)
     if moduli == "closed":
         return closed_form_coefficients(bs.stretch, lz, bs.displacement, bs.pressure, gent,
                                         tube.material)
@@ -419,7 +441,48 @@ def discretize(tube: Tube, n_layers) -> Wall:
         step,
         layer_coefficients(tube, radii),
         pressure_difference_unchecked(tube),
+        tube.damping,
+        None if tube.damping is None else damping_pattern(tube, radii),
     )
+
+
+def general_form(coef: Coefficients) -> Coefficients:
+    """The coefficients with their :class:`~jaxdea.physics.moduli.Shear` moduli: as given for a
+    material object, equal to their partners (c, e, a, p, p, p) for an energy W(I_1)."""
+    if coef.shear is not None:
+        return coef
+    return coef._replace(shear=Shear(coef.c, coef.e, coef.a, coef.p, coef.p, coef.p))
+
+
+def damping_pattern(tube: Tube, radii) -> Coefficients:
+    """The coefficients that η* = 1 adds (docs/theory/real_tubes.md §4): A_iiii += 2f_ii,
+    A_ijij += f_ij, A_ijji += f_ij (i ≠ j) with f_ij = 1 + β'(λ_i² + λ_j² − 2)/2 (β' the law's
+    ``stretch_coupling``), so a, c, e, c_θ, e_z, a_θ and p_θ, p_z, p_θz gain f of their pair,
+    b gains f_rr + f_zz, g 2(f_θθ − f_rr) and q 2f_rr."""
+    lam = stretch(tube, radii)
+    lz = as_float(tube.lambda_z)
+    sq = [1.0 / (lam * lz) ** 2, lam * lam, lz * lz + 0.0 * lam]  # λ_r², λ², λ_z²
+    coupling = as_float(tube.damping.stretch_coupling)
+
+    def f(i, j):
+        return 1.0 + 0.5 * coupling * (sq[i] + sq[j] - 2.0)
+
+    zero = jnp.zeros_like(lam)
+    return Coefficients(
+        a=f(2, 0), b=f(0, 0) + f(2, 2), c=f(0, 2), d=zero, g=2.0 * (f(1, 1) - f(0, 0)),
+        q=2.0 * f(0, 0), eps=zero, p=zero, e=f(1, 0),
+        shear=Shear(c_t=f(0, 1), e_z=f(1, 2), a_t=f(2, 1), p_t=f(0, 1), p_z=f(0, 2), p_tz=f(1, 2)))
+
+
+def damped_wall(wall: Wall, omega) -> Wall:
+    """The wall at the (complex) frequency Ω: its coefficients plus η*(Ω) times the damping
+    pattern (docs/theory/real_tubes.md §4); the wall itself where it has no damping."""
+    if wall.damping is None:
+        return wall
+    eta = wall.damping.viscous_modulus(omega)
+    coef = jax.tree_util.tree_map(lambda c, f: c + eta * f, general_form(wall.coef),
+                                  wall.damping_pattern)
+    return wall._replace(coef=coef)
 
 
 def voltage_expansion(tube: Tube, n_layers) -> tuple[Wall, Wall, Wall]:

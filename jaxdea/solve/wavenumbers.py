@@ -88,10 +88,10 @@ class Wavenumbers(NamedTuple):
     certificate: jax.Array
 
 
-def _phasor(problem, wall, omega, fluid, m):
+def _phasor(problem, wall, fixed, fluid, m, unknown):
     def phasor(z):
-        f = jax.vmap(lambda x: characteristic.value(problem.family, wall, x, omega, fluid,
-                                                    problem.order, m, Unknown.ALPHA))(z)
+        f = jax.vmap(lambda x: characteristic.value(problem.family, wall, x, fixed, fluid,
+                                                    problem.order, m, unknown))(z)
         size = jnp.abs(f)
         finite = jnp.isfinite(size)
         return jnp.where(size > 0, f / jnp.where(size > 0, size, 1.0), 0.0), finite
@@ -99,26 +99,28 @@ def _phasor(problem, wall, omega, fluid, m):
     return phasor
 
 
-@functools.partial(jax.jit, static_argnames=("problem",))
-def _count(problem, wall, omega, fluid, m, corner_lo, corner_hi):
-    """Zeros of F(α̂) in the rectangle (corner_lo, corner_hi): (count, status)."""
+@functools.partial(jax.jit, static_argnames=("problem", "unknown"))
+def _count(problem, wall, fixed, fluid, m, corner_lo, corner_hi, unknown=Unknown.ALPHA):
+    """Zeros of F(x) (x = α̂ at a fixed Ω, or Ω at a fixed α̂) in the rectangle (corner_lo,
+    corner_hi): (count, status)."""
     starts, ends, divisor, pieces = rectangle(corner_lo, corner_hi)
     size = jnp.abs(corner_hi - corner_lo)
-    count, status, _ = winding_count(_phasor(problem, wall, omega, fluid, m), starts, ends, divisor,
+    count, status, _ = winding_count(_phasor(problem, wall, fixed, fluid, m, unknown), starts, ends,
+                                     divisor,
                                      pieces, size / LANES, MIN_RELATIVE_LENGTH * size,
                                      MAX_EVALUATIONS)
     return count, status
 
 
-@functools.partial(jax.jit, static_argnames=("problem",))
-def _newton(problem, wall, omega, fluid, m, starts):
+@functools.partial(jax.jit, static_argnames=("problem", "unknown"))
+def _newton(problem, wall, fixed, fluid, m, starts, unknown=Unknown.ALPHA):
     """Newton on F from every start: (roots, converged) (complex Newton with the analytic
     log-derivative of :func:`jaxdea.physics.characteristic.value_and_log_slope`)."""
     def one(x0):
         def step(state):
             k, x, done = state
-            _, log_slope = characteristic.value_and_log_slope(problem.family, wall, x, omega, fluid,
-                                                              problem.order, m, Unknown.ALPHA)
+            _, log_slope = characteristic.value_and_log_slope(problem.family, wall, x, fixed, fluid,
+                                                              problem.order, m, unknown)
             dx = jnp.where(done, 0.0, 1.0 / log_slope)
             ok = jnp.isfinite(dx)
             x_new = jnp.where(ok, x - dx, x)
@@ -126,8 +128,7 @@ def _newton(problem, wall, omega, fluid, m, starts):
 
         _, x, done = jax.lax.while_loop(lambda state: (state[0] < NEWTON_STEPS) & ~state[2], step,
                                         (0, x0, jnp.asarray(False)))
-        f = characteristic.value(problem.family, wall, x, omega, fluid, problem.order, m,
-                                 Unknown.ALPHA)
+        f = characteristic.value(problem.family, wall, x, fixed, fluid, problem.order, m, unknown)
         return x, done & jnp.isfinite(jnp.abs(x)) & (jnp.abs(f) < 1e-8)
 
     return jax.vmap(one)(starts)
@@ -142,23 +143,46 @@ def _distinct(roots, scale):
     return kept
 
 
-def _search(problem, wall, omega, fluid, m, lo, hi, starts_of):
-    """(the distinct roots inside the box lo–hi, :class:`SearchStatus`) by Newton from the starts
-    that ``starts_of(k)`` gives at refinement k, until they match the box's count."""
-    count, status = (int(v) for v in _count(problem, wall, omega, fluid, m, lo, hi))
+def search_box(problem, wall, fixed, fluid, m, lo, hi, starts_of, unknown=Unknown.ALPHA):
+    """(the distinct roots x inside the box lo–hi, :class:`SearchStatus`) by Newton from the starts
+    that ``starts_of(k)`` gives at refinement k, until they match the box's count (x = α̂ at the
+    fixed Ω, or Ω at the fixed α̂ for ``unknown=Unknown.OMEGA``)."""
+    count, status = (int(v) for v in _count(problem, wall, fixed, fluid, m, lo, hi, unknown))
     if status != CountStatus.CERTIFIED:
         return [], SearchStatus.COUNT_FAILED
     inside = []
     for k in range(REFINEMENTS + 1):
         starts = np.asarray(starts_of(k), complex)
         padded = np.resize(starts, -(-starts.size // PAD) * PAD)  # few programs: sizes in PADs
-        roots, ok = _newton(problem, wall, omega, fluid, m, jnp.asarray(padded))
+        roots, ok = _newton(problem, wall, fixed, fluid, m, jnp.asarray(padded), unknown)
         found = [complex(z) for z, good in zip(np.asarray(roots), np.asarray(ok), strict=True)
                  if good and lo.real <= z.real <= hi.real and lo.imag <= z.imag <= hi.imag]
         inside = _distinct(inside + found, abs(hi - lo))
         if len(inside) >= count:
             break
     return inside, SearchStatus.CERTIFIED if len(inside) == count else SearchStatus.NOT_CERTIFIED
+
+
+def validate_search(caller: str, tube, fixed, fluid, m, n_roots, limit) -> None:
+    """The checks of a Python search of the complex plane (``caller``, ``fixed`` = (name, value)
+    of the real variable, ``limit`` = (name, value or None) of its extent).
+
+    Raises:
+        ValueError: traced inputs (the search runs in Python), a bad count or limit, an invalid
+            fluid or the paper's coupling (its poles), naming the parameter.
+    """
+    name, value = fixed
+    if traced((tube, value, fluid, m)):
+        raise ValueError(f"tube, {name}, fluid and m must be concrete: {caller} searches the "
+                         "complex plane in Python and cannot run under jit, grad or vmap (call it "
+                         f"outside, once per {name})")
+    validate_count("n_roots", n_roots)
+    if limit[1] is not None:
+        validate_positive(*limit)
+    validate_fluid(fluid)
+    if Face.of(fluid).has_poles:
+        raise ValueError(f"fluid: {caller} needs the 'acoustic' coupling (the 'paper' coupling "
+                         "has poles), got coupling='paper'")
 
 
 def wavenumbers(tube: Tube, omega, fluid: Fluid | None = None, n_roots: int = 4, m: int = 0,
@@ -194,19 +218,10 @@ def wavenumbers(tube: Tube, omega, fluid: Fluid | None = None, n_roots: int = 4,
     Examples:
         >>> w = wavenumbers(Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0), 1.0, n_roots=3, m=1)
     """
-    if traced((tube, omega, fluid, m)):
-        raise ValueError("tube, omega, fluid and m must be concrete: wavenumbers searches the "
-                         "complex plane band by band in Python and cannot run under jit, grad or "
-                         "vmap (call it outside, once per frequency)")
+    validate_search("wavenumbers", tube, ("omega", omega), fluid, m, n_roots,
+                    ("alpha_max", alpha_max))
     validate_positive("omega", omega)
-    validate_count("n_roots", n_roots)
-    if alpha_max is not None:
-        validate_positive("alpha_max", alpha_max)
-    validate_fluid(fluid)
-    if Face.of(fluid).has_poles:
-        raise ValueError("fluid: wavenumbers needs the 'acoustic' coupling (the 'paper' coupling "
-                         "has poles in alpha), got coupling='paper'")
-    problem = describe(tube, None, fluid, n_layers, scheme, m, torsional)
+    problem = describe(tube, None, fluid, n_layers, scheme, m, torsional, damped=True)
     tube, omega, fluid = canonical(tube, omega, fluid)
     omega = float(omega)
     m_value = as_float(float(m))
@@ -265,7 +280,7 @@ def _box(problem, tube, omega, fluid, m, n_layers, scheme, low, high, alpha_max)
                  ((complex(-eps, -high), complex(eps, -low)), axis(-high, -low))]
     roots, status = [], SearchStatus.CERTIFIED
     for (lo, hi), starts in parts:
-        found, part_status = _search(problem, wall, omega, fluid, m, lo, hi, starts)
+        found, part_status = search_box(problem, wall, omega, fluid, m, lo, hi, starts)
         roots += [z for z in found if z.real >= -1e-9 * abs(z)]
         status = max(status, part_status)
     return roots, SearchStatus(status)

@@ -1,0 +1,138 @@
+"""Complex frequencies at a real wavenumber: the resonances of a damped tube, with their quality
+factors (API.md, "Real tubes"; docs/theory/real_tubes.md §4–§5).
+
+A damped tube (``Tube(damping=...)``) adds η*(Ω)(L + Lᵀ) to the incremental stress on the relaxed
+base state, so the characteristic function F(Ω) = det(Out A(Ω) S) of
+:mod:`jaxdea.physics.characteristic` (unknown ``omega``) is complex. It is analytic in Re Ω > 0
+(entire for Kelvin–Voigt and hysteretic damping; Prony poles and the fractional branch cut lie on
+the imaginary axis). With the time factor e^{iΩt} a decaying mode has Im Ω > 0 and the quality
+factor Q = Re Ω/(2 Im Ω).
+
+Search and certificate: the roots are sought in boxes [ε, Ω_max] × [−δ, Ω_max] of the Ω plane
+(δ = ε = 0.02 min(1, Ω_max): the real roots of an elastic tube lie inside, the imaginary axis, where
+Prony's relaxation roots and poles lie, outside; modes with Q < 1/2 above the box are not sought),
+each counted by the argument principle and searched by complex Newton on the analytic
+log-derivative (:func:`jaxdea.solve.wavenumbers.search_box`). Without ``omega_max`` the first box
+reaches 1.25 × the highest of the ``n_roots`` elastic frequencies (``damping=None``) and the next
+boxes extend it, each as wide again as the last, until ``n_roots`` roots are certified.
+"""
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..compiled import serializable
+from ..numerics.scalar import Status
+from ..params import Fluid, Tube, as_float, canonical, validate_alpha
+from ..physics.characteristic import Unknown
+from ..physics.problem import describe
+from ..physics.transfer import discretize, laminate
+from .roots import frequencies
+from .wavenumbers import GRID, SearchStatus, search_box, validate_search
+
+EXTENSIONS = 3
+"""Boxes added to the right when fewer than ``n_roots`` roots lie below the default Ω_max."""
+MARGIN = 0.02
+"""ε = δ = MARGIN · min(1, Ω_max): the box's distance from the imaginary axis and below the real
+axis."""
+
+
+@serializable
+class ComplexRoots(NamedTuple):
+    """The roots Ω of :func:`complex_frequencies` (complex, ascending in Re Ω, NaN-padded), their
+    ``quality_factor`` Re Ω/(2 Im Ω) (inf for a real root), a per-root ``status`` (:class:`Status`:
+    CONVERGED, or NO_ROOT for padding) and the search's ``certificate`` (:class:`SearchStatus`)."""
+
+    omega: jax.Array
+    quality_factor: jax.Array
+    status: jax.Array
+    certificate: jax.Array
+
+
+def complex_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3, m: int = 0,
+                        omega_max=None, n_layers: int | None = None, scheme: str | None = None,
+                        torsional: bool = False) -> ComplexRoots:
+    """The ``n_roots`` complex frequencies Ω with the lowest Re Ω at the real wavenumber α̂.
+
+    Roots of F(Ω; α̂) (module docstring) with Re Ω > 0, ascending in Re Ω: every root in the
+    searched boxes is found (the argument-principle counts are met: ``certificate`` CERTIFIED).
+    For an elastic tube they are the real :func:`jaxdea.frequencies`. Decaying modes have
+    Im Ω > 0 (time factor e^{iΩt}).
+
+    Args:
+        tube: the :class:`~jaxdea.Tube`, damped (``damping=``) or not.
+        alpha: α̂ > 0, real.
+        fluid: None or an ``"acoustic"`` :class:`~jaxdea.Fluid` (the paper's coupling is not
+            supported: ValueError).
+        n_roots: how many roots, an integer ≥ 1.
+        m, torsional, n_layers, scheme: the family and discretisation, as for
+            :func:`jaxdea.frequencies`.
+        omega_max: the largest Re Ω searched (default: module docstring).
+
+    Returns:
+        :class:`ComplexRoots`.
+
+    Raises:
+        ValueError: naming the parameter, for invalid inputs, and for traced inputs (a Python
+            search: call it outside ``jit``, ``grad`` and ``vmap``).
+
+    Examples:
+        >>> tube = Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, damping=KelvinVoigt(0.1))
+        >>> roots = complex_frequencies(tube, 1.0, n_roots=2)
+    """
+    validate_search("complex_frequencies", tube, ("alpha", alpha), fluid, m, n_roots,
+                    ("omega_max", omega_max))
+    validate_alpha(alpha, tube=tube)
+    problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional, damped=True)
+    tube, alpha, fluid = canonical(tube, alpha, fluid)
+    alpha = float(alpha)
+    m_value = as_float(float(m))
+    layers = laminate(n_layers, scheme, tube, alpha, n_roots, int(m))
+    wall = discretize(tube, layers)
+    if omega_max is None:
+        elastic = np.asarray(frequencies(tube.replace(damping=None), alpha, fluid, n_roots,
+                                         n_layers=n_layers, scheme=scheme, m=m,
+                                         torsional=torsional))
+        top = float(np.nanmax(elastic)) if np.isfinite(elastic).any() else 4.0
+        edges = [1.25 * top * (k + 1) for k in range(EXTENSIONS + 1)]
+    else:
+        edges = [float(omega_max)]
+    roots, certificate, low = [], SearchStatus.CERTIFIED, 0.0
+    for high in edges:
+        found, certificate = _box(problem, wall, alpha, fluid, m_value, low, high)
+        roots += found
+        if certificate != SearchStatus.CERTIFIED or len(roots) >= n_roots:
+            break
+        low = high
+    roots = sorted(roots, key=lambda z: (z.real, z.imag))[:n_roots]
+    pad = n_roots - len(roots)
+    omega = jnp.asarray(np.array(roots + [complex(np.nan, np.nan)] * pad, dtype=complex))
+    status = jnp.asarray([Status.CONVERGED] * len(roots) + [Status.NO_ROOT] * pad, jnp.int32)
+    if len(roots) < n_roots and certificate == SearchStatus.CERTIFIED and omega_max is None:
+        certificate = SearchStatus.NOT_CERTIFIED
+    return ComplexRoots(omega, quality_factor(omega), status, jnp.asarray(int(certificate), jnp.int32))
+
+
+def quality_factor(omega):
+    """Q = Re Ω/(2 Im Ω) (inf for a real Ω; NaN for NaN)."""
+    omega = jnp.asarray(omega)
+    im = jnp.imag(omega)
+    return jnp.where(im == 0, jnp.inf, jnp.real(omega) / (2.0 * jnp.where(im == 0, 1.0, im)))
+
+
+def _box(problem, wall, alpha, fluid, m, low, high):
+    """The roots with low < Re Ω ≤ high and −δ ≤ Im Ω ≤ high (module docstring), and the box's
+    certificate."""
+    margin = MARGIN * min(1.0, high)
+    left = max(low, margin)
+    lo, hi = complex(left, -margin), complex(high, high)
+
+    def starts(k):
+        re = np.linspace(left, high, GRID[0] * 2**k + 2)[1:-1]
+        im = np.linspace(0.0, high, GRID[1] * 2**k + 1)
+        return (re[:, None] + 1j * im[None, :]).ravel()
+
+    found, status = search_box(problem, wall, alpha, fluid, m, lo, hi, starts, Unknown.OMEGA)
+    return [z for z in found if z.real > low], SearchStatus(status)

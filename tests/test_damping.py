@@ -1,0 +1,124 @@
+"""Damping and complex frequencies (API.md "Real tubes", docs/theory/real_tubes.md §4–§5).
+
+The exact limit (§4): an unstretched, unloaded, empty single wall of any normalised material with
+damping law η* is the linear incompressible cylinder of shear modulus 1 + η*(Ω), so every root
+satisfies Ω² = Ω_e²(1 + η*(Ω)) with Ω_e a root of the elastic exact cylinder (tests/exact_cylinder_m.py,
+Bessel functions, independent of the state-space method)."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from exact_cylinder_m import roots_m
+
+import jaxdea as jd
+
+ETA = 0.85
+REST = dict(voltage=0.0, lambda_i=1.0, lambda_z=1.0, eta=ETA)
+
+
+def elastic_exact(m, alpha, n):
+    """The n lowest roots of the exact incompressible cylinder (a = 1, b = 1/η)."""
+    return np.asarray(roots_m(m, alpha, 1.0, 1.0 / ETA, n_roots=n))
+
+
+def test_kelvin_voigt_public_values():
+    """docs/theory/real_tubes.md §7(c): KV η_v = 0.1, m = 0, α̂ = 1: Ω = 1.34893014 + 0.09139831i and
+    2.34343182 + 0.27846065i, and both equal [iΩ_e²η_v + √(4Ω_e² − Ω_e⁴η_v²)]/2 with Ω_e the
+    longitudinal roots of the exact cylinder, to 1e-9."""
+    tube = jd.Tube(**REST, damping=jd.KelvinVoigt(viscosity=0.1))
+    res = jd.complex_frequencies(tube, 1.0, n_roots=2, omega_max=2.5, m=0)
+    assert int(res.certificate) == jd.SearchStatus.CERTIFIED
+    got = np.asarray(res.omega)
+    np.testing.assert_allclose(got, [1.34893014 + 0.09139831j, 2.34343182 + 0.27846065j],
+                               rtol=3e-9)
+    exact = elastic_exact(0, 1.0, 3)  # m = 0 holds the torsional root Ω_e = α̂ too
+    longitudinal = exact[np.abs(exact - 1.0) > 1e-6][:2]
+    expected = (1j * longitudinal**2 * 0.1 + np.sqrt(4 * longitudinal**2 - longitudinal**4 * 0.01)) / 2
+    np.testing.assert_allclose(got, expected, rtol=1e-9)
+    np.testing.assert_allclose(res.quality_factor, got.real / (2 * got.imag), rtol=1e-14)
+
+
+def test_hysteretic_order_one():
+    """§7(c): hysteretic ζ = 0.2, m = 1, α̂ = 1: Ω = Ω_e√(1 + 0.2i) for the two lowest elastic roots
+    (0.64437036 + 0.06380524i first), found without an omega_max."""
+    tube = jd.Tube(**REST, damping=jd.Hysteretic(loss=0.2))
+    res = jd.complex_frequencies(tube, 1.0, n_roots=2, m=1)
+    assert int(res.certificate) == jd.SearchStatus.CERTIFIED
+    expected = elastic_exact(1, 1.0, 2) * np.sqrt(1 + 0.2j)
+    np.testing.assert_allclose(np.asarray(res.omega), expected, rtol=1e-9)
+    np.testing.assert_allclose(res.omega[0], 0.64437036 + 0.06380524j, rtol=1e-8)
+
+
+@pytest.mark.parametrize("law", [
+    jd.Prony(moduli=(1.7, 1.7), times=(40.0, 400.0)),
+    jd.Prony(moduli=(0.5,), times=(0.8,)),
+    jd.FractionalKelvinVoigt(modulus=0.3, time=0.5, order=0.32),
+], ids=["Prony VHB-like", "Prony one branch", "fractional KV"])
+def test_every_root_satisfies_the_exact_relation(law):
+    """Each root Ω has √(Ω²/(1 + η*(Ω))) equal to a root of the elastic exact cylinder (the §4
+    relation, for frequency-dependent η*), m = 2, to 1e-9; the roots decay (Im Ω > 0)."""
+    tube = jd.Tube(**REST, damping=law)
+    res = jd.complex_frequencies(tube, 0.7, n_roots=3, m=2)
+    assert int(res.certificate) == jd.SearchStatus.CERTIFIED
+    omega = np.asarray(res.omega)
+    assert np.all(omega.imag > 0)
+    eta_star = np.asarray(law.viscous_modulus(jnp.asarray(omega)))
+    elastic = np.sqrt(omega**2 / (1 + eta_star))
+    exact = elastic_exact(2, 0.7, 6)
+    for z in elastic:
+        assert np.nanmin(np.abs(exact - z)) <= 1e-9 * abs(z), (z, exact)
+
+
+def test_an_elastic_tube_gives_its_real_frequencies():
+    """Without damping complex_frequencies returns the real roots of jd.frequencies (a loaded
+    tube, acoustic fluid), to 1e-10, with Q = inf."""
+    tube = jd.Tube(voltage=0.1, lambda_i=1.1, lambda_z=1.2, eta=0.8)
+    fluid = jd.Fluid()
+    real = np.asarray(jd.frequencies(tube, 0.6, fluid, n_roots=3))
+    res = jd.complex_frequencies(tube, 0.6, fluid, n_roots=3)
+    np.testing.assert_allclose(np.asarray(res.omega).real, real, rtol=1e-10)
+    assert np.max(np.abs(np.asarray(res.omega).imag)) <= 1e-10 * real.max()
+
+
+def test_damping_on_a_loaded_tube_lowers_q_with_viscosity():
+    """On a stretched, voltage-loaded tube the complex root tends to the elastic root as the
+    viscosity vanishes (η_v = 1e-4: Re Ω to 1e-7, Im Ω ≈ η_v Ω_e²·k small and positive), and a
+    larger viscosity gives a lower Q."""
+    tube = jd.Tube(voltage=0.1, lambda_i=1.1, lambda_z=1.2, eta=0.8)
+    elastic = float(jd.frequencies(tube, 0.6, n_roots=1)[0])
+    q = []
+    for eta_v in (1e-4, 1e-2):
+        res = jd.complex_frequencies(tube.replace(damping=jd.KelvinVoigt(eta_v)), 0.6, n_roots=1,
+                                     omega_max=1.2 * elastic)
+        z = complex(res.omega[0])
+        assert z.imag > 0
+        q.append(float(res.quality_factor[0]))
+        if eta_v == 1e-4:
+            assert abs(z.real - elastic) <= 1e-7 * elastic
+    assert q[1] < q[0] / 50
+
+
+def test_real_solvers_refuse_a_damped_tube():
+    tube = jd.Tube(**REST, damping=jd.KelvinVoigt(0.1))
+    with pytest.raises(ValueError, match="tube.damping: .*complex_frequencies"):
+        jd.frequencies(tube, 1.0)
+
+
+@pytest.mark.parametrize("law, message", [
+    (jd.KelvinVoigt(-0.1), "viscosity must be >= 0"),
+    (jd.Prony((1.0, 2.0), (1.0,)), "moduli and times must have one length"),
+    (jd.Prony((1.0,), (0.0,)), r"times must be > 0"),
+    (jd.FractionalKelvinVoigt(order=1.5), r"order must be in \(0, 1\]"),
+    (jd.Hysteretic(float("nan")), "loss must be >= 0"),
+    ("viscous", "damping must be None or a damping law"),
+])
+def test_bad_damping_is_named(law, message):
+    with pytest.raises(ValueError, match=message):
+        jd.complex_frequencies(jd.Tube(**REST, damping=law), 1.0)
+
+
+def test_traced_inputs_are_refused():
+    tube = jd.Tube(**REST, damping=jd.KelvinVoigt(0.1))
+    with pytest.raises(ValueError, match="must be concrete"):
+        jax.jit(lambda a: jd.complex_frequencies(tube, a).omega)(1.0)
