@@ -25,7 +25,7 @@ from .materials import (
     Prony,
 )
 from .numerics.scalar import Status
-from .params import Fluid, Tube, axial_wavenumber
+from .params import Fluid, Layer, Tube, axial_wavenumber
 from .physics.base_state import (
     inner_stretch,
     pressure_difference,
@@ -84,6 +84,7 @@ __all__ = [
     "IdentifiabilityWarning",
     "Instability",
     "KelvinVoigt",
+    "Layer",
     "MooneyRivlin",
     "NeoHookean",
     "Ogden",

@@ -73,6 +73,10 @@ class Tube:
         damping: None (elastic) or a damping law of :mod:`jaxdea.materials` (``Prony``,
             ``FractionalKelvinVoigt``, ``KelvinVoigt``, ``Hysteretic``) on the relaxed base state;
             a damped tube's roots are complex (:func:`jaxdea.complex_frequencies`).
+        layers: None (one active wall of ``material``) or a tuple of :class:`Layer` from the inner
+            face outwards, exactly one of them active; each carries its own material and damping
+            (``material``, ``gent`` and ``damping`` of the tube are then unused and must stay at
+            their defaults).
     """
 
     voltage: float = 0.0
@@ -83,6 +87,7 @@ class Tube:
     length_ratio: float = 10.0
     material: object = "gent"
     damping: object = None
+    layers: tuple | None = None
 
     def __post_init__(self):
         material = self.material
@@ -106,6 +111,7 @@ def _flatten_tube(tube: Tube):
     material's static name (or None for an object)."""
     children = [(jax.tree_util.GetAttrKey(k), getattr(tube, k)) for k in TUBE_FIELDS]
     children.append((jax.tree_util.GetAttrKey("damping"), tube.damping))
+    children.append((jax.tree_util.GetAttrKey("layers"), tube.layers))
     if isinstance(tube.material, str):
         return children, (tube.material,)
     return [*children, (jax.tree_util.GetAttrKey("material"), tube.material)], (None,)
@@ -118,12 +124,39 @@ def _unflatten_tube(aux, children) -> Tube:
         object.__setattr__(tube, key, value)
     count = len(TUBE_FIELDS)
     object.__setattr__(tube, "damping", children[count])
-    object.__setattr__(tube, "material", name if name is not None else children[count + 1])
+    object.__setattr__(tube, "layers", children[count + 1])
+    object.__setattr__(tube, "material", name if name is not None else children[count + 2])
     return tube
 
 
 jax.tree_util.register_pytree_with_keys(Tube, _flatten_tube, _unflatten_tube)
 serializable(Tube)
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Layer:
+    """One layer of a layered wall (API.md, "Layered walls"; docs/theory/real_tubes.md §3).
+
+    Attributes:
+        fraction: the layer's share of the undeformed wall thickness R_o − R_i (the fractions of a
+            tube's layers sum to 1).
+        material: its energy, a material object normalised to unit shear modulus
+            (:mod:`jaxdea.materials`; default ``Gent(97.2)``).
+        shear_ratio: μ_k/μ, its small-strain shear modulus over the active layer's.
+        density_ratio: ρ_k/ρ_s, its density over the active layer's.
+        active: static; True for the one dielectric layer with compliant electrodes on its faces
+            (its shear and density ratios are 1: it sets the units), False for a passive layer,
+            which carries no field.
+        damping: None or a damping law of :mod:`jaxdea.materials` for this layer.
+    """
+
+    fraction: float
+    material: object = dataclasses.field(default_factory=Gent)
+    shear_ratio: float = 1.0
+    density_ratio: float = 1.0
+    active: bool = dataclasses.field(default=False, metadata=dict(static=True))
+    damping: object = None
 
 
 @serializable
@@ -310,7 +343,8 @@ def guard(tube: Tube, alpha, fluid: Fluid | None):
     returns NaN, with status INVALID, there)."""
     ok = admissible(tube, alpha, fluid)
     swap = lambda x, d: jnp.where(ok, as_float(x), d)  # noqa: E731
-    tube = jax.tree_util.tree_map(swap, tube, Tube(material=tube.material, damping=tube.damping))
+    tube = jax.tree_util.tree_map(swap, tube, Tube(material=tube.material, damping=tube.damping,
+                                                    layers=tube.layers))
     if fluid is not None:
         default = Fluid(coupling=fluid.coupling, bessel_order=fluid.bessel_order)
         fluid = jax.tree_util.tree_map(swap, fluid, default)
@@ -338,6 +372,7 @@ def validate_tube(tube: Tube, scalar: bool = True) -> dict:
         raise ValueError(f"tube must be a jaxdea.Tube, got {type(tube).__name__}")
     validate_material(tube.material)
     validate_damping(tube.damping)
+    validate_wall_layers(tube)
     checks = dict(
         voltage=_check("voltage", tube.voltage, "a finite real number", lambda v: np.isreal(v),
                        scalar=scalar),
@@ -435,6 +470,55 @@ def validate_material(material) -> None:
     if not abs(shear - 1.0) <= SHEAR_RTOL:
         raise ValueError(f"material {name} is not normalised to unit shear modulus: "
                          f"2(W_1 + W_2) at I_1 = I_2 = 3 is {shear!r}, it must be 1")
+
+
+FRACTION_SUM_TOL = 1e-12
+"""How far the layers' fractions may sum from 1."""
+
+
+def validate_wall_layers(tube: Tube) -> None:
+    """``tube.layers``: None, or a tuple of :class:`Layer` with exactly one active, fractions > 0
+    summing to 1, ratios > 0 (1 for the active layer, which sets the units), normalised materials
+    and valid damping; the tube's own material and damping then stay at their defaults. Traced
+    values are not checked.
+
+    Raises:
+        ValueError: naming ``layers`` (and the layer and parameter) and the allowed range.
+    """
+    layers = tube.layers
+    if layers is None:
+        return
+    if not isinstance(layers, tuple) or not layers or not all(isinstance(x, Layer) for x in layers):
+        raise ValueError(f"layers must be None or a non-empty tuple of jaxdea.Layer, got {layers!r}")
+    active = [k for k, layer in enumerate(layers) if layer.active]
+    if len(active) != 1:
+        raise ValueError("layers: exactly one layer must be active (the dielectric with the "
+                         f"electrodes), got {len(active)}")
+    if tube.material != "gent" or tube.damping is not None:
+        raise ValueError("layers: give each Layer its material and damping; the tube's material and "
+                         "damping must stay at their defaults with layers")
+    fractions = []
+    for k, layer in enumerate(layers):
+        for key in ("fraction", "shear_ratio", "density_ratio"):
+            value = getattr(layer, key)
+            if isinstance(value, jax.core.Tracer):
+                continue
+            v = np.asarray(value, dtype=np.float64) if np.isrealobj(value) else np.nan
+            if not (np.ndim(v) == 0 and np.isfinite(v) and v > 0):
+                raise ValueError(f"layers[{k}].{key} must be a finite number > 0, got {value!r}")
+            if layer.active and key != "fraction" and v != 1.0:
+                raise ValueError(f"layers[{k}].{key} must be 1 for the active layer (its shear "
+                                 f"modulus and density are the units), got {value!r}")
+            if key == "fraction":
+                fractions.append(float(v))
+        if isinstance(layer.material, str):
+            raise ValueError(f"layers[{k}].material must be a material object (jaxdea.Gent, "
+                             f"NeoHookean, MooneyRivlin, GentGent, Ogden, Energy), got "
+                             f"{layer.material!r}")
+        validate_material(layer.material)
+        validate_damping(layer.damping)
+    if len(fractions) == len(layers) and abs(sum(fractions) - 1.0) > FRACTION_SUM_TOL:
+        raise ValueError(f"layers: the fractions must sum to 1, got {sum(fractions)!r}")
 
 
 _DAMPING_RANGES = {

@@ -489,3 +489,81 @@ def _pull_in(tube: Tube, delta_p):
     li, v, status = pull_in_unchecked(tube, delta_p)
     nan = lambda x: jnp.where(ok, x, jnp.nan)  # noqa: E731
     return nan(li), nan(v), jnp.where(ok, status, Status.INVALID).astype(jnp.int32)
+
+
+def interface_radii(tube: Tube):
+    """(K + 1,) deformed radii r̂_0 = r̂_i < … < r̂_K = r̂_o of a layered wall's interfaces:
+    r̂_k = √(λ_i² + (R_k² − 1)/λ_z) with R_k − R_{k−1} = fraction_k (1/η − 1)
+    (docs/theory/real_tubes.md §3; incompressible, λ_z common)."""
+    li, lz, eta = as_float(tube.lambda_i), as_float(tube.lambda_z), as_float(tube.eta)
+    shares = jnp.cumsum(jnp.stack([as_float(layer.fraction) for layer in tube.layers]))
+    shares = shares / shares[-1]  # exactly 1 at the outer face
+    span = (1.0 - eta) / eta
+    big = 1.0 + shares[:-1] * span
+    inner = jnp.sqrt(li**2 + (big - 1.0) * (big + 1.0) / lz)
+    return jnp.concatenate([li[None], inner, geometry(tube).r_outer[None]])
+
+
+def _layer_quadrature(fun, start, end, panels=PANELS):
+    """∫_start^end fun(r̂) dr̂ by composite Gauss–Legendre (vectorised in ``end``)."""
+    x, w = np.polynomial.legendre.leggauss(GAUSS_ORDER)
+    half = 0.5 * (jnp.asarray(end) - start)[..., None, None] / panels
+    nodes = start + half * (2.0 * np.arange(panels)[:, None] + 1.0 + x)
+    terms = half * w * fun(nodes)
+    return ordered_sum(jnp.reshape(terms, terms.shape[:-2] + (panels * GAUSS_ORDER,)))
+
+
+def _layer_parts(tube: Tube, k: int, r):
+    """(μ_k(λW_θ − λ_rW_r), μ_kλ_rW_r) of layer k at radii r̂."""
+    layer, lz = tube.layers[k], as_float(tube.lambda_z)
+    lam = stretch(tube, r)
+    parts = jax.vmap(lambda x: radial_stress_parts(layer.material, x, lz))(jnp.ravel(lam))
+    mu = as_float(layer.shear_ratio)
+    return tuple(mu * jnp.reshape(x, jnp.shape(r)) for x in parts)
+
+
+def active_index(tube: Tube) -> int:
+    """The index of the active layer (static)."""
+    return next(k for k, layer in enumerate(tube.layers) if layer.active)
+
+
+def _layered_electric(tube: Tube, r, edges):
+    """∫_{r̂_a}^{r̂} D̂_r² dr̂/r̂ with r̂ clipped to the active layer [r̂_a, r̂_{a+1}]:
+    V̂²(1/r̂_a² − 1/r̂²)/(2 ln²(r̂_{a+1}/r̂_a)) (D̂_r = V̂/(r̂ ln(r̂_{a+1}/r̂_a)) there, 0 elsewhere)."""
+    a = active_index(tube)
+    lo, hi = edges[a], edges[a + 1]
+    rc = jnp.clip(r, lo, hi)
+    log_ratio = jnp.log(hi / lo)
+    v = as_float(tube.voltage)
+    return v**2 * (rc - lo) * (rc + lo) / (lo * rc) ** 2 / (2.0 * log_ratio**2)
+
+
+def layered_displacement(tube: Tube, k: int, r, edges=None):
+    """D̂_r in layer k: V̂/(r̂ ln(r̂_{a+1}/r̂_a)) in the active layer, 0 in a passive one."""
+    if not tube.layers[k].active:
+        return jnp.zeros_like(r)
+    edges = interface_radii(tube) if edges is None else edges
+    return as_float(tube.voltage) / (r * jnp.log(edges[k + 1] / edges[k]))
+
+
+def layered_pressure_difference(tube: Tube):
+    """ΔP̂ = Σ_k ∫_{r̂_k}^{r̂_{k+1}} μ_k(λW_θ − λ_rW_r) dr̂/r̂ − ∫ D̂_r² dr̂/r̂ (docs/theory/real_tubes.md
+    §3: radial traction continuous through the layers)."""
+    edges = interface_radii(tube)
+    total = sum(_layer_quadrature(lambda x, k=k: _layer_parts(tube, k, x)[0] / x, edges[k],
+                                  edges[k + 1]) for k in range(len(tube.layers)))
+    return total - _layered_electric(tube, edges[-1], edges)
+
+
+def layered_base_state(tube: Tube, k: int, r) -> BaseState:
+    """λ, D̂_r and p̂ = μ_kλ_rW_r + D̂_r² − τ̂_rr at radii r̂ inside layer k of a layered wall, with
+    τ̂_rr(r̂) = −ΔP̂ + ∫_{r̂_i}^{r̂} [μ(λW_θ − λ_rW_r) − D̂_r²] dr̂/r̂ (docs/theory/real_tubes.md §3;
+    p̂ jumps at interfaces, τ̂_rr does not)."""
+    r = jnp.asarray(r, jnp.float64)
+    edges = interface_radii(tube)
+    below = sum((_layer_quadrature(lambda x, j=j: _layer_parts(tube, j, x)[0] / x, edges[j],
+                                   edges[j + 1]) for j in range(k)), jnp.zeros(()))
+    own = _layer_quadrature(lambda x: _layer_parts(tube, k, x)[0] / x, edges[k], r)
+    tau_rr = -layered_pressure_difference(tube) + below + own - _layered_electric(tube, r, edges)
+    d = layered_displacement(tube, k, r, edges)
+    return BaseState(r, stretch(tube, r), d, _layer_parts(tube, k, r)[1] + d**2 - tau_rr)

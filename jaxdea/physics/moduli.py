@@ -53,6 +53,8 @@ class Coefficients(NamedTuple):
     the order-m and torsional state matrices; the axisymmetric 6×6 matrix does not read it).
     ``shear``: None for an energy W(I_1) (the static names), else the :class:`Shear` moduli of a
     material object, whose a, c, e are then a_r = A_zrzr, c_z = A_rzrz, e_r = A_θrθr.
+    ``density``, ``active``: None for a single wall; in a layered wall ρ_k/ρ_s and 1 (active
+    layer) or 0 (passive: the Φ, D rows of M are frozen, docs/theory/real_tubes.md §3).
     """
 
     a: jax.Array
@@ -65,6 +67,8 @@ class Coefficients(NamedTuple):
     p: jax.Array
     e: jax.Array
     shear: Shear | None = None
+    density: jax.Array | None = None
+    active: jax.Array | None = None
 
 
 def energy_derivatives(i1, gent_constant, material="gent"):
@@ -137,7 +141,7 @@ def closed_form_coefficients(lam, lam_z, D_r, p, gent_constant, material="gent")
     )
 
 
-def material_coefficients(material: Material, lam, lam_z, D_r, p) -> Coefficients:
+def material_coefficients(material: Material, lam, lam_z, D_r, p, shear_ratio=None) -> Coefficients:
     """The coefficients of a material object at one point, from its principal-stretch derivatives
     (automatic differentiation, :meth:`jaxdea.materials.Material.derivatives`) by the
     push-forward of docs/theory/real_tubes.md §1 (Ogden 1984), with (1, 2, 3) = (r, θ, z):
@@ -145,10 +149,13 @@ def material_coefficients(material: Material, lam, lam_z, D_r, p) -> Coefficient
         A_iijj = λ_iλ_jW_ij,  A_ijij = λ_i²Q_ij,  A_ijji = λ_i²Q_ij − λ_iW_i  (i ≠ j),
 
     plus the ideal dielectric's d² in A_rrrr, A_rθrθ, A_rzrz (d = D̂_r). ``p`` is the base state's
-    p = λ_rW_r + d² − τ_rr of the same (unconstrained) extension (§1, pitfall)."""
+    p = λ_rW_r + d² − τ_rr of the same (unconstrained) extension (§1, pitfall). ``shear_ratio``:
+    μ_k of a layer, which scales W (None: 1)."""
     lam_r = 1.0 / (lam * lam_z)
     stretches = jnp.stack([lam_r, lam, lam_z])
     w, hess, pair = material.derivatives(stretches)
+    if shear_ratio is not None:
+        w, hess, pair = (shear_ratio * x for x in (w, hess, pair))
     big = stretches[:, None] * stretches[None, :] * hess  # A_iijj
     dD = D_r * D_r
     a_rrrr = big[R, R] + dD

@@ -140,7 +140,9 @@ def general_matrix(coef: Coefficients, r, omega_squared, alpha, m):
     δ1θ = (p_θ − εd²)/s_θ, δ2θ = εd/s_θ, δ3θ = 1/s_θ, δ5θ = εc_θ/s_θ, β4θ = p_θ − c_θ,
     β6 = e_r − εd² − (p_θ − εd²)²/s_θ (and the z set with c_z, p_z, a_r → β2);
     δ4 = 2d; β1 = g + 2q + 2p, β3 = q + p, β5 = 2b + 2p; X = (m²/r̂²)δ2θβ4θ + α̂²δ2zβ4z.
-    For W(I_1) it is :func:`state_matrix_m` entry for entry (tests)."""
+    In a layered wall Ω² is weighted by the layer's density ratio ρ_k and a passive layer's Φ', D'
+    rows are zero (``coef.density``, ``coef.active``). For W(I_1) it is :func:`state_matrix_m`
+    entry for entry (tests)."""
     sh = coef.shear
     a_r, b, c_z, d, g, q, eps, p, e_r = coef[:9]
     ed2 = eps * d * d
@@ -151,7 +153,8 @@ def general_matrix(coef: Coefficients, r, omega_squared, alpha, m):
     b6 = e_r - ed2 - (sh.p_t - ed2) ** 2 / s_t
     b2 = a_r - ed2 - (sh.p_z - ed2) ** 2 / s_z
     b1, b3, b5, d4 = g + 2.0 * q + 2.0 * p, q + p, 2.0 * b + 2.0 * p, 2.0 * d
-    al, w = alpha, omega_squared
+    al = alpha
+    w = omega_squared if coef.density is None else coef.density * omega_squared
     zero = jnp.zeros_like(r * al * w * m * a_r)
     n = m / r
     x = n * n * d2t * b4t + al * al * d2z * b4z
@@ -168,6 +171,9 @@ def general_matrix(coef: Coefficients, r, omega_squared, alpha, m):
          -1.0 / r, -al * d4],
         [x, n * d2t * b4t / r, zero, -n * n * d5t - al * al * d5z, zero, n * d2t, al * d2z, -1.0 / r],
     ]
+    if coef.active is not None:  # a passive layer's Φ', D' rows are frozen (real_tubes.md §3)
+        rows[3] = [coef.active * v for v in rows[3]]
+        rows[7] = [coef.active * v for v in rows[7]]
     return jnp.stack([jnp.stack([jnp.broadcast_to(v, zero.shape) for v in row], -1) for row in rows], -2)
 
 

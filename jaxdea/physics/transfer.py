@@ -55,7 +55,16 @@ import numpy as np
 from ..compiled import jit
 from ..materials import Material
 from ..params import Tube, admissible, as_float
-from .base_state import base_state, geometry, pressure_difference_unchecked, stretch, w1_at
+from .base_state import (
+    base_state,
+    geometry,
+    interface_radii,
+    layered_base_state,
+    layered_pressure_difference,
+    pressure_difference_unchecked,
+    stretch,
+    w1_at,
+)
 from .moduli import (
     Coefficients,
     Shear,
@@ -371,9 +380,10 @@ class Wall(NamedTuple):
         step: sublayer thickness h = ĥ/N, or (N,) the thicknesses of graded sublayers.
         coef: :class:`Coefficients` with arrays shaped like ``radii``.
         pressure_inner: P̂_i = ΔP̂ (gauge P̂_o = 0).
-        damping: None (elastic) or the tube's damping law (:mod:`jaxdea.materials`).
-        damping_pattern: None, or the :class:`Coefficients` added per unit η* (the stretch
-            coupling f_ij at the radii; :func:`damping_pattern`).
+        damping: None (elastic) or the tuple of the wall's damping laws (:mod:`jaxdea.materials`;
+            one per damped layer).
+        damping_pattern: None, or per law the :class:`Coefficients` added per unit η* (the
+            stretch coupling f_ij at the radii, 0 outside the law's layer; :func:`damping_pattern`).
     """
 
     r_inner: jax.Array
@@ -422,7 +432,9 @@ def layer_coefficients(tube: Tube, r, moduli: str = "closed") -> Coefficients:
 def discretize(tube: Tube, n_layers) -> Wall:
     """Cut the wall into N equal sublayers (paper Eq. 42); ``n_layers`` is N (midpoint laminate) or
     a :class:`Layers` (then M is sampled at the scheme's Gauss nodes of each sublayer, equal or
-    graded: :func:`breakpoints`)."""
+    graded: :func:`breakpoints`). A layered wall: :func:`discretize_layers`."""
+    if tube.layers is not None:
+        return discretize_layers(tube, n_layers)
     count, scheme = split_layers(n_layers)
     geo = geometry(tube)
     nodes = jnp.asarray(SCHEMES[scheme])
@@ -434,6 +446,7 @@ def discretize(tube: Tube, n_layers) -> Wall:
         radii = geo.r_inner + (jnp.arange(count)[:, None] + nodes) * step
     if scheme == "midpoint":
         radii = radii[:, 0]
+    damped = tube.damping is not None
     return Wall(
         geo.r_inner,
         geo.r_outer,
@@ -441,9 +454,49 @@ def discretize(tube: Tube, n_layers) -> Wall:
         step,
         layer_coefficients(tube, radii),
         pressure_difference_unchecked(tube),
-        tube.damping,
-        None if tube.damping is None else damping_pattern(tube, radii),
+        (tube.damping,) if damped else None,
+        (damping_pattern(tube.damping, stretch(tube, radii), as_float(tube.lambda_z)),)
+        if damped else None,
     )
+
+
+def discretize_layers(tube: Tube, n_layers) -> Wall:
+    """A layered wall (docs/theory/real_tubes.md §3): every layer cut into N equal sublayers of its
+    own (N of ``n_layers``: the same static count whatever the fractions, which may be traced), so
+    that no sublayer straddles an interface. Each node carries its layer's moduli (μ_k times those
+    of its material, the field in the active layer only), its density ratio and whether it is
+    active; U, V, W, T, Q, S pass the interfaces continuously, Φ and D are frozen in passive
+    layers. The state ``Out A S`` machinery then applies unchanged."""
+    count, scheme = split_layers(n_layers)
+    nodes = jnp.asarray(SCHEMES[scheme])
+    edges = interface_radii(tube)
+    lz = as_float(tube.lambda_z)
+    radii, steps, coefs, patterns, laws = [], [], [], [], []
+    for k, layer in enumerate(tube.layers):
+        step = (edges[k + 1] - edges[k]) / count
+        r = edges[k] + (jnp.arange(count)[:, None] + nodes) * step
+        if scheme == "midpoint":
+            r = r[:, 0]
+        state = layered_base_state(tube, k, r)
+        flat = jax.vmap(lambda lam, d, p, layer=layer: material_coefficients(
+            layer.material, lam, lz, d, p, as_float(layer.shear_ratio)))(
+            *(jnp.ravel(x) for x in (state.stretch, state.displacement, state.pressure)))
+        flat = flat._replace(density=jnp.full_like(flat.a, as_float(layer.density_ratio)),
+                             active=jnp.full_like(flat.a, 1.0 if layer.active else 0.0))
+        coefs.append(jax.tree_util.tree_map(lambda x, shape=r.shape: jnp.reshape(x, shape), flat))
+        radii.append(r)
+        steps.append(jnp.full((count,), step))
+    coef = jax.tree_util.tree_map(lambda *x: jnp.concatenate(x), *coefs)
+    radii = jnp.concatenate(radii)
+    lam = stretch(tube, radii)
+    for k, layer in enumerate(tube.layers):
+        if layer.damping is not None:
+            mask = np.zeros(radii.shape)
+            mask[k * count:(k + 1) * count] = 1.0
+            laws.append(layer.damping)
+            patterns.append(damping_pattern(layer.damping, lam, lz, jnp.asarray(mask)))
+    return Wall(edges[0], edges[-1], radii, jnp.concatenate(steps), coef,
+                layered_pressure_difference(tube), tuple(laws) or None, tuple(patterns) or None)
 
 
 def general_form(coef: Coefficients) -> Coefficients:
@@ -454,18 +507,18 @@ def general_form(coef: Coefficients) -> Coefficients:
     return coef._replace(shear=Shear(coef.c, coef.e, coef.a, coef.p, coef.p, coef.p))
 
 
-def damping_pattern(tube: Tube, radii) -> Coefficients:
-    """The coefficients that η* = 1 adds (docs/theory/real_tubes.md §4): A_iiii += 2f_ii,
-    A_ijij += f_ij, A_ijji += f_ij (i ≠ j) with f_ij = 1 + β'(λ_i² + λ_j² − 2)/2 (β' the law's
-    ``stretch_coupling``), so a, c, e, c_θ, e_z, a_θ and p_θ, p_z, p_θz gain f of their pair,
-    b gains f_rr + f_zz, g 2(f_θθ − f_rr) and q 2f_rr."""
-    lam = stretch(tube, radii)
-    lz = as_float(tube.lambda_z)
-    sq = [1.0 / (lam * lz) ** 2, lam * lam, lz * lz + 0.0 * lam]  # λ_r², λ², λ_z²
-    coupling = as_float(tube.damping.stretch_coupling)
+def damping_pattern(law, lam, lam_z, mask=None) -> Coefficients:
+    """The coefficients that η* = 1 of the damping ``law`` adds at stretches λ (docs/theory/real_tubes.md
+    §4): A_iiii += 2f_ii, A_ijij += f_ij, A_ijji += f_ij (i ≠ j) with f_ij = 1 + β'(λ_i² + λ_j² − 2)/2
+    (β' the law's ``stretch_coupling``), so a, c, e, c_θ, e_z, a_θ and p_θ, p_z, p_θz gain f of
+    their pair, b gains f_rr + f_zz, g 2(f_θθ − f_rr) and q 2f_rr. ``mask``: 1 on the nodes of the
+    law's layer, 0 elsewhere (None: the whole wall)."""
+    sq = [1.0 / (lam * lam_z) ** 2, lam * lam, lam_z * lam_z + 0.0 * lam]  # λ_r², λ², λ_z²
+    coupling = as_float(law.stretch_coupling)
+    weight = jnp.ones_like(lam) if mask is None else mask
 
     def f(i, j):
-        return 1.0 + 0.5 * coupling * (sq[i] + sq[j] - 2.0)
+        return weight * (1.0 + 0.5 * coupling * (sq[i] + sq[j] - 2.0))
 
     zero = jnp.zeros_like(lam)
     return Coefficients(
@@ -474,15 +527,22 @@ def damping_pattern(tube: Tube, radii) -> Coefficients:
         shear=Shear(c_t=f(0, 1), e_z=f(1, 2), a_t=f(2, 1), p_t=f(0, 1), p_z=f(0, 2), p_tz=f(1, 2)))
 
 
+DAMPED_FIELDS = 10
+"""The fields of :class:`Coefficients` that damping changes (a … e and the shear moduli)."""
+
+
 def damped_wall(wall: Wall, omega) -> Wall:
-    """The wall at the (complex) frequency Ω: its coefficients plus η*(Ω) times the damping
-    pattern (docs/theory/real_tubes.md §4); the wall itself where it has no damping."""
+    """The wall at the (complex) frequency Ω: its coefficients plus Σ_k η*_k(Ω) times each damping
+    law's pattern (docs/theory/real_tubes.md §4); the wall itself where it has no damping."""
     if wall.damping is None:
         return wall
-    eta = wall.damping.viscous_modulus(omega)
-    coef = jax.tree_util.tree_map(lambda c, f: c + eta * f, general_form(wall.coef),
-                                  wall.damping_pattern)
-    return wall._replace(coef=coef)
+    base = general_form(wall.coef)
+    head = tuple(base[:DAMPED_FIELDS])
+    for law, pattern in zip(wall.damping, wall.damping_pattern, strict=True):
+        eta = law.viscous_modulus(omega)
+        head = jax.tree_util.tree_map(lambda c, f, eta=eta: c + eta * f, head,
+                                      tuple(pattern[:DAMPED_FIELDS]))
+    return wall._replace(coef=base._replace(**dict(zip(base._fields, head, strict=False))))
 
 
 def voltage_expansion(tube: Tube, n_layers) -> tuple[Wall, Wall, Wall]:
@@ -728,6 +788,8 @@ def generator_coefficients(step, coef: Coefficients, radius, alpha, m=0, family=
     block at V̂ = 0, :func:`jaxdea.physics.dispersion.value_and_slope_on_wall`) that is the block of G.
     """
     matrix, inertia = _matrix_of_alpha(family, m, block)
+    if coef.density is not None:  # a layer's ρ_k, constant across its sublayers
+        inertia = (coef.density if jnp.ndim(radius) == 0 else coef.density[0]) * inertia
     minus_e = [] if at_rest else [-inertia]
     if jnp.ndim(radius) == 0:
         node = [matrix(coef, radius, alpha)]
