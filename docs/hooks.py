@@ -15,6 +15,7 @@ ROLE = re.compile(r":(?:func|class|meth|attr|data|mod|exc):<code>~?([\w.]+)</cod
 ANCHOR = re.compile(r'id="(jaxdea\.[\w.]+)"')
 SECTION_TITLES = {
     "params": "Parameters",
+    "materials": "Materials and damping laws",
     "dispersion": "Characteristic function",
     "roots": "Frequencies, critical voltages and growth rates",
     "stability": "Stability of a state",
@@ -24,6 +25,7 @@ SECTION_TITLES = {
     "accuracy": "Accuracy control",
     "counting": "Root counting",
     "wavenumbers": "Complex wavenumbers",
+    "complex_frequencies": "Complex frequencies (damping)",
     "modes": "Mode shapes",
     "base_state": "Static state",
     "design": "Design",
