@@ -427,6 +427,13 @@ SHEAR_RTOL = 1e-9
 """How far 2(W_1 + W_2) at rest may be from 1 (the normalisation of a material object)."""
 
 
+@jax.jit
+def _rest_values(material):
+    """(W, 2(W_1 + W_2)) of a material at rest: compiled once per material class (an eager
+    Hessian took 50–70 ms, paid at every validation)."""
+    return material.energy(jnp.ones(3)), material.shear_modulus()
+
+
 def validate_material(material) -> None:
     """A static name of :data:`MATERIALS` or a material object with finite parameters, an energy
     finite at rest and unit small-strain shear modulus 2(W_1 + W_2) = 1 at I_1 = I_2 = 3 (Ogden:
@@ -463,8 +470,7 @@ def validate_material(material) -> None:
         if not mu or len(mu) != len(alpha) or any(float(a) == 0.0 for a in alpha):
             raise ValueError(f"material {name}: mu and alpha must be tuples of one length >= 1 "
                              f"with every alpha != 0, got mu={mu!r}, alpha={alpha!r}")
-    at_rest = float(material.energy(jnp.ones(3)))
-    shear = float(material.shear_modulus())
+    at_rest, shear = (float(x) for x in _rest_values(material))
     if not math.isfinite(at_rest):
         raise ValueError(f"material {name}: the energy is not finite at rest (W = {at_rest!r})")
     if not abs(shear - 1.0) <= SHEAR_RTOL:

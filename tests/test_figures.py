@@ -22,7 +22,7 @@ from jaxdea.params import gent_limit_excess
 EXPECTED = ["static_response", "fig2_voltage_empty", "fig3_modes_empty", "fig4_modes_critical_empty",
             "fig5_voltage_fluid", "fig6_modes_fluid", "fig7_modes_critical_fluid", "fig8_speed_ratio",
             "fig9_density_ratio", "fig10_thickness_ratio", "comparison_couplings", "stability_map",
-            "cross_sections", "dispersion_order_m"]
+            "cross_sections", "dispersion_order_m", "encapsulation"]
 
 
 def test_locking_stretch_is_where_i1_reaches_gent():
@@ -101,6 +101,20 @@ def test_a_curve_breaks_only_at_a_branch_change():
     np.testing.assert_array_equal(circles[0].get_xdata(), [3.0])
     np.testing.assert_array_equal(circles[0].get_ydata(), [2.0])
     plt.close(fig)
+
+
+def test_encapsulated_tube_keeps_the_de_wall_and_the_length():
+    """The encapsulation wraps the paper's DE wall unchanged: the active layer's deformed faces are
+    the bare tube's r̂_i and r̂_o, and the axial modes keep their α̂ (same length)."""
+    from jaxdea.physics.base_state import geometry, interface_radii
+
+    bare = figures.encapsulated_tube(0.0, 1.0)
+    wrapped = figures.encapsulated_tube(0.3, 3.0)
+    edges = np.asarray(interface_radii(wrapped))
+    geo = geometry(bare)
+    np.testing.assert_allclose(edges[:2], [float(geo.r_inner), float(geo.r_outer)], rtol=1e-14)
+    np.testing.assert_allclose(jd.axial_wavenumber(wrapped, 2), jd.axial_wavenumber(bare, 2),
+                               rtol=1e-14)
 
 
 FIG_N = 30  # the figures use the paper's laminate (midpoint, N = 30): their CSV says so
@@ -446,3 +460,15 @@ def test_every_csv_with_a_voltage_says_whether_the_state_is_past_the_first_insta
     with open(out / "README.md", encoding="utf-8") as fh:
         index = fh.read()
     assert all(f"![{name}]({name}.png)" in index for name in EXPECTED)
+
+
+@pytest.mark.slow
+def test_encapsulation_values_are_direct_solves(written):
+    """The encapsulation CSV's first instability and lowest root are those of direct calls."""
+    out, _ = written
+    for r in rows(out, "encapsulation"):
+        tube = figures.encapsulated_tube(float(r["encapsulation_share"]), float(r["stiffness_ratio"]))
+        inst = jd.first_instability(tube, n_max=2, m_max=4, n_layers=FIG_N)
+        np.testing.assert_allclose(float(r["v_first"]), float(inst.voltage), rtol=1e-12)
+        omega = jd.frequencies(tube, float(r["alpha_hat"]), n_roots=2, n_layers=FIG_N)
+        np.testing.assert_allclose(float(r["omega_1"]), float(omega[0]), rtol=1e-12)

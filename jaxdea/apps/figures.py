@@ -54,11 +54,14 @@ import numpy as np
 from ..compiled import jit
 from ..files import atomic_write, save_figure, write_together
 from ..numerics.scalar import Status
-from ..params import Fluid, Tube, mode_wavenumber
+from ..materials import Gent, NeoHookean
+from ..params import Fluid, Layer, Tube, axial_wavenumber, mode_wavenumber
 from ..physics.base_state import pull_in, squared_voltage
 from ..physics.leaves import apply_parameters
 from ..physics.state_matrix import ORDER_M
 from ..solve.curves import solve_critical_path, solve_path
+from ..solve.instability import first_instability
+from ..solve.roots import frequencies
 from ..solve.modes import mode_shape
 from . import plotstyle
 from .plotstyle import SHORT_LABELS, line_handle, new_figure, past_first_instability, patch_handle
@@ -97,14 +100,15 @@ class Resolution:
     map_stretches: int  # λ_i of the stability map
     curve_steps: int  # α̂ steps of the order-m dispersion curves per mode spacing α̂_1
     outline_points: int  # angles θ of the cross-section outlines
+    encapsulation_shares: int  # encapsulation shares of the wall in [0, 0.5]
 
     @classmethod
     def pick(cls, quick: bool) -> Resolution:
         if quick:
             return cls(voltages=8, max_mode=4, mode_steps=2, fluid_points=6, static_points=60,
-                       map_stretches=5, curve_steps=2, outline_points=73)
+                       map_stretches=5, curve_steps=2, outline_points=73, encapsulation_shares=2)
         return cls(voltages=64, max_mode=15, mode_steps=5, fluid_points=40, static_points=240,
-                   map_stretches=44, curve_steps=16, outline_points=361)
+                   map_stretches=44, curve_steps=16, outline_points=361, encapsulation_shares=6)
 
     def modes(self) -> np.ndarray:
         """The axial mode numbers n of the curves against n: ``mode_steps`` points per unit from 1
@@ -1313,6 +1317,90 @@ def figure_static_response(ctx: Context):
     return fig, (ax,)
 
 
+ENCAPSULATION_STRETCH = 0.9
+"""λ_i of the encapsulation study: the paper's subcritical tube, which ovalises first ((m, n) = (2, 1)
+at V̂ = 0.029)."""
+ENCAPSULATION_STIFFNESS = (0.3, 1.0, 3.0, 10.0)
+"""Shear moduli of the encapsulation over the DE's."""
+ENCAPSULATION_M_MAX, ENCAPSULATION_N_MAX = 4, 2
+"""The orders and axial modes searched for the first instability (over m ≤ 8, n ≤ 3 on this grid it
+is (2, 1) or (3, 1) everywhere, measured)."""
+
+
+def encapsulated_tube(share: float, stiffness: float, lambda_i: float = ENCAPSULATION_STRETCH) -> Tube:
+    """The paper's tube (DE wall η = 0.85, L = 10 R_o) inside a neo-Hookean encapsulation of
+    ``share`` of the new wall and ``stiffness`` × the DE's shear modulus, bonded outside, stretched
+    with it (same λ_i, λ_z) and of the same length, so the axial modes keep their α̂. ``share`` 0:
+    the bare tube."""
+    bare = PAPER_TUBE.replace(lambda_i=lambda_i)
+    if share == 0.0:
+        return bare
+    eta = 1.0 / (1.0 + (1.0 / bare.eta - 1.0) / (1.0 - share))
+    layers = (Layer(1.0 - share, Gent(bare.gent), active=True),
+              Layer(share, NeoHookean(), shear_ratio=stiffness))
+    return Tube(lambda_i=lambda_i, lambda_z=bare.lambda_z, eta=eta,
+                length_ratio=bare.length_ratio * eta / bare.eta, layers=layers)
+
+
+@_styled
+def figure_encapsulation(ctx: Context):
+    """The first instability V̂_first over (m ≤ 4, n ≤ 2) and the two lowest frequencies of the
+    n = 1 mode at V̂ = 0 of the paper's tube (λ_i = 0.9) inside a passive encapsulation of 0–50 % of
+    the wall and 0.3–10× the DE's stiffness (:func:`encapsulated_tube`; issue "real walls").
+    Returns (figure, axes)."""
+    name = "encapsulation"
+    ctx.log(f"[{name}] an encapsulation: first instability and lowest frequencies")
+    shares = np.linspace(0.0, 0.5, ctx.res.encapsulation_shares)
+    alpha = float(axial_wavenumber(PAPER_TUBE.replace(lambda_i=ENCAPSULATION_STRETCH), 1))
+    fig, (left, right) = new_figure(2, title=r"The paper's tube in an encapsulation ($\lambda_i = 0.9$, "
+                                    r"$\lambda_z = 1.2$, DE wall $\eta = 0.85$)")
+    table = Table(name)
+    summary = {}
+
+    def solve(share, stiffness):
+        tube = encapsulated_tube(float(share), stiffness)
+        inst = first_instability(tube, n_max=ENCAPSULATION_N_MAX, m_max=ENCAPSULATION_M_MAX,
+                                 n_layers=ctx.n_layers)
+        return tube, inst, np.asarray(frequencies(tube, alpha, n_roots=2, n_layers=ctx.n_layers))
+
+    for c, stiffness in enumerate(ENCAPSULATION_STIFFNESS):
+        first, lowest = [], []
+        for share in shares:  # in turn: two threads on two cores were slower (36 s against 23 s)
+            tube, inst, omega = solve(share, stiffness)
+            first.append(float(inst.voltage))
+            lowest.append(omega)
+            table.add(encapsulation_share=share, stiffness_ratio=stiffness, eta=tube.eta,
+                      v_first=float(inst.voltage), m_first=int(inst.m), n_first=int(inst.n),
+                      alpha_hat=alpha, omega_1=omega[0], omega_2=omega[1])
+            summary[(float(share), stiffness)] = (float(inst.voltage), int(inst.m), int(inst.n))
+        lowest = np.array(lowest)
+        label = rf"$\mu_{{enc}}/\mu = {stiffness:g}$"
+        left.plot(shares * 100, first, "o-", color=COLORS[c], label=label)
+        right.plot(shares * 100, lowest[:, 0], "o-", color=COLORS[c], lw=2.0)
+        right.plot(shares * 100, lowest[:, 1], "o--", color=COLORS[c], lw=0.9)
+    left.set_title(r"(a) first instability $\hat V_{first}$ over $m \leq 4$, $n \leq 2$")
+    right.set_title(r"(b) lowest two roots of $n = 1$ at $\hat V = 0$ ($m = 0$)")
+    _axes_labels(left, "encapsulation share of the wall (%)", SHORT_LABELS["voltage"])
+    _axes_labels(right, "encapsulation share of the wall (%)", SHORT_LABELS["omega"])
+    handles = [line_handle(rf"encapsulation $\mu_{{enc}}/\mu = {s:g}$", color=COLORS[c])
+               for c, s in enumerate(ENCAPSULATION_STIFFNESS)]
+    handles += [line_handle("lowest root", lw=2.0), line_handle("second root", ls="--", lw=0.9)]
+    plotstyle.legend_below(fig, handles, ncol=3)
+    bare = summary[(0.0, ENCAPSULATION_STIFFNESS[0])]
+    top = max(summary.items(), key=lambda kv: kv[1][0])
+    orders = sorted({(m, n) for (_, _), (_, m, n) in summary.items()})
+    caption = ("The paper's tube (λ_i = 0.9, λ_z = 1.2, DE wall η = 0.85, Gent G = 97.2) bonded inside a "
+               "neo-Hookean encapsulation that takes 0–50 % of the new wall, with 0.3–10× the DE's shear "
+               "modulus, stretched with it and of the same length. (a) The first instability over m ≤ 4, "
+               f"n ≤ 2 (m ≤ 8, n ≤ 3 gives the same modes and the same largest value, measured): the bare tube ovalises, (m, n) = ({bare[1]}, {bare[2]}), at V̂ = {bare[0]:.4f}; the "
+               f"largest V̂_first here is {top[1][0]:.4f}, (m, n) = ({top[1][1]}, {top[1][2]}), at "
+               f"{100 * top[0][0]:.0f} % and {top[0][1]:g}×. The first unstable (m, n) over the grid: "
+               + ", ".join(f"({m}, {n})" for m, n in orders) + ". (b) The two lowest axisymmetric "
+               "frequencies of the n = 1 mode at V̂ = 0. Layered walls: docs/howto/real_tubes.md.")
+    ctx.save(name, fig, table, caption)
+    return fig, (left, right)
+
+
 # ----------------------------------------------------------------------------- main job
 
 
@@ -1370,7 +1458,7 @@ def run_figures(out="figures", *, quick: bool = False, progress: bool = True, n_
 FIGURE_ORDER = ("fig2_voltage_empty", "fig3_modes_empty", "fig4_modes_critical_empty", "fig5_voltage_fluid",
                 "fig6_modes_fluid", "fig7_modes_critical_fluid", "fig8_speed_ratio", "fig9_density_ratio",
                 "fig10_thickness_ratio", "comparison_couplings", "stability_map", "dispersion_order_m",
-                "cross_sections", "static_response")  # the order of the index
+                "cross_sections", "static_response", "encapsulation")  # the order of the index
 
 
 def _paper_figures(ctx: Context) -> None:
@@ -1393,3 +1481,4 @@ def _paper_figures(ctx: Context) -> None:
     figure_fluid_parameter(ctx, "density_ratio")
     figure_fluid_parameter(ctx, "thickness_ratio")
     figure_comparison(ctx, {"modes": modes, "speed": speed})
+    figure_encapsulation(ctx)
