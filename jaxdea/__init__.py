@@ -35,7 +35,7 @@ from .physics.base_state import (
 )
 from .physics.dispersion import characteristic
 from .solve.accuracy import Estimate, frequencies_with_error
-from .solve.complex_frequencies import ComplexRoots, complex_frequencies
+from .solve.complex_frequencies import ComplexRoots, complex_frequencies, solve_complex_frequency
 from .solve.counting import CountStatus, RootCount, count_roots
 from .solve.curves import Curve, dispersion_curve
 from .solve.instability import first_instability
@@ -125,6 +125,7 @@ __all__ = [
     "pressure_difference",
     "pull_in",
     "read_peaks",
+    "solve_complex_frequency",
     "solve_critical_voltage",
     "solve_critical_voltages",
     "solve_frequencies",

@@ -319,6 +319,7 @@ def admissible(tube: Tube, alpha=1.0, fluid: Fluid | None = None) -> jax.Array:
     λ_z r̂_o² <= WIDTH_MAX; I_1 − 3 < G in the whole wall).
 
     Solvers use it under jit/vmap to return NaN with status INVALID instead of a plausible number.
+    A layered wall also needs fractions > 0 summing to 1 and ratios > 0.
     """
     li, lz, eta = (as_float(x) for x in (tube.lambda_i, tube.lambda_z, tube.eta))
     g, length, v, a = (as_float(x) for x in (tube.gent, tube.length_ratio, tube.voltage, alpha))
@@ -331,6 +332,12 @@ def admissible(tube: Tube, alpha=1.0, fluid: Fluid | None = None) -> jax.Array:
     if locking is not None:
         excess = _face_excess(li, lz, eta, jnp)
         ok &= jnp.isfinite(excess) & (excess < as_float(locking))
+    if tube.layers is not None:  # fractions > 0 summing to 1, ratios > 0 (validate_wall_layers)
+        fractions = [as_float(layer.fraction) for layer in tube.layers]
+        ratios = [as_float(getattr(layer, k)) for layer in tube.layers
+                  for k in ("shear_ratio", "density_ratio")]
+        ok &= functools.reduce(jnp.logical_and, [x > 0 for x in fractions + ratios])
+        ok &= jnp.abs(sum(fractions) - 1.0) <= FRACTION_SUM_TOL
     if fluid is not None:
         rho, c = as_float(fluid.density_ratio), as_float(fluid.speed_ratio)
         ok &= jnp.isfinite(rho) & jnp.isfinite(c) & (rho > 0) & (c > 0)
@@ -470,7 +477,8 @@ def validate_material(material) -> None:
         if not mu or len(mu) != len(alpha) or any(float(a) == 0.0 for a in alpha):
             raise ValueError(f"material {name}: mu and alpha must be tuples of one length >= 1 "
                              f"with every alpha != 0, got mu={mu!r}, alpha={alpha!r}")
-    at_rest, shear = (float(x) for x in _rest_values(material))
+    with jax.ensure_compile_time_eval():  # concrete parameters: a value even inside a caller's jit
+        at_rest, shear = (float(x) for x in _rest_values(material))
     if not math.isfinite(at_rest):
         raise ValueError(f"material {name}: the energy is not finite at rest (W = {at_rest!r})")
     if not abs(shear - 1.0) <= SHEAR_RTOL:

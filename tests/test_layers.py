@@ -129,3 +129,17 @@ def test_bad_layers_are_named(layers, message):
     tube = jd.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, layers=layers)
     with pytest.raises(ValueError, match=message):
         jd.frequencies(tube, 0.5)
+
+
+def test_traced_bad_fractions_give_nan_and_invalid():
+    """Under jit, fractions that do not sum to 1 give NaN and INVALID, never a rescaled wall."""
+    def lowest(f):
+        layers = (jd.Layer(f, GENT, active=True), jd.Layer(0.5, GENT))
+        tube = jd.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, layers=layers)
+        res = jd.solve_frequencies(tube, 0.5, n_roots=1, n_layers=8, scheme="magnus6")
+        return res.omega[0], res.status[0]
+
+    omega, status = jax.jit(lowest)(0.7)
+    assert np.isnan(float(omega)) and int(status) == jd.Status.INVALID
+    omega, status = jax.jit(lowest)(0.5)
+    assert np.isfinite(float(omega)) and int(status) == jd.Status.CONVERGED

@@ -103,7 +103,7 @@ def value(family: Family, wall: Wall, x, fixed, fluid=None, order: int = 0, m=0,
     (:func:`jaxdea.physics.transfer.alpha_generators`), exact for complex α̂."""
     family, unknown = Family(family), Unknown(unknown)
     if unknown is Unknown.ALPHA or wall.damping is not None or jnp.iscomplexobj(x):
-        basis, exponentials, out = _pieces(family, wall, x, fixed, fluid, order, m, unknown, method)
+        basis, exponentials, out = pieces(family, wall, x, fixed, fluid, order, m, unknown, method)
         q, _ = carry_basis(basis, exponentials)
         return determinant(out @ q)
     if unknown is Unknown.OMEGA and not family.carries_m:
@@ -122,13 +122,20 @@ def value_and_log_slope(family: Family, wall: Wall, x, fixed, fluid=None, order:
     differentiated (forward mode, tangent 1 in x), never the re-orthonormalisation."""
     family, unknown = Family(family), Unknown(unknown)
     x = jnp.asarray(x, dtype=jnp.result_type(x, jnp.float64))
+    return value_and_log_slope_along(
+        lambda y: pieces(family, wall, y, fixed, fluid, order, m, unknown), x, jnp.ones_like(x))
+
+
+def value_and_log_slope_along(pieces_of, primal, tangent):
+    """(f, d ln F[tangent]) for (S, T_k, Out) = ``pieces_of(primal)`` (:func:`pieces` of whatever
+    ``primal`` holds: x, or the tube and α̂ at a fixed x), the derivative of ln F = ln det(Out A S)
+    along ``tangent``: tr((Out Q_N)⁻¹(Out' Q_N + Out Z)), Z carried across the wall in the frame
+    of Q (:func:`jaxdea.physics.transfer.carry_basis_tangent`)."""
     (basis, exponentials, out), (basis_dot, exponentials_dot, out_dot) = jax.jvp(
-        lambda y: _pieces(family, wall, y, fixed, fluid, order, m, unknown, "taylor"),
-        (x,), (jnp.ones_like(x),))
+        pieces_of, (primal,), (tangent,))
     q, z = carry_basis_tangent(basis, basis_dot, exponentials, exponentials_dot)
     outer_q = out @ q
-    log_slope = jnp.trace(jnp.linalg.solve(outer_q, out_dot @ q + out @ z))
-    return determinant(outer_q), log_slope
+    return determinant(outer_q), jnp.trace(jnp.linalg.solve(outer_q, out_dot @ q + out @ z))
 
 
 def value_and_slope(family: Family, wall: Wall, omega, alpha, fluid=None, order: int = 0, m=0,
@@ -164,7 +171,8 @@ def at_rest_value_and_slope(family: Family, wall_of, exponentials_of, voltage, a
                                               m, Family(family))
 
 
-def _pieces(family: Family, wall: Wall, x, fixed, fluid, order, m, unknown: Unknown, method):
+def pieces(family: Family, wall: Wall, x, fixed, fluid, order, m, unknown: Unknown,
+           method: str = "taylor"):
     """(S, T_k, Out) at x: the initial basis, the sublayer exponentials (N, n, n) and the outer
     rows, in the dtype of x (analytic in x: the generators are polynomials in w and α̂)."""
     w, alpha = unknown.point(x, fixed)

@@ -17,6 +17,7 @@ reaches 1.25 × the highest of the ``n_roots`` elastic frequencies (``damping=No
 boxes extend it, each as wide again as the last, until ``n_roots`` roots are certified.
 """
 
+import functools
 from typing import NamedTuple
 
 import jax
@@ -25,12 +26,13 @@ import numpy as np
 
 from ..compiled import serializable
 from ..numerics.scalar import Status
-from ..params import Fluid, Tube, as_float, canonical, validate_alpha
+from ..params import Fluid, Tube, as_float, canonical, guard, validate_alpha
+from ..physics import characteristic
 from ..physics.characteristic import Unknown
 from ..physics.problem import describe
 from ..physics.transfer import discretize, laminate
 from .roots import frequencies
-from .wavenumbers import GRID, SearchStatus, search_box, validate_search
+from .wavenumbers import GRID, NEWTON_STEPS, ROOT_RTOL, SearchStatus, search_box, validate_search
 
 EXTENSIONS = 3
 """Boxes added to the right when fewer than ``n_roots`` roots lie below the default Ω_max."""
@@ -136,3 +138,85 @@ def _box(problem, wall, alpha, fluid, m, low, high):
 
     found, status = search_box(problem, wall, alpha, fluid, m, lo, hi, starts, Unknown.OMEGA)
     return [z for z in found if z.real > low], SearchStatus(status)
+
+
+def solve_complex_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, m: int = 0,
+                            n_layers: int | None = None, scheme: str | None = None,
+                            torsional: bool = False):
+    """(Ω, status): the complex root nearest ``guess`` by Newton on F(Ω; α̂) (the analytic
+    log-derivative), traceable, with implicit derivatives of Re Ω and Im Ω in the tube's leaves
+    (damping and material parameters, layers), α̂ and the fluid:
+
+        dΩ = −(∂ ln F/∂θ · dθ)/(∂ ln F/∂Ω),
+
+    both log-derivatives carried across the wall (:func:`jaxdea.physics.characteristic.value_and_log_slope_along`).
+    Use it to differentiate a root of :func:`complex_frequencies` (its ``omega`` as the guess).
+    ``status`` is CONVERGED, MAX_ITER or INVALID (a traced invalid tube: Ω NaN).
+
+    Examples:
+        >>> tube = Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, damping=KelvinVoigt(0.1))
+        >>> jax.grad(lambda v: solve_complex_frequency(
+        ...     tube.replace(damping=KelvinVoigt(v)), 1.0, 1.349 + 0.091j)[0].imag)(0.1)
+    """
+    problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional, damped=True)
+    layers = laminate(n_layers, scheme, tube, alpha, 1, m)
+    tube, alpha, fluid = canonical(tube, alpha, fluid)
+    guess = jnp.asarray(guess, jnp.complex128)
+    return _complex_root(problem, layers, tube, alpha, fluid, as_float(m), guess)
+
+
+def _pieces_of(problem, layers, m):
+    def pieces(args):
+        tube, alpha, fluid, omega = args
+        return characteristic.pieces(problem.family, discretize(tube, layers), omega, alpha, fluid,
+                                     problem.order, m, Unknown.OMEGA)
+    return pieces
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1))
+def _complex_root(problem, layers, tube, alpha, fluid, m, guess):
+    ok, tube, alpha, fluid = guard(tube, alpha, fluid)
+    wall = discretize(tube, layers)
+
+    def step(state):
+        k, x, done = state
+        _, log_slope = characteristic.value_and_log_slope(problem.family, wall, x, alpha, fluid,
+                                                          problem.order, m, Unknown.OMEGA)
+        dx = jnp.where(done, 0.0, 1.0 / log_slope)
+        finite = jnp.isfinite(dx)
+        x_new = jnp.where(finite, x - dx, x)
+        return k + 1, x_new, done | ~finite | (jnp.abs(dx) <= ROOT_RTOL * jnp.abs(x_new))
+
+    k, x, done = jax.lax.while_loop(lambda state: (state[0] < NEWTON_STEPS) & ~state[2], step,
+                                    (0, guess, jnp.asarray(False)))
+    f = characteristic.value(problem.family, wall, x, alpha, fluid, problem.order, m, Unknown.OMEGA)
+    converged = done & jnp.isfinite(jnp.abs(x)) & (jnp.abs(f) < 1e-8)
+    status = jnp.where(~ok, Status.INVALID, jnp.where(converged, Status.CONVERGED, Status.MAX_ITER))
+    return jnp.where(ok, x, jnp.nan), status.astype(jnp.int32)
+
+
+@_complex_root.defjvp
+def _complex_root_jvp(problem, layers, primals, tangents):
+    tube, alpha, fluid, m, guess = primals
+    omega, status = _complex_root(problem, layers, tube, alpha, fluid, m, guess)
+    pieces = _pieces_of(problem, layers, m)
+    inputs = (tube, alpha, fluid)
+    leaves, tree = jax.tree_util.tree_flatten(inputs)
+
+    def along(tangent_inputs, omega_dot):
+        return characteristic.value_and_log_slope_along(pieces, (*inputs, omega), (*tangent_inputs,
+                                                                                    omega_dot))[1]
+
+    zeros = [jnp.zeros_like(x) for x in leaves]
+    along_omega = along(jax.tree_util.tree_unflatten(tree, zeros), jnp.ones_like(omega))
+    # dΩ/dθ_i leaf by leaf, from the primals only (forward mode, one-hot tangents): the tangent out
+    # is then a plain linear combination of the tangents in, which reverse mode transposes exactly
+    # (a transpose of the carried wall tangent itself gave wrong cotangents under jit, measured)
+    tangent = jnp.zeros_like(omega)
+    for i, leaf_dot in enumerate(jax.tree_util.tree_leaves(tangents[:3])):
+        one_hot = [jnp.ones_like(x) if j == i else z for j, (x, z) in enumerate(zip(leaves, zeros,
+                                                                                    strict=True))]
+        along_i = along(jax.tree_util.tree_unflatten(tree, one_hot), jnp.zeros_like(omega))
+        tangent = tangent + (-along_i / along_omega) * leaf_dot
+    status_dot = np.zeros(np.shape(status), jax.dtypes.float0)
+    return (omega, status), (tangent, status_dot)
