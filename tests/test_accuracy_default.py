@@ -361,3 +361,32 @@ def test_default_curve_checks_its_roots_and_refines_where_the_rule_falls_short()
     assert np.all(np.asarray(curve.status) == jd.Status.CONVERGED)
     err = float(np.max(np.abs(np.asarray(curve.omega)[::4] - ref) / ref))
     assert err <= TOL, err
+
+
+SURFACE_WAVE_TUBE = jd.Tube(eta=0.3)
+SURFACE_WAVE_ALPHA = 150.0 / float(jd.thickness_ratio(SURFACE_WAVE_TUBE))  # α̂ĥ = 150
+SURFACE_WAVE_OMEGA = 61.4680224975
+"""The inner-face wave of SURFACE_WAVE_TUBE: where f jumps sign, bisected on graded and on equal
+magnus6 walls of N = 1024 (61.468022497525, 61.468022497491; N = 768: …497508, …497316)."""
+
+
+def test_default_check_at_a_jump_of_f():
+    """At α̂ĥ = 150 the normalised f = det(B Q_N) turns sign at the inner-face wave (Ω ≈ 61.468) in a
+    near-jump, ±7.1e-3 on either side: the check's Newton step on f measured the distance to a zero
+    of its continuous part (−0.086 at N = 384 and at 1024) and called the root, 2e-11 from the
+    converged one, INACCURATE. The check steps on the scan's unnormalised g: its estimate is within
+    a factor 3 of the true error, and the default's roots are CONVERGED, within 1e-8."""
+    tube, alpha = SURFACE_WAVE_TUBE, SURFACE_WAVE_ALPHA
+    got = jd.solve_frequencies(tube, alpha, n_roots=3, omega_max=62.0)
+    assert np.array_equal(np.asarray(got.status), [jd.Status.CONVERGED] * 2 + [jd.Status.NO_ROOT])
+    omega = float(got.omega[1])
+    err = abs(omega - SURFACE_WAVE_OMEGA) / SURFACE_WAVE_OMEGA
+    assert err <= TOL, err
+    layers = laminate(None, None, tube, alpha, 3)
+    order = describe(tube, alpha, None, None, None).order
+    t, a, f, om = R.canonical(tube, alpha, None, 62.0)
+    roots, steps = R._solve_checked_frequencies(t, a, f, om, 3, layers, order)
+    assert float(roots.omega[1]) == omega
+    true = abs(omega - SURFACE_WAVE_OMEGA)
+    estimate = abs(float(steps[1])) / 63.0
+    assert 1 / 3 < estimate / true < 3, (estimate, true)

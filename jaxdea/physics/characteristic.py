@@ -112,6 +112,19 @@ def value(family: Family, wall: Wall, x, fixed, fluid=None, order: int = 0, m=0,
     return characteristic_of_w(wall, w, alpha, fluid, order, method, m, family)
 
 
+def value_and_scale(family: Family, wall: Wall, x, fixed, fluid=None, order: int = 0, m=0,
+                    unknown: Unknown = Unknown.OMEGA, method: str = "adaptive"):
+    """(f, ℓ) with F = f e^ℓ at a real Ω (``omega``) or w (``omega_squared``): the arithmetic of
+    :func:`value` (f equal to it bit for bit), ℓ = log det R beside it, no slope (the error check of
+    :func:`jaxdea.solve.roots.newton_steps`, which needs the entire F where f turns sign in a
+    near-jump)."""
+    family, unknown = Family(family), Unknown(unknown)
+    if unknown is Unknown.OMEGA and not family.carries_m:
+        return dispersion.characteristic_and_scale(wall, x, fixed, fluid, order, method)
+    w, alpha = unknown.point(x, fixed)
+    return dispersion.characteristic_and_scale_of_w(wall, w, alpha, fluid, order, method, m, family)
+
+
 def value_and_log_slope(family: Family, wall: Wall, x, fixed, fluid=None, order: int = 0, m=0,
                         unknown: Unknown = Unknown.OMEGA):
     """(f, d ln F/dx) at x, real or complex (module docstring).

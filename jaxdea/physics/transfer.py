@@ -137,7 +137,10 @@ def required_layers(thickness, r_inner, locking, alpha, n_roots: int = 3, m=0,
     wavenumbers α̂, m/r̂ add phase across ĥ, a thick wall adds the variation of 1/r̂ and a face
     near Gent locking (length ℓ, :func:`grading_length`) that of W_1. Calibrated on the measured
     errors (paper's tube, unstretched, η = 0.3 up to α̂ĥ = 86, 99 % of locking at G = 2 and 4) with
-    a margin of about 10 (tests/test_accuracy_default.py).
+    a margin of about 10 (tests/test_accuracy_default.py). At α̂ĥ = 150 (η = 0.3, N = 384 for
+    K ≤ 24) the two surface-like roots near Ω = 61.4 are ≤ 8.1e-11 off and the check of
+    :func:`jaxdea.solve.roots._verified` estimates ≤ 7.5e-11 for the 17 roots in (60, 68); N = 192
+    would leave 4.8e-9 (docs/howto/accuracy.md).
 
     High orders: also N ≥ 5 m L^0.8 with L = ln(1 + ĥ/r̂_i) (:data:`ORDER_FACTOR`,
     :data:`ORDER_POWER`): the fields of order m vary like r̂^{±m}, an exponent m L across the wall,

@@ -77,7 +77,7 @@ from ..physics import characteristic
 from ..physics.base_state import voltage_limit
 from ..physics.characteristic import Unknown, problem_function
 from ..physics.dispersion import carried_jvp
-from ..physics.families import Face
+from ..physics.families import Face, Family
 from ..physics.problem import Problem, describe
 from ..physics.state_matrix import LONGITUDINAL, ORDER_M
 from ..physics.transfer import (
@@ -887,22 +887,36 @@ SECANT_STEP = 1e-6
 
 
 def newton_steps(tube, alpha, fluid, omegas, n_layers, order, m=0.0, family=LONGITUDINAL):
-    """−f(Ω)/f'(Ω) at each Ω of ``omegas`` on the laminate ``n_layers``: to first order the
-    distance from Ω to that laminate's root (:func:`secant_steps`)."""
+    """−g(Ω)/g'(Ω) at each Ω of ``omegas`` on the laminate ``n_layers``: to first order the
+    distance from Ω to that laminate's root (:func:`secant_steps`).
+
+    g = f e^ℓ is the unnormalised determinant that the scan solves (:func:`scanned_function`; here
+    :func:`jaxdea.physics.characteristic.value_and_scale`, without the carried slope), not the
+    normalised f = det(B Q_N): at the inner-face waves of a wall with large α̂ĥ f turns sign in a
+    near-jump (±7.1e-3 on either side of the root near Ω = 61.468 of η = 0.3 at α̂ĥ = 150), so a
+    Newton step on f measures the distance to a zero of its continuous part, not to the root (it
+    was −0.086 there, whatever N, and the default's root, 2e-11 relative from the converged one,
+    was called INACCURATE); g has an ordinary simple root there."""
     ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
-    _, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
+    wall = discretize(tube, n_layers)
+    family = Family(family)
+    m = family.safe_m(m, ok) if family.carries_m else 0
+    fun = Scaled(lambda om: characteristic.value_and_scale(family, wall, om, alpha, fluid, order, m))
     return jnp.where(ok, secant_steps(fun, omegas), jnp.nan)
 
 
-def secant_steps(fun, omegas):
-    """−f(Ω)/f'(Ω) at each finite Ω of ``omegas`` (NaN elsewhere), f' the secant over
+def secant_steps(fun: Scaled, omegas):
+    """−g(Ω)/g'(Ω) at each finite Ω of ``omegas`` (NaN elsewhere), g = f e^ℓ of ``fun``
+    (:class:`Scaled`, ℓ₀ = ℓ(Ω) at each Ω: the step is a ratio of g's) and g' the secant over
     Ω(1 + SECANT_STEP): two values per Ω, no tangent program (the slope's own error, ~1e-6
     relative, is nothing to an error estimate)."""
     finite = jnp.isfinite(omegas)
     omegas = jnp.where(finite, omegas, 1.0)
     shift = SECANT_STEP * omegas
-    values = jax.vmap(fun)(jnp.concatenate([omegas, omegas + shift]))
-    value, moved = values[: omegas.shape[0]], values[omegas.shape[0]:]
+    f, log_scale = jax.vmap(fun.scaled)(jnp.concatenate([omegas, omegas + shift]))
+    count = omegas.shape[0]
+    value = f[:count]
+    moved = Scaled.combine(f[count:], log_scale[count:], log_scale[:count])
     return jnp.where(finite, -value * shift / (moved - value), jnp.nan)
 
 
