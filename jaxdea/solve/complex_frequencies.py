@@ -32,7 +32,7 @@ from ..physics.characteristic import Unknown
 from ..physics.problem import describe
 from ..physics.transfer import discretize, laminate
 from .roots import frequencies
-from .wavenumbers import GRID, NEWTON_STEPS, ROOT_RTOL, SearchStatus, search_box, validate_search
+from .wavenumbers import GRID, SearchStatus, complex_newton, search_box, validate_search
 
 EXTENSIONS = 3
 """Boxes added to the right when fewer than ``n_roots`` roots lie below the default Ω_max."""
@@ -149,7 +149,8 @@ def solve_complex_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None
 
         dΩ = −(∂ ln F/∂θ · dθ)/(∂ ln F/∂Ω),
 
-    both log-derivatives carried across the wall (:func:`jaxdea.physics.characteristic.value_and_log_slope_along`).
+    both log-derivatives carried across the wall
+    (:func:`jaxdea.physics.characteristic.value_and_log_slope_along`).
     Use it to differentiate a root of :func:`complex_frequencies` (its ``omega`` as the guess).
     ``status`` is CONVERGED, MAX_ITER or INVALID (a traced invalid tube: Ω NaN).
 
@@ -177,20 +178,7 @@ def _pieces_of(problem, layers, m):
 def _complex_root(problem, layers, tube, alpha, fluid, m, guess):
     ok, tube, alpha, fluid = guard(tube, alpha, fluid)
     wall = discretize(tube, layers)
-
-    def step(state):
-        k, x, done = state
-        _, log_slope = characteristic.value_and_log_slope(problem.family, wall, x, alpha, fluid,
-                                                          problem.order, m, Unknown.OMEGA)
-        dx = jnp.where(done, 0.0, 1.0 / log_slope)
-        finite = jnp.isfinite(dx)
-        x_new = jnp.where(finite, x - dx, x)
-        return k + 1, x_new, done | ~finite | (jnp.abs(dx) <= ROOT_RTOL * jnp.abs(x_new))
-
-    k, x, done = jax.lax.while_loop(lambda state: (state[0] < NEWTON_STEPS) & ~state[2], step,
-                                    (0, guess, jnp.asarray(False)))
-    f = characteristic.value(problem.family, wall, x, alpha, fluid, problem.order, m, Unknown.OMEGA)
-    converged = done & jnp.isfinite(jnp.abs(x)) & (jnp.abs(f) < 1e-8)
+    x, converged = complex_newton(problem, wall, alpha, fluid, m, guess, Unknown.OMEGA)
     status = jnp.where(~ok, Status.INVALID, jnp.where(converged, Status.CONVERGED, Status.MAX_ITER))
     return jnp.where(ok, x, jnp.nan), status.astype(jnp.int32)
 

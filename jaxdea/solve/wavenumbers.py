@@ -112,26 +112,29 @@ def _count(problem, wall, fixed, fluid, m, corner_lo, corner_hi, unknown=Unknown
     return count, status
 
 
+def complex_newton(problem, wall, fixed, fluid, m, x0, unknown=Unknown.ALPHA):
+    """(x, converged): Newton on F from x0 in the complex plane, x ← x − 1/(d ln F/dx) with the
+    analytic log-derivative of :func:`jaxdea.physics.characteristic.value_and_log_slope`, until the
+    step is below ROOT_RTOL of x (at most NEWTON_STEPS); converged also needs |f| < 1e-8 there."""
+    def step(state):
+        k, x, done = state
+        _, log_slope = characteristic.value_and_log_slope(problem.family, wall, x, fixed, fluid,
+                                                          problem.order, m, unknown)
+        dx = jnp.where(done, 0.0, 1.0 / log_slope)
+        ok = jnp.isfinite(dx)
+        x_new = jnp.where(ok, x - dx, x)
+        return k + 1, x_new, done | ~ok | (jnp.abs(dx) <= ROOT_RTOL * jnp.abs(x_new))
+
+    _, x, done = jax.lax.while_loop(lambda state: (state[0] < NEWTON_STEPS) & ~state[2], step,
+                                    (0, x0, jnp.asarray(False)))
+    f = characteristic.value(problem.family, wall, x, fixed, fluid, problem.order, m, unknown)
+    return x, done & jnp.isfinite(jnp.abs(x)) & (jnp.abs(f) < 1e-8)
+
+
 @functools.partial(jax.jit, static_argnames=("problem", "unknown"))
 def _newton(problem, wall, fixed, fluid, m, starts, unknown=Unknown.ALPHA):
-    """Newton on F from every start: (roots, converged) (complex Newton with the analytic
-    log-derivative of :func:`jaxdea.physics.characteristic.value_and_log_slope`)."""
-    def one(x0):
-        def step(state):
-            k, x, done = state
-            _, log_slope = characteristic.value_and_log_slope(problem.family, wall, x, fixed, fluid,
-                                                              problem.order, m, unknown)
-            dx = jnp.where(done, 0.0, 1.0 / log_slope)
-            ok = jnp.isfinite(dx)
-            x_new = jnp.where(ok, x - dx, x)
-            return k + 1, x_new, done | ~ok | (jnp.abs(dx) <= ROOT_RTOL * jnp.abs(x_new))
-
-        _, x, done = jax.lax.while_loop(lambda state: (state[0] < NEWTON_STEPS) & ~state[2], step,
-                                        (0, x0, jnp.asarray(False)))
-        f = characteristic.value(problem.family, wall, x, fixed, fluid, problem.order, m, unknown)
-        return x, done & jnp.isfinite(jnp.abs(x)) & (jnp.abs(f) < 1e-8)
-
-    return jax.vmap(one)(starts)
+    """:func:`complex_newton` from every start: (roots, converged)."""
+    return jax.vmap(lambda x0: complex_newton(problem, wall, fixed, fluid, m, x0, unknown))(starts)
 
 
 def _distinct(roots, scale):
