@@ -45,8 +45,9 @@ def test_autodiff_moduli_equal_closed_forms(lam, lam_z, d, gent):
     np.testing.assert_allclose(mod.K, np.eye(3), atol=1e-14)
     auto = coefficients(mod, 0.37)
     closed = closed_form_coefficients(jnp.asarray(lam), lam_z, jnp.asarray(d), 0.37, gent)
-    assert auto.shear is None and closed.shear is None  # W(I_1): no separate shear moduli
-    for name, x, y in zip(auto._fields[:-1], auto[:-1], closed[:-1], strict=True):
+    # W(I_1) of a single wall: no separate shear moduli, no layer density or active flag
+    assert all(getattr(c, k) is None for c in (auto, closed) for k in ("shear", "density", "active"))
+    for name, x, y in zip(auto._fields[:9], auto[:9], closed[:9], strict=True):
         np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-14, err_msg=name)
 
 
