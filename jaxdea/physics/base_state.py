@@ -546,24 +546,38 @@ def layered_displacement(tube: Tube, k: int, r, edges=None):
     return as_float(tube.voltage) / (r * jnp.log(edges[k + 1] / edges[k]))
 
 
-def layered_pressure_difference(tube: Tube):
+def _layer_elastic(tube: Tube, k: int, start, end):
+    """∫_start^end μ_k(λW_θ − λ_rW_r) dr̂/r̂ in layer k (vectorised in ``end``)."""
+    return _layer_quadrature(lambda x: _layer_parts(tube, k, x)[0] / x, start, end)
+
+
+def layer_integrals(tube: Tube, edges=None):
+    """The elastic integral of each whole layer, ∫_{r̂_k}^{r̂_{k+1}} μ_k(λW_θ − λ_rW_r) dr̂/r̂ (a
+    list): formed once per wall and shared by ΔP̂ and τ̂_rr of every layer."""
+    edges = interface_radii(tube) if edges is None else edges
+    return [_layer_elastic(tube, k, edges[k], edges[k + 1]) for k in range(len(tube.layers))]
+
+
+def layered_pressure_difference(tube: Tube, edges=None, integrals=None):
     """ΔP̂ = Σ_k ∫_{r̂_k}^{r̂_{k+1}} μ_k(λW_θ − λ_rW_r) dr̂/r̂ − ∫ D̂_r² dr̂/r̂ (docs/theory/real_tubes.md
-    §3: radial traction continuous through the layers)."""
-    edges = interface_radii(tube)
-    total = sum(_layer_quadrature(lambda x, k=k: _layer_parts(tube, k, x)[0] / x, edges[k],
-                                  edges[k + 1]) for k in range(len(tube.layers)))
-    return total - _layered_electric(tube, edges[-1], edges)
+    §3: radial traction continuous through the layers); ``edges`` and ``integrals`` of
+    :func:`interface_radii` and :func:`layer_integrals` where the caller has them."""
+    edges = interface_radii(tube) if edges is None else edges
+    integrals = layer_integrals(tube, edges) if integrals is None else integrals
+    return sum(integrals) - _layered_electric(tube, edges[-1], edges)
 
 
-def layered_base_state(tube: Tube, k: int, r) -> BaseState:
+def layered_base_state(tube: Tube, k: int, r, edges=None, integrals=None) -> BaseState:
     """λ, D̂_r and p̂ = μ_kλ_rW_r + D̂_r² − τ̂_rr at radii r̂ inside layer k of a layered wall, with
     τ̂_rr(r̂) = −ΔP̂ + ∫_{r̂_i}^{r̂} [μ(λW_θ − λ_rW_r) − D̂_r²] dr̂/r̂ (docs/theory/real_tubes.md §3;
-    p̂ jumps at interfaces, τ̂_rr does not)."""
+    p̂ jumps at interfaces, τ̂_rr does not); ``edges``, ``integrals`` as for
+    :func:`layered_pressure_difference`."""
     r = jnp.asarray(r, jnp.float64)
-    edges = interface_radii(tube)
-    below = sum((_layer_quadrature(lambda x, j=j: _layer_parts(tube, j, x)[0] / x, edges[j],
-                                   edges[j + 1]) for j in range(k)), jnp.zeros(()))
-    own = _layer_quadrature(lambda x: _layer_parts(tube, k, x)[0] / x, edges[k], r)
-    tau_rr = -layered_pressure_difference(tube) + below + own - _layered_electric(tube, r, edges)
+    edges = interface_radii(tube) if edges is None else edges
+    integrals = layer_integrals(tube, edges) if integrals is None else integrals
+    below = sum(integrals[:k], jnp.zeros(()))
+    own = _layer_elastic(tube, k, edges[k], r)
+    tau_rr = (-layered_pressure_difference(tube, edges, integrals) + below + own
+              - _layered_electric(tube, r, edges))
     d = layered_displacement(tube, k, r, edges)
     return BaseState(r, stretch(tube, r), d, _layer_parts(tube, k, r)[1] + d**2 - tau_rr)

@@ -59,6 +59,7 @@ from .base_state import (
     base_state,
     geometry,
     interface_radii,
+    layer_integrals,
     layered_base_state,
     layered_pressure_difference,
     pressure_difference_unchecked,
@@ -473,6 +474,7 @@ def discretize_layers(tube: Tube, n_layers) -> Wall:
     count, scheme = split_layers(n_layers)
     nodes = jnp.asarray(SCHEMES[scheme])
     edges = interface_radii(tube)
+    integrals = layer_integrals(tube, edges)  # once for the wall: ΔP̂ and every layer's τ̂_rr
     lz = as_float(tube.lambda_z)
     radii, steps, coefs, patterns, laws = [], [], [], [], []
     for k, layer in enumerate(tube.layers):
@@ -480,7 +482,7 @@ def discretize_layers(tube: Tube, n_layers) -> Wall:
         r = edges[k] + (jnp.arange(count)[:, None] + nodes) * step
         if scheme == "midpoint":
             r = r[:, 0]
-        state = layered_base_state(tube, k, r)
+        state = layered_base_state(tube, k, r, edges, integrals)
         flat = jax.vmap(lambda lam, d, p, layer=layer: material_coefficients(
             layer.material, lam, lz, d, p, as_float(layer.shear_ratio)))(
             *(jnp.ravel(x) for x in (state.stretch, state.displacement, state.pressure)))
@@ -499,7 +501,8 @@ def discretize_layers(tube: Tube, n_layers) -> Wall:
             laws.append(layer.damping)
             patterns.append(damping_pattern(layer.damping, lam, lz, jnp.asarray(mask)))
     return Wall(edges[0], edges[-1], radii, jnp.concatenate(steps), coef,
-                layered_pressure_difference(tube), tuple(laws) or None, tuple(patterns) or None)
+                layered_pressure_difference(tube, edges, integrals), tuple(laws) or None,
+                tuple(patterns) or None)
 
 
 def general_form(coef: Coefficients) -> Coefficients:
