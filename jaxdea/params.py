@@ -77,6 +77,9 @@ class Tube:
             face outwards, exactly one of them active; each carries its own material and damping
             (``material``, ``gent`` and ``damping`` of the tube are then unused and must stay at
             their defaults).
+        outer: None (vacuum outside) or the unbounded inviscid :class:`Fluid` around the tube
+            (``coupling="acoustic"``): subsonic modes (Ω < ĉ_oα̂) carry its added mass
+            (docs/theory/real_tubes.md §6). The solvers' ``outer=`` sets it.
     """
 
     voltage: float = 0.0
@@ -88,6 +91,7 @@ class Tube:
     material: object = "gent"
     damping: object = None
     layers: tuple | None = None
+    outer: Fluid | None = None
 
     def __post_init__(self):
         material = self.material
@@ -112,6 +116,7 @@ def _flatten_tube(tube: Tube):
     children = [(jax.tree_util.GetAttrKey(k), getattr(tube, k)) for k in TUBE_FIELDS]
     children.append((jax.tree_util.GetAttrKey("damping"), tube.damping))
     children.append((jax.tree_util.GetAttrKey("layers"), tube.layers))
+    children.append((jax.tree_util.GetAttrKey("outer"), tube.outer))
     if isinstance(tube.material, str):
         return children, (tube.material,)
     return [*children, (jax.tree_util.GetAttrKey("material"), tube.material)], (None,)
@@ -125,7 +130,8 @@ def _unflatten_tube(aux, children) -> Tube:
     count = len(TUBE_FIELDS)
     object.__setattr__(tube, "damping", children[count])
     object.__setattr__(tube, "layers", children[count + 1])
-    object.__setattr__(tube, "material", name if name is not None else children[count + 2])
+    object.__setattr__(tube, "outer", children[count + 2])
+    object.__setattr__(tube, "material", name if name is not None else children[count + 3])
     return tube
 
 
@@ -338,9 +344,10 @@ def admissible(tube: Tube, alpha=1.0, fluid: Fluid | None = None) -> jax.Array:
                   for k in ("shear_ratio", "density_ratio")]
         ok &= functools.reduce(jnp.logical_and, [x > 0 for x in fractions + ratios])
         ok &= jnp.abs(sum(fractions) - 1.0) <= FRACTION_SUM_TOL
-    if fluid is not None:
-        rho, c = as_float(fluid.density_ratio), as_float(fluid.speed_ratio)
-        ok &= jnp.isfinite(rho) & jnp.isfinite(c) & (rho > 0) & (c > 0)
+    for medium in (fluid, tube.outer):
+        if medium is not None:
+            rho, c = as_float(medium.density_ratio), as_float(medium.speed_ratio)
+            ok &= jnp.isfinite(rho) & jnp.isfinite(c) & (rho > 0) & (c > 0)
     return ok
 
 
@@ -350,8 +357,9 @@ def guard(tube: Tube, alpha, fluid: Fluid | None):
     returns NaN, with status INVALID, there)."""
     ok = admissible(tube, alpha, fluid)
     swap = lambda x, d: jnp.where(ok, as_float(x), d)  # noqa: E731
+    outer = None if tube.outer is None else Fluid(density_ratio=1.0, speed_ratio=OUTER_SPEED_DEFAULT)
     tube = jax.tree_util.tree_map(swap, tube, Tube(material=tube.material, damping=tube.damping,
-                                                    layers=tube.layers))
+                                                    layers=tube.layers, outer=outer))
     if fluid is not None:
         default = Fluid(coupling=fluid.coupling, bessel_order=fluid.bessel_order)
         fluid = jax.tree_util.tree_map(swap, fluid, default)
@@ -380,6 +388,7 @@ def validate_tube(tube: Tube, scalar: bool = True) -> dict:
     validate_material(tube.material)
     validate_damping(tube.damping)
     validate_wall_layers(tube)
+    validate_outer(tube.outer)
     checks = dict(
         voltage=_check("voltage", tube.voltage, "a finite real number", lambda v: np.isreal(v),
                        scalar=scalar),
@@ -596,6 +605,49 @@ def validate_fluid(fluid: Fluid | None, scalar: bool = True) -> None:
     )
     if not scalar:
         validate_broadcast("Fluid", checks)
+
+
+def with_outer(tube: Tube, outer: Fluid | None) -> Tube:
+    """The tube in the surrounding fluid ``outer`` (the solvers' ``outer=``): the tube itself where
+    ``outer`` is None.
+
+    Raises:
+        ValueError: ``outer`` given for a tube that already has an ``outer`` fluid.
+    """
+    if outer is None:
+        return tube
+    if not isinstance(tube, Tube):
+        raise ValueError(f"tube must be a jaxdea.Tube, got {type(tube).__name__}")
+    if tube.outer is not None:
+        raise ValueError("outer: the tube already has a surrounding fluid (tube.outer); give it once")
+    validate_outer(outer)
+    return tube.replace(outer=outer)
+
+
+OUTER_SPEED_DEFAULT = 100.0
+"""ĉ_o of the stand-in outer fluid that :func:`guard` puts in place of an invalid one."""
+
+
+def validate_outer(outer: Fluid | None) -> None:
+    """Validate a surrounding fluid (``Tube.outer``; None is vacuum).
+
+    Raises:
+        ValueError: naming ``outer`` and the parameter: not a Fluid; a coupling other than
+            ``"acoustic"`` (the paper's follower-pressure model exists only as a filling); a
+            ``bessel_order``; a density or speed ratio that is not finite and > 0.
+    """
+    if outer is None:
+        return
+    if not isinstance(outer, Fluid):
+        raise ValueError(f"outer must be a jaxdea.Fluid or None, got {type(outer).__name__}")
+    if outer.coupling != "acoustic":
+        raise ValueError("outer.coupling must be 'acoustic' (the 'paper' coupling exists only as a "
+                         f"filling, fluid=...), got {outer.coupling!r}")
+    if outer.bessel_order is not None:
+        raise ValueError("outer.bessel_order must be None (the outer field's order is the mode's "
+                         f"m), got {outer.bessel_order!r}")
+    _check("outer.density_ratio", outer.density_ratio, "> 0", lambda v: v > 0)
+    _check("outer.speed_ratio", outer.speed_ratio, "> 0", lambda v: v > 0)
 
 
 def validate_alpha(alpha, name: str = "alpha", tube: Tube | None = None, scalar: bool = True):

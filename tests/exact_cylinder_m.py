@@ -145,7 +145,7 @@ def _family(kind, beta2, r, a, b, ns, analytic=False):
     return {n: _radial(kind, n, beta2, r, a, b) for n in ns}
 
 
-def _columns(omega, alpha, a, b, m, analytic=False):
+def _columns(omega, alpha, a, b, m, analytic=False, displacements=False):
     """Tractions (sigma_rr, sigma_rtheta, sigma_rz at a, then at b) of the six basis fields.
 
     Every traction is written with the recurrences of the module docstring so that no
@@ -223,6 +223,8 @@ def _columns(omega, alpha, a, b, m, analytic=False):
             sig[:, 3 * i, j], sig[:, 3 * i + 1, j], sig[:, 3 * i + 2, j] = srr, srt, srz
             disp[:, 3 * i, j], disp[:, 3 * i + 1, j], disp[:, 3 * i + 2, j] = u, v, w
     norm = np.sqrt(np.sum(np.abs(sig)**2, axis=1) + np.sum(np.abs(disp)**2, axis=1))
+    if displacements:
+        return sig, norm, disp
     return sig, norm
 
 
@@ -249,6 +251,21 @@ def characteristic_m(omega, alpha, a, b, m):
     sig, norm = _columns(omega, alpha, a, b, m)
     d = np.linalg.det(sig / norm[:, None, :])
     return float(d[0]) if np.ndim(omega) == 0 else d
+
+
+def characteristic_m_outer(omega, alpha, a, b, m, rho_o, c_o):
+    """:func:`characteristic_m` with an unbounded acoustic fluid outside (density ``rho_o``, sound
+    speed ``c_o`` in units of the solid's; subsonic: Omega < c_o alpha). The fluid pressure
+    p = A K_m(gamma r) (Helmholtz: gamma^2 = alpha^2 - Omega^2/c_o^2), with rho_o Omega^2 u_r = dp/dr
+    at r = b, loads the outer face: sigma_rr(b) = -p(b) = -rho_o Omega^2 K_m/(gamma K_m') U(b), and
+    sigma_rtheta = sigma_rz = 0 (inviscid). Scalar ``omega``; scipy's ``kve``."""
+    m = int(m)
+    sig, norm, disp = _columns(omega, alpha, a, b, m, displacements=True)
+    gamma = math.sqrt(alpha * alpha - omega * omega / (c_o * c_o))
+    y = gamma * b
+    k_prime = -0.5 * (kve(m - 1, y) + kve(m + 1, y))  # K_m'(y) e^y
+    sig[:, 3, :] += rho_o * omega * omega * kve(m, y) / (gamma * k_prime) * disp[:, 3, :]
+    return float(np.linalg.det(sig / norm[:, None, :])[0])
 
 
 def _torsion(omega, alpha, a, b):

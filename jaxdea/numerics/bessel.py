@@ -387,3 +387,55 @@ def coupling_log_factor(s):
     large_negative = s < -SCALE_SWITCH
     root = jnp.sqrt(jnp.where(large_negative, -s, 1.0))
     return jnp.where(large_negative, -root, 0.0)
+
+
+# --- The outer face: K_m of an unbounded fluid (docs/theory/real_tubes.md §6) ----------------------
+
+K_NODES = 96
+"""Points of the trapezoidal rule of :func:`_k_ratio_01` on [0, T(y)]."""
+K_TAIL = 60.0
+"""The rule stops at T with Re y (cosh T − 1) = K_TAIL: the integrand is e^{−60} of its peak there."""
+OUTER_ORDER_MAX = 128
+"""Orders m ≤ OUTER_ORDER_MAX of :func:`outer_impedance` (the forward recurrence runs that many
+masked steps for a traced m); NaN beyond."""
+
+
+def _k_ratio_01(y):
+    """K_0(y)/K_1(y) for Re y > 0 from e^y K_ν(y) = ∫_0^∞ e^{−y(cosh t − 1)} cosh νt dt (ν = 0, 1;
+    DLMF 10.32.9), by the trapezoidal rule on K_NODES + 1 points of [0, T]: the integrand is even and
+    analytic in the strip |Im t| < π/2 − |arg y|, so the rule errs by e^{−2πd/h} (h = T/K_NODES;
+    below 1e-16 for real y from 1e-8 to 1e6), and T from the tail bound K_TAIL."""
+    yr = jnp.maximum(jnp.real(y), 1e-300)
+    top = jnp.arccosh(1.0 + K_TAIL / yr)
+    t = jnp.linspace(0.0, 1.0, K_NODES + 1) * top[..., None]
+    weight = jnp.ones(K_NODES + 1).at[0].set(0.5)
+    kernel = weight * jnp.exp(-y[..., None] * (jnp.cosh(t) - 1.0))
+    return jnp.sum(kernel, axis=-1) / jnp.sum(kernel * jnp.cosh(t), axis=-1)
+
+
+def outer_impedance(y, m):
+    """R_m(y) = y K_m'(y)/K_m(y) = −m − y K_{m−1}(y)/K_m(y) (K_{−1} = K_1), the outer fluid's face
+    factor at y = γr̂_o, γ = sqrt(α̂² − Ω²/ĉ_o²) (subsonic: y > 0, R_m < 0: added mass).
+
+    The ratios ρ_n = K_{n−1}/K_n follow the forward recurrence ρ_{n+1} = 1/(ρ_n + 2n/y) (DLMF
+    10.29.1; K is the dominant solution, so the recurrence is stable) from ρ_1 = K_0/K_1
+    (:func:`_k_ratio_01`), in OUTER_ORDER_MAX masked steps for a traced m. Real y > 0, or complex y
+    with Re y > 0 (analytic there); NaN for Re y ≤ 0 (the supersonic side, not on this sheet) and
+    for m > OUTER_ORDER_MAX.
+
+    Args:
+        y: γr̂_o, real or complex, scalar.
+        m: the circumferential order, an integer ≥ 0 (traced or not).
+    """
+    y = jnp.asarray(y)
+    m = jnp.asarray(m, dtype=jnp.float64)
+    ok = (jnp.real(y) > 0) & (m <= OUTER_ORDER_MAX)
+    y_safe = jnp.where(ok, y, 1.0)
+    first = _k_ratio_01(y_safe)
+
+    def step(ratio, n):
+        return jnp.where(n < m, 1.0 / (ratio + 2.0 * n / y_safe), ratio), None
+
+    ratio, _ = jax.lax.scan(step, first, jnp.arange(1.0, OUTER_ORDER_MAX + 1.0))
+    ratio = jnp.where(m == 0, 1.0 / first, ratio)  # ρ_0 = K_{−1}/K_0 = K_1/K_0
+    return jnp.where(ok, -m - y_safe * ratio, jnp.nan)

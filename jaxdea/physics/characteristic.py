@@ -197,7 +197,7 @@ def pieces(family: Family, wall: Wall, x, fixed, fluid, order, m, unknown: Unkno
     generators = jax.vmap(generator_of_w, (0, None))(coefficients, w)
     exponentials = jax.vmap(EXPONENTIALS[method])(generators)
     basis = initial_basis_of_w(wall, w, alpha, fluid, order, m, family)
-    out = outer_conditions(wall, alpha, m, family)
+    out = outer_conditions(wall, alpha, m, family, omega_squared=w)
     dtype = jnp.result_type(x, exponentials, basis, out, jnp.float64)
     return basis.astype(dtype), exponentials.astype(dtype), out.astype(dtype)
 

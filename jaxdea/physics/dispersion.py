@@ -30,7 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..compiled import cached_jit
-from ..numerics.bessel import coupling_pair
+from ..numerics.bessel import coupling_pair, outer_impedance
 from ..params import (
     Fluid,
     Tube,
@@ -38,6 +38,7 @@ from ..params import (
     canonical,
     guard,
     validate_real,
+    with_outer,
 )
 from .families import Face, Family
 from .problem import describe, family_of, validated_order
@@ -134,7 +135,18 @@ def characteristic_and_scale(wall: Wall, omega, alpha, fluid=None, order=0, meth
     ``method``: the sublayer exponential (:func:`jaxdea.physics.transfer.layer_exponentials`)."""
     q, log_scale = propagate_basis(wall, omega, alpha,
                                    initial_basis(wall, omega, alpha, fluid, order), method)
+    if wall.outer is not None:
+        return determinant(outer_rows_of(wall, alpha)(omega) @ q), log_scale
     return jnp.linalg.det(q[OUTER_ROWS, :]), log_scale
+
+
+def outer_rows_of(wall: Wall, alpha, m=0, family: str = LONGITUDINAL, w_of=None):
+    """x ↦ Out at w = ``w_of``(x) (Ω² of x = Ω by default) for a wall in a surrounding fluid
+    (:func:`outer_conditions`); None without one, where the rows do not depend on x."""
+    if wall.outer is None:
+        return None
+    w_of = _squared if w_of is None else w_of
+    return lambda x: outer_conditions(wall, alpha, m, family, omega_squared=w_of(x))
 
 
 def characteristic_on_wall(wall: Wall, omega, alpha, fluid=None, order=0, method="taylor", m=0,
@@ -225,7 +237,8 @@ def _longitudinal_value_and_slope(wall, omega, alpha, fluid, order, decoupled, w
 
     def full():
         gens = wall_generators(wall, alpha) if generators is None else generators["full"]
-        return _coupled_value_and_slope(basis_of, gens, omega, None, with_scale)
+        return _coupled_value_and_slope(basis_of, gens, omega, outer_rows_of(wall, alpha),
+                                        with_scale)
 
     if decoupled is None:
         return jax.lax.cond(electric_decoupled(wall, alpha), split, full)
@@ -266,7 +279,7 @@ def _value_and_slope_of_w(wall, alpha, fluid, order, m, family, w_of=None, with_
     ``with_scale``: ((f, ℓ), (f', ℓ'))), the outer rows and the generators formed once
     (:func:`_coupled_value_and_slope`; ``generators`` given: those)."""
     w_of = _squared if w_of is None else w_of
-    out = outer_conditions(wall, alpha, m, family)
+    out = outer_rows_of(wall, alpha, m, family, w_of) or outer_conditions(wall, alpha, m, family)
     if generators is None:
         generators = wall_generators(wall, alpha, m, family)
 
@@ -320,20 +333,26 @@ def _det_and_slope(rows, rows_dot, q, z):
     return f, f_dot - f * jnp.sum(q * z)
 
 
-def _outer_det_and_slope(q, z, out):
-    """:func:`_det_and_slope` at the outer rows B: ``out`` as a matrix, None for :data:`OUTER_ROWS`."""
+def _outer_det_and_slope(q, z, out, out_dot=None):
+    """:func:`_det_and_slope` at the outer rows B: ``out`` as a matrix, None for :data:`OUTER_ROWS`;
+    ``out_dot``: dB/dx where B depends on x (a surrounding fluid), added as B' Q."""
     rows = (q[OUTER_ROWS, :], z[OUTER_ROWS, :]) if out is None else (out @ q, out @ z)
+    if out_dot is not None:
+        rows = (rows[0], rows[1] + out_dot @ q)
     return _det_and_slope(*rows, q, z)
 
 
 def _coupled_value_and_slope(basis_of, generators, omega, out, with_scale=False, w_of=_squared):
     """The full propagation (any family): ``out`` the outer rows as a matrix, None for
-    :data:`OUTER_ROWS`; ``with_scale``: ((f, ℓ), (f', ℓ')); the generators at w = ``w_of``(x) and
-    the slopes d/dx."""
+    :data:`OUTER_ROWS`, or a function of x (:func:`outer_rows_of`); ``with_scale``: ((f, ℓ),
+    (f', ℓ')); the generators at w = ``w_of``(x) and the slopes d/dx."""
     basis, basis_dot = jax.jvp(basis_of, (omega,), (jnp.ones_like(omega),))
     q, z, *log_scale = carry_basis_tangent(
         basis, basis_dot, *_exponentials_and_tangents(generators, omega, w_of), with_scale)
-    f, f_dot = _outer_det_and_slope(q, z, out)
+    out_dot = None
+    if callable(out):
+        out, out_dot = jax.jvp(out, (omega,), (jnp.ones_like(omega),))
+    f, f_dot = _outer_det_and_slope(q, z, out, out_dot)
     return ((f, *log_scale), (f_dot, jnp.sum(q * z))) if with_scale else (f, f_dot)
 
 
@@ -355,7 +374,12 @@ def _decoupled_value_and_slope(basis_of, wall, alpha, omega, with_scale=False, g
         q_phi, log_electric = generators["electric_column"]
     q, z, *log_scale = carry_basis_tangent(basis[MECHANICAL, :2], basis_dot[MECHANICAL, :2],
                                            *_exponentials_and_tangents(block, omega), with_scale)
-    f, f_dot = _det_and_slope(q[2:], z[2:], q, z)  # rows T, S of (U, W, T, S)
+    if wall.outer is None:
+        f, f_dot = _det_and_slope(q[2:], z[2:], q, z)  # rows T, S of (U, W, T, S)
+    else:  # the outer rows T, S on (U, W, T, S): they hold no Φ, D (an inviscid fluid)
+        out, out_dot = jax.jvp(lambda om: outer_rows_of(wall, alpha)(om)[1:, MECHANICAL],
+                               (omega,), (jnp.ones_like(omega),))
+        f, f_dot = _det_and_slope(out @ q, out @ z + out_dot @ q, q, z)
     if with_scale:  # R is block-diagonal too: ℓ is the sum of the blocks' log-scales
         return (q_phi * f, log_scale[0] + log_electric), (q_phi * f_dot, jnp.sum(q * z))
     return q_phi * f, q_phi * f_dot
@@ -392,7 +416,7 @@ def check_inputs(tube, alpha, fluid, n_layers, scheme="midpoint"):
 
 
 def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layers: int | None = None,
-                   scheme: str | None = None, m=0, torsional: bool = False):
+                   scheme: str | None = None, m=0, torsional: bool = False, outer: Fluid | None = None):
     """The real characteristic function whose zeros in Ω are the frequencies.
 
     f(Ω) = det(B Q_N) (module docstring): finite, pole-free, even in Ω, |f| ≤ 1, with the zeros and
@@ -405,6 +429,9 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
         alpha: α̂ = α R_i >= ALPHA_MIN = 1e-12 (:data:`jaxdea.params.ALPHA_MIN`), with α̂ĥ <=
             ALPHA_THICKNESS_MAX = 150 (ĥ = h/R_i the deformed wall thickness).
         fluid: a :class:`~jaxdea.Fluid`, or None for the empty tube.
+        outer: a surrounding :class:`~jaxdea.Fluid` (unbounded, ``"acoustic"``) or None: the tube's own
+            ``tube.outer`` (None: vacuum). Subsonic modes carry its added mass
+            (docs/theory/real_tubes.md §6).
         n_layers: number of sublayers N (static), or None: the accurate discretisation
             (:func:`jaxdea.frequencies`).
         scheme: how a sublayer is crossed (static): ``"midpoint"`` (the paper's laminate, error
@@ -425,6 +452,7 @@ def characteristic(tube: Tube, omega, alpha, fluid: Fluid | None = None, n_layer
         >>> f = characteristic(Tube(), 1.0, 0.445)
         >>> g = characteristic(Tube(), 1.0, 0.445, m=2)
     """
+    tube = with_outer(tube, outer)
     problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
     order, family = problem.order, problem.family
     validate_real("omega", omega)
@@ -552,7 +580,24 @@ def initial_basis_of_w(wall: Wall, omega_squared, alpha, fluid: Fluid | None = N
     return _basis_order_m(wall, omega_squared, alpha, fluid, order, m)
 
 
-def outer_conditions(wall: Wall, alpha, m=0, family: str = ORDER_M, pressure_outer=0.0):
+def outer_face(wall: Wall, omega_squared, alpha, m=0):
+    """(R, L): the surrounding fluid's face condition R T + L U = 0 at r̂_o (docs/theory/real_tubes.md
+    §6): T = −p*_o, p*_o = ρ̂_oΩ² K_m(y)/(γK_m'(y)) U, times γK_m'(y)r̂_o/K_m(y): R = y K_m'(y)/K_m(y)
+    (:func:`jaxdea.numerics.bessel.outer_impedance`, < 0: an added mass) and L = ρ̂_o Ω² r̂_o, with
+    y = γr̂_o, γ = sqrt(α̂² − Ω²/ĉ_o²). Real for a subsonic real Ω (Ω < ĉ_oα̂), NaN on
+    the supersonic side (those modes leak; not on this sheet)."""
+    fluid, ro = wall.outer, wall.r_outer
+    rho, c_o = as_float(fluid.density_ratio), as_float(fluid.speed_ratio)
+    y_squared = (alpha * alpha - omega_squared / (c_o * c_o)) * ro * ro
+    if jnp.iscomplexobj(y_squared):
+        y = jnp.sqrt(y_squared)
+    else:
+        y = jnp.sqrt(jnp.where(y_squared > 0, y_squared, jnp.nan))
+    return outer_impedance(y, m), rho * omega_squared * ro
+
+
+def outer_conditions(wall: Wall, alpha, m=0, family: str = ORDER_M, pressure_outer=0.0,
+                     omega_squared=None):
     """The rows Out with Out·Y(r̂_o) = 0 (docs/theory/order_m.md §4), for an outer pressure P̂_o.
 
     ``"order_m"`` (4×8): e_Φ; e_T + P̂_o(e_U/r̂_o + m e_V/r̂_o + α̂ e_W); e_Q + P̂_o(m e_U + e_V)/r̂_o;
@@ -561,14 +606,22 @@ def outer_conditions(wall: Wall, alpha, m=0, family: str = ORDER_M, pressure_out
     times a constant factor. ``"longitudinal"`` (3×6): the rows Φ, T̄, S̄ of docs/theory/axisymmetric.md §4;
     ``"torsional"`` (1×2): e_Q + P̂_o e_V/r̂_o. The library's gauge is P̂_o = 0 (then the plain rows
     Φ, T, Q, S); a non-zero P̂_o with P̂_i, p̂ shifted alike checks gauge invariance (§7e).
+
+    A surrounding fluid (``wall.outer``) at w = ``omega_squared``: the row T becomes R e_T + L e_U
+    (:func:`outer_face`); an inviscid fluid exerts no shear, so Q, S and the torsional row stay.
+    ``omega_squared`` None (Ω = 0, where L = 0 and the row is R e_T ∝ e_T): the plain rows.
     """
     po, ro = as_float(pressure_outer), wall.r_outer
     if family == TORSIONAL:
         return jnp.stack([po / ro, jnp.ones_like(po)])[None, :]
     m_rows = 0.0 if family == LONGITUDINAL else as_float(m)
+    row_t = _unit8(T8) + po * (_unit8(U8) / ro + m_rows * _unit8(V8) / ro + alpha * _unit8(W8))
+    if wall.outer is not None and omega_squared is not None:
+        impedance, load = outer_face(wall, omega_squared, alpha, m_rows)
+        row_t = impedance * row_t + load * _unit8(U8)
     rows = jnp.stack([
         _unit8(PHI8),
-        _unit8(T8) + po * (_unit8(U8) / ro + m_rows * _unit8(V8) / ro + alpha * _unit8(W8)),
+        row_t,
         _unit8(Q8) + po * (m_rows * _unit8(U8) + _unit8(V8)) / ro,
         _unit8(S8) + alpha * po * _unit8(U8),
     ])
@@ -587,7 +640,7 @@ def characteristic_and_scale_of_w(wall: Wall, omega_squared, alpha, fluid=None, 
     """
     basis = initial_basis_of_w(wall, omega_squared, alpha, fluid, order, m, family)
     q, log_scale = propagate_basis_of_w(wall, omega_squared, alpha, basis, method, m, family)
-    out = outer_conditions(wall, alpha, m, family, pressure_outer)
+    out = outer_conditions(wall, alpha, m, family, pressure_outer, omega_squared)
     return determinant(out @ q), log_scale
 
 
@@ -621,7 +674,8 @@ def reference_determinant_of_w(wall: Wall, omega_squared, alpha, fluid=None, ord
     """det(Out A S) from the full transfer matrix (``expm`` per sublayer): the unscaled reference."""
     a = transfer_matrix_of_w(wall, omega_squared, alpha, "expm", m, family)
     basis = initial_basis_of_w(wall, omega_squared, alpha, fluid, order, m, family)
-    return jnp.linalg.det(outer_conditions(wall, alpha, m, family, pressure_outer) @ a @ basis)
+    return jnp.linalg.det(outer_conditions(wall, alpha, m, family, pressure_outer, omega_squared)
+                          @ a @ basis)
 
 
 def mode_family(m=0, torsional=False, fluid: Fluid | None = None) -> Family:

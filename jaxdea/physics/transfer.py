@@ -388,6 +388,8 @@ class Wall(NamedTuple):
             one per damped layer).
         damping_pattern: None, or per law the :class:`Coefficients` added per unit η* (the
             stretch coupling f_ij at the radii, 0 outside the law's layer; :func:`damping_pattern`).
+        outer: None (vacuum outside) or the surrounding :class:`~jaxdea.params.Fluid` (its face rows,
+            :func:`jaxdea.physics.dispersion.outer_conditions`).
     """
 
     r_inner: jax.Array
@@ -398,6 +400,7 @@ class Wall(NamedTuple):
     pressure_inner: jax.Array
     damping: object = None
     damping_pattern: Coefficients | None = None
+    outer: object = None
 
     @property
     def thickness(self):
@@ -461,6 +464,7 @@ def discretize(tube: Tube, n_layers) -> Wall:
         (tube.damping,) if damped else None,
         (damping_pattern(tube.damping, stretch(tube, radii), as_float(tube.lambda_z)),)
         if damped else None,
+        tube.outer,
     )
 
 
@@ -502,7 +506,7 @@ def discretize_layers(tube: Tube, n_layers) -> Wall:
             patterns.append(damping_pattern(layer.damping, lam, lz, jnp.asarray(mask)))
     return Wall(edges[0], edges[-1], radii, jnp.concatenate(steps), coef,
                 layered_pressure_difference(tube, edges, integrals), tuple(laws) or None,
-                tuple(patterns) or None)
+                tuple(patterns) or None, tube.outer)
 
 
 def general_form(coef: Coefficients) -> Coefficients:

@@ -47,7 +47,7 @@ import numpy as np
 
 from ..compiled import serializable
 from ..numerics.scalar import Status
-from ..params import Fluid, Tube, canonical, validate_layers, validate_roots
+from ..params import Fluid, Tube, canonical, validate_layers, validate_roots, with_outer
 from ..physics.problem import describe
 from ..physics.transfer import Layers, is_graded, laminate, scheme_order, split_layers
 from .roots import follow_roots, solve_frequencies
@@ -79,7 +79,7 @@ class Estimate(NamedTuple):
 def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
                            omega_max=None, n_layers: int | None = None, rtol=None,
                            max_layers: int | None = None, scheme: str | None = None, m=0,
-                           torsional: bool = False) -> Estimate:
+                           torsional: bool = False, outer: Fluid | None = None) -> Estimate:
     """The ``n_roots`` lowest roots with an error estimate each (module docstring).
 
     Levels N, 2N, 4N (at least three, for two Richardson values), then further doublings until
@@ -107,6 +107,7 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
         >>> est = frequencies_with_error(Tube(), 0.445, rtol=1e-10)
         >>> est.omega, est.error
     """
+    tube = with_outer(tube, outer)
     problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
     order = problem.order
     n_roots = validate_roots(n_roots)

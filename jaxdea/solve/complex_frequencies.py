@@ -26,7 +26,7 @@ import numpy as np
 
 from ..compiled import serializable
 from ..numerics.scalar import Status
-from ..params import Fluid, Tube, as_float, canonical, guard, validate_alpha
+from ..params import Fluid, Tube, as_float, canonical, guard, validate_alpha, with_outer
 from ..physics import characteristic
 from ..physics.characteristic import Unknown
 from ..physics.problem import describe
@@ -55,7 +55,7 @@ class ComplexRoots(NamedTuple):
 
 def complex_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3, m: int = 0,
                         omega_max=None, n_layers: int | None = None, scheme: str | None = None,
-                        torsional: bool = False) -> ComplexRoots:
+                        torsional: bool = False, outer: Fluid | None = None) -> ComplexRoots:
     """The ``n_roots`` complex frequencies Ω with the lowest Re Ω at the real wavenumber α̂.
 
     Roots of F(Ω; α̂) (module docstring) with Re Ω > 0, ascending in Re Ω: every root in the
@@ -68,6 +68,9 @@ def complex_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: 
         alpha: α̂ > 0, real.
         fluid: None or an ``"acoustic"`` :class:`~jaxdea.Fluid` (the paper's coupling is not
             supported: ValueError).
+        outer: a surrounding :class:`~jaxdea.Fluid` (unbounded, ``"acoustic"``) or None: the tube's own
+            ``tube.outer`` (None: vacuum). Subsonic modes carry its added mass
+            (docs/theory/real_tubes.md §6).
         n_roots: how many roots, an integer ≥ 1.
         m, torsional, n_layers, scheme: the family and discretisation, as for
             :func:`jaxdea.frequencies`.
@@ -84,6 +87,7 @@ def complex_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: 
         >>> tube = Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, damping=KelvinVoigt(0.1))
         >>> roots = complex_frequencies(tube, 1.0, n_roots=2)
     """
+    tube = with_outer(tube, outer)
     validate_search("complex_frequencies", tube, ("alpha", alpha), fluid, m, n_roots,
                     ("omega_max", omega_max))
     validate_alpha(alpha, tube=tube)
@@ -142,7 +146,7 @@ def _box(problem, wall, alpha, fluid, m, low, high):
 
 def solve_complex_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, m: int = 0,
                             n_layers: int | None = None, scheme: str | None = None,
-                            torsional: bool = False):
+                            torsional: bool = False, outer: Fluid | None = None):
     """(Ω, status): the complex root nearest ``guess`` by Newton on F(Ω; α̂) (the analytic
     log-derivative), traceable, with implicit derivatives of Re Ω and Im Ω in the tube's leaves
     (damping and material parameters, layers), α̂ and the fluid:
@@ -159,6 +163,7 @@ def solve_complex_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None
         >>> jax.grad(lambda v: solve_complex_frequency(
         ...     tube.replace(damping=KelvinVoigt(v)), 1.0, 1.349 + 0.091j)[0].imag)(0.1)
     """
+    tube = with_outer(tube, outer)
     problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional, damped=True)
     layers = laminate(n_layers, scheme, tube, alpha, 1, m)
     tube, alpha, fluid = canonical(tube, alpha, fluid)

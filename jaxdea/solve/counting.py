@@ -74,7 +74,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..compiled import cached_jit, serializable
-from ..params import Fluid, Tube, as_float, canonical, validate_positive
+from ..params import Fluid, Tube, as_float, canonical, validate_positive, with_outer
 from ..physics import characteristic
 from ..physics.problem import describe
 from ..physics.state_matrix import LONGITUDINAL
@@ -286,7 +286,7 @@ def _count_roots(tube, alpha, omega_lo, omega_hi, fluid, height, max_evaluations
 def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = None,
                 n_layers: int | None = None, height=None, max_evaluations: int = 65536,
                 symmetric: bool = True, scheme: str | None = None, m=0,
-                torsional: bool = False) -> RootCount:
+                torsional: bool = False, outer: Fluid | None = None) -> RootCount:
     """The number of frequencies in (omega_lo, omega_hi), by the argument principle.
 
     Counts the zeros of det(B A S)(Ω), the characteristic function of the ``n_layers`` laminate
@@ -300,6 +300,9 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
         alpha: α̂ = α R_i > 0.
         omega_lo, omega_hi: the interval, 0 ≤ ω_lo < ω_hi (open: its ends must not be roots).
         fluid: a :class:`~jaxdea.Fluid` or None (empty tube).
+        outer: a surrounding :class:`~jaxdea.Fluid` (unbounded, ``"acoustic"``) or None: the tube's own
+            ``tube.outer`` (None: vacuum). Subsonic modes carry its added mass
+            (docs/theory/real_tubes.md §6).
         n_layers: sublayers N (static), or None: the accurate discretisation (:func:`jaxdea.frequencies`).
         height: half-height δ of the box; None: min(scan_step, (ω_hi − ω_lo)/16)/2.
         max_evaluations: budget of complex evaluations of the characteristic function (traced: a
@@ -321,6 +324,7 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
     Examples:
         >>> count_roots(Tube(), 0.445, 0.5, 3.0)  # RootCount(count=2, status=0)
     """
+    tube = with_outer(tube, outer)
     problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_positive("omega_hi", omega_hi)
     lo, hi = (np.asarray(v, dtype=np.float64) if not isinstance(v, jax.core.Tracer) else None

@@ -111,6 +111,7 @@ from ..params import (
     traced,
     validate_alpha,
     validate_roots,
+    with_outer,
 )
 from ..physics import characteristic
 from ..physics.base_state import voltage_limit
@@ -550,7 +551,7 @@ solve_path = cached_jit(path_unchecked,
 
 def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
                      n_layers: int | None = None, scheme: str | None = None, m=0,
-                     torsional: bool = False) -> Curve:
+                     torsional: bool = False, outer: Fluid | None = None) -> Curve:
     """The ``n_roots`` lowest frequencies at every α̂ of a grid, by certified continuation.
 
     The roots at each α̂ are those of :func:`jaxdea.frequencies` (search range ``omega_max=None``),
@@ -564,6 +565,9 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
         alpha: the grid α̂, a 1-D array of finite values >= 1e-12 (ordered for continuation).
         fluid: a :class:`~jaxdea.Fluid` or None (empty tube); the ``paper`` coupling needs an
             explicit ``bessel_order`` (one order for the whole curve).
+        outer: a surrounding :class:`~jaxdea.Fluid` (unbounded, ``"acoustic"``) or None: the tube's own
+            ``tube.outer`` (None: vacuum). Subsonic modes carry its added mass
+            (docs/theory/real_tubes.md §6).
         n_roots: K, the number of roots at each α̂ (static).
         n_layers: sublayers N (static), or None: the accurate discretisation (:func:`jaxdea.frequencies`).
         scheme: ``"midpoint"``, ``"magnus4"`` or ``"magnus6"`` (static; :func:`jaxdea.frequencies`).
@@ -581,6 +585,7 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
         >>> c = dispersion_curve(Tube(), np.linspace(0.05, 5, 100), n_roots=4, n_layers=10)
         >>> c.omega.shape, int(c.scanned.sum())   # (100, 4), 1
     """
+    tube = with_outer(tube, outer)
     if Face.of(fluid, strict=False).has_poles and fluid.bessel_order is None:
         raise ValueError("fluid.bessel_order must be set for a dispersion curve with the 'paper' "
                          "coupling (one Bessel order for every α̂ of the curve), got None")

@@ -21,7 +21,7 @@ import jax.numpy as jnp
 
 from ..compiled import cached_jit
 from ..numerics.scalar import Status, implicit_root
-from ..params import Fluid, Tube, as_float, canonical, guard, mode_wavenumber, traced, validate_real
+from ..params import Fluid, Tube, as_float, canonical, guard, mode_wavenumber, traced, validate_real, with_outer
 from ..physics import characteristic
 from ..physics.base_state import inner_stretch_traced, squared_voltage, static_limit
 from ..physics.characteristic import Unknown
@@ -166,7 +166,7 @@ def held_instability(tube: Tube, delta_p, n_max: int, m_max: int, n_layers):
 
 def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = None,
                       n_layers: int | None = None, scheme: str | None = None,
-                      delta_p=None) -> Instability:
+                      delta_p=None, outer: Fluid | None = None) -> Instability:
     """The tube's first instability: the smallest critical voltage over every circumferential
     order 0 ≤ m ≤ m_max and axial mode 1 ≤ n ≤ n_max, and which (m, n) it belongs to.
 
@@ -189,6 +189,9 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
         n_max: largest axial mode number (static, >= 1).
         m_max: largest circumferential order (static, >= 0).
         fluid: a :class:`~jaxdea.Fluid` or None (validated only).
+        outer: a surrounding :class:`~jaxdea.Fluid` (unbounded, ``"acoustic"``) or None: the tube's own
+            ``tube.outer`` (None: vacuum). Subsonic modes carry its added mass
+            (docs/theory/real_tubes.md §6).
         n_layers, scheme: the discretisation (:func:`jaxdea.frequencies`).
         delta_p: None (held by its stretch) or ΔP̂, a finite real number.
 
@@ -204,6 +207,7 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
         >>> held = first_instability(tube, delta_p=pressure_difference(tube.replace(voltage=0.0)))
         >>> float(held.voltage), int(held.m), int(held.n)  # ≈ (0.0882, 0, 1)
     """
+    tube = with_outer(tube, outer)
     if delta_p is None:
         return stretch_held_instability(tube, n_max, m_max, fluid, n_layers, scheme)
     if not isinstance(tube, Tube):

@@ -29,7 +29,7 @@ import jax.numpy as jnp
 from ..compiled import cached_jit
 from ..numerics.bessel import coupling_log_factor, coupling_pair
 from ..numerics.scalar import ROOT_RTOL, newton_distance, refuse_non_root, value_and_slope
-from ..params import Fluid, Tube, admissible, as_float, canonical, validate_count, validate_real
+from ..params import Fluid, Tube, admissible, as_float, canonical, validate_count, validate_real, with_outer
 from ..physics.characteristic import problem_function
 from ..physics.dispersion import (
     OUTER_ROWS,
@@ -72,12 +72,15 @@ def _interface_solution(wall: Wall, omega, alpha, fluid, order, m=0.0, family=LO
         basis = initial_basis(wall, omega, alpha, fluid, order)
         qs, rs = propagate_basis_history(wall, omega, alpha, basis)
         # null vector of the outer-face conditions in the last basis, then back through the R factors
-        _, _, vt = jnp.linalg.svd(qs[-1][OUTER_ROWS, :])
+        rows = (qs[-1][OUTER_ROWS, :] if wall.outer is None
+                else outer_conditions(wall, alpha, 0, family, omega_squared=omega * omega) @ qs[-1])
+        _, _, vt = jnp.linalg.svd(rows)
     else:
         w = omega * omega
         basis = initial_basis_of_w(wall, w, alpha, fluid, order, m, family)
         qs, rs = propagate_basis_history(wall, omega, alpha, basis, "taylor", m, family)
-        _, _, vt = jnp.linalg.svd(outer_conditions(wall, alpha, m, family) @ qs[-1])
+        _, _, vt = jnp.linalg.svd(outer_conditions(wall, alpha, m, family, omega_squared=w)
+                                  @ qs[-1])
 
     def back(c, r):
         return jax.scipy.linalg.solve_triangular(r, c, lower=False), c
@@ -269,7 +272,8 @@ class ModeShape(NamedTuple):
 
 
 def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: int = 64,
-               n_layers: int | None = None, m=0, torsional: bool = False, scheme: str | None = None):
+               n_layers: int | None = None, m=0, torsional: bool = False, scheme: str | None = None,
+               outer: Fluid | None = None):
     """The state fields [ū, w̄, Φ, T̄, S̄, D̄] across the wall for the root ``omega``
     ([ū, v̄, w̄, Φ, T̄, Q̄, S̄, D̄] for order m ≥ 1, a traced m or ``torsional=True``).
 
@@ -297,6 +301,9 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
         alpha: α̂ = α R_i > 0.
         omega: a root Ω of the characteristic function (e.g. from :func:`jaxdea.frequencies`).
         fluid: a :class:`~jaxdea.Fluid`, or None for the empty tube.
+        outer: a surrounding :class:`~jaxdea.Fluid` (unbounded, ``"acoustic"``) or None: the tube's own
+            ``tube.outer`` (None: vacuum). Subsonic modes carry its added mass
+            (docs/theory/real_tubes.md §6).
         n_points: number of radii sampled across the wall (static).
         n_layers, scheme: the discretisation (static; :func:`jaxdea.frequencies`, default the
             accurate one): use the one the root was found with. The states at the sublayer
@@ -324,12 +331,13 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
         >>> r, (u, v, w, phi, t, q, s, d) = jd.mode_shape(tube, 0.445, omega2, m=2)
         >>> jd.mode_shape(tube, 0.445, omega).w  # by name: the same for every family
     """
+    tube = with_outer(tube, outer)
     r, fields, _, _ = _solve(tube, alpha, omega, fluid, n_points, n_layers, scheme, m, torsional)
     return ModeShape(r, fields)
 
 
 def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64,
-                   n_layers: int | None = None, m=0, scheme: str | None = None):
+                   n_layers: int | None = None, m=0, scheme: str | None = None, outer: Fluid | None = None):
     """The acoustic excess pressure p̂*(r̂) in the cavity for the root ``omega`` (docs/theory/axisymmetric.md
     §4(c)).
 
@@ -357,6 +365,9 @@ def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64,
         alpha: α̂ = α R_i > 0.
         omega: a root Ω of the fluid-filled tube (e.g. ``frequencies(tube, alpha, fluid)``).
         fluid: a :class:`~jaxdea.Fluid` with ``coupling="acoustic"``.
+        outer: a surrounding :class:`~jaxdea.Fluid` (unbounded, ``"acoustic"``) or None: the tube's own
+            ``tube.outer`` (None: vacuum). Subsonic modes carry its added mass
+            (docs/theory/real_tubes.md §6).
         n_points: number of radii sampled in the cavity and across the wall (static).
         n_layers, scheme: the discretisation (static; use the one the root was found with).
         m: circumferential order, an integer ≥ 0 (the order the root was found with).
@@ -376,6 +387,7 @@ def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64,
         >>> omega = jd.frequencies(tube, 0.445, fluid)[0]
         >>> r, p = fluid_pressure(tube, 0.445, omega, fluid)
     """
+    tube = with_outer(tube, outer)
     if fluid is None:
         raise ValueError("fluid must be a jaxdea.Fluid: the empty tube (fluid=None) has no fluid pressure")
     if isinstance(fluid, Fluid) and Face.of(fluid, strict=False).has_poles:

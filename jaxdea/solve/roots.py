@@ -72,6 +72,7 @@ from ..params import (
     validate_positive,
     validate_range,
     validate_roots,
+    with_outer,
 )
 from ..physics import characteristic
 from ..physics.base_state import voltage_limit
@@ -356,6 +357,19 @@ def default_omega_max(wall: Wall, alpha, n_roots: int, m=0.0):
     thickness = wall.thickness
     return ((n_roots + 1) * np.pi * c_max / thickness + 3.0 * alpha * c_max
             + 3.0 * as_float(m) * c_max / wall.r_inner)
+
+
+SUBSONIC = 1.0 - 1e-12
+"""The real solvers search a tube in a surrounding fluid up to SUBSONIC·ĉ_oα̂ (the sound line)."""
+
+
+def sound_line(wall: Wall, alpha):
+    """SUBSONIC·ĉ_oα̂ for a wall in a surrounding fluid, ∞ without one: above the sound line a mode
+    radiates into the fluid (a leaky, complex root: :func:`jaxdea.complex_frequencies`), so the real
+    roots of a scan lie below it (docs/theory/real_tubes.md §6)."""
+    if wall.outer is None:
+        return jnp.inf
+    return SUBSONIC * as_float(wall.outer.speed_ratio) * alpha
 
 
 def _head(step):
@@ -733,6 +747,7 @@ def scan_roots(wall: Wall, fun, alpha, fluid, omega_max, n_roots: int, m=0.0,
     :func:`pole_steps`)."""
     end = default_omega_max(wall, alpha, n_roots, m) if omega_max is None else as_float(omega_max)
     ok = jnp.isfinite(end) & (end > 0)
+    end = jnp.minimum(end, sound_line(wall, alpha))
     step = jnp.minimum(scan_step(wall, fluid, family), end / CHUNK)
     next_point = cutoff_steps(wall, alpha, fluid, step, family)
     paper = Face.of(fluid).has_poles
@@ -802,7 +817,7 @@ def solve_each(program, problem: Problem, values, m, along=None, vectorised=Fals
 
 def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3, m=0,
                  torsional: bool = False, s_max=None, n_layers: int | None = None,
-                 scheme: str | None = None):
+                 scheme: str | None = None, outer: Fluid | None = None):
     """Growth rates s = √(−Ω²) of the unstable modes of order m at α̂, largest first, NaN-padded.
 
     An unstable state has modes with Ω² < 0 (e^{st} growth, s > 0): zeros of the characteristic
@@ -822,6 +837,7 @@ def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3
     Examples:
         >>> growth_rates(Tube(voltage=0.1, lambda_i=0.95, lambda_z=1.2), 0.445, m=2)  # ≈ [0.7466, nan, nan]
     """
+    tube = with_outer(tube, outer)
     problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
     family = problem.family.in_omega_squared
     n_roots = validate_roots(n_roots)
@@ -840,7 +856,7 @@ def growth_rates(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3
 
 def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
                       omega_max=None, n_layers: int | None = None, scheme: str | None = None, m=0,
-                      torsional: bool = False) -> Roots:
+                      torsional: bool = False, outer: Fluid | None = None) -> Roots:
     """The ``n_roots`` lowest roots in (0, omega_max] with a status per root (module docstring).
 
     Returns:
@@ -850,6 +866,7 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
         sublayers than it has, the value kept; :func:`jaxdea.physics.transfer.checked_laminate`: where the
         geometry, α̂ or m are traced, N = 16 serves every point).
     """
+    tube = with_outer(tube, outer)
     problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
     order, family = problem.order, problem.family
     n_roots = validate_roots(n_roots)
@@ -1017,7 +1034,7 @@ def follow_roots(tube, alpha, fluid, guesses, n_layers, order, m=0.0, family=LON
 
 def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
                 omega_max=None, n_layers: int | None = None, scheme: str | None = None, m=0,
-                torsional: bool = False):
+                torsional: bool = False, outer: Fluid | None = None):
     """The ``n_roots`` lowest frequencies Ω in (0, omega_max], ascending, NaN-padded.
 
     Every root in the range is found, including close pairs and roots near Ω = 0 (scan with Hermite
@@ -1030,6 +1047,9 @@ def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
         alpha: α̂ = α R_i >= 1e-12 with α̂ĥ <= 150 (ĥ = h/R_i, :data:`jaxdea.params.ALPHA_THICKNESS_MAX`;
             see :func:`jaxdea.axial_wavenumber`).
         fluid: a :class:`~jaxdea.Fluid` or None (empty tube).
+        outer: a surrounding :class:`~jaxdea.Fluid` (unbounded, ``"acoustic"``) or None: the tube's own
+            ``tube.outer`` (None: vacuum). Subsonic modes carry its added mass
+            (docs/theory/real_tubes.md §6).
         n_roots: number of roots (static).
         omega_max: upper end of the search (None: automatic).
         n_layers: sublayers N (static), or None (default): the accurate discretisation, graded
@@ -1056,6 +1076,7 @@ def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
         >>> frequencies(Tube(eta=0.85), 0.445, n_layers=6, scheme="magnus6")  # the wall to ≈ 1e-9
         >>> frequencies(Tube(eta=0.85), 0.445, m=2)  # ovalisation modes
     """
+    tube = with_outer(tube, outer)
     return solve_frequencies(tube, alpha, fluid, n_roots, omega_max, n_layers, scheme, m,
                              torsional).omega
 
@@ -1084,9 +1105,10 @@ def _solve_frequency(tube, alpha, guess, fluid, n_layers, order, m=0.0, family=L
 
 def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
                     n_layers: int | None = None, scheme: str | None = None, m=0,
-                    torsional: bool = False) -> Roots:
+                    torsional: bool = False, outer: Fluid | None = None) -> Roots:
     """The root reached by safeguarded Newton from ``guess``, with its status (scalar Roots;
     INACCURATE as in :func:`solve_frequencies`)."""
+    tube = with_outer(tube, outer)
     problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
     order, family = problem.order, problem.family
     validate_positive("guess", guess)
@@ -1104,7 +1126,7 @@ def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
 
 
 def frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, n_layers: int | None = None,
-              scheme: str | None = None, m=0, torsional: bool = False):
+              scheme: str | None = None, m=0, torsional: bool = False, outer: Fluid | None = None):
     """The root Ω reached by safeguarded Newton from ``guess``, with implicit derivatives.
 
     ``jax.grad``/``jax.jacfwd`` with respect to any Tube/Fluid leaf, α̂ and the ``h_over_Ri`` of
@@ -1115,11 +1137,12 @@ def frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, n_layers: in
     Examples:
         >>> jax.grad(lambda v: frequency(Tube(voltage=v), 0.445, 0.7))(0.1)
     """
+    tube = with_outer(tube, outer)
     return solve_frequency(tube, alpha, guess, fluid, n_layers, scheme, m, torsional).omega
 
 
 def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: int | None = None,
-                   scheme: str | None = None, m=0, torsional: bool = False):
+                   scheme: str | None = None, m=0, torsional: bool = False, outer: Fluid | None = None):
     """dΩ/dα̂ on the branch through the root ``omega``: −(∂f/∂α̂)/(∂f/∂Ω) (implicit function theorem).
 
     ``omega`` must be a root (from :func:`frequency` or :func:`frequencies`), to the relative Newton
@@ -1137,6 +1160,9 @@ def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layer
             Newton distance ``ROOT_RTOL``; a concrete non-root raises ValueError, a traced one gives
             NaN.
         fluid: a :class:`~jaxdea.Fluid`, or None for the empty tube.
+        outer: a surrounding :class:`~jaxdea.Fluid` (unbounded, ``"acoustic"``) or None: the tube's own
+            ``tube.outer`` (None: vacuum). Subsonic modes carry its added mass
+            (docs/theory/real_tubes.md §6).
         n_layers: number of sublayers N (static; use the value the root was found with).
         scheme: the propagation scheme the root was found with (:func:`frequencies`).
         m, torsional: the order the root was found with (:func:`frequencies`).
@@ -1151,6 +1177,7 @@ def group_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layer
         >>> group_velocity(t, 0.445, frequencies(t, 0.445)[0])  # ≈ 1.661
         >>> group_velocity(t, 0.445, 0.7)  # ValueError: omega = 0.7 is not a root (0.1 away)
     """
+    tube = with_outer(tube, outer)
     problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
     validate_range("omega", omega, "a finite real number > 0 (a root of the characteristic function)",
                    lambda v: v > 0)
@@ -1185,9 +1212,10 @@ def _group_velocity(tube, alpha, omega, fluid, n_layers, order, m=0.0, family=LO
 
 def solve_critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None,
                            n_layers: int | None = None, scheme: str | None = None, m=0,
-                           torsional: bool = False):
+                           torsional: bool = False, outer: Fluid | None = None):
     """(V̂_cr, status): the smallest V̂ > 0 with f(Ω = 0; V̂) = 0 (see :func:`critical_voltage`;
     INACCURATE as in :func:`solve_frequencies`)."""
+    tube = with_outer(tube, outer)
     problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
     order, family = problem.order, problem.family
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
@@ -1268,7 +1296,7 @@ _solve_critical_voltage = cached_jit(critical_voltage_unchecked,
 
 
 def critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None, n_layers: int | None = None,
-                     scheme: str | None = None, m=0, torsional: bool = False):
+                     scheme: str | None = None, m=0, torsional: bool = False, outer: Fluid | None = None):
     """The smallest V̂ > 0 at which the lowest frequency of order ``m`` at α̂ reaches zero.
 
     Solves f(Ω = 0; V̂) = 0 in V̂ directly (the tube's ``voltage`` is ignored; λ_i, λ_z fixed): scan of
@@ -1281,11 +1309,13 @@ def critical_voltage(tube: Tube, alpha, fluid: Fluid | None = None, n_layers: in
     over every order and axial mode is :func:`first_instability`: for the paper's tube m = 2
     buckles at about a tenth of the axisymmetric (m = 0) value.
     """
+    tube = with_outer(tube, outer)
     return solve_critical_voltage(tube, alpha, fluid, n_layers, scheme, m, torsional)[0]
 
 
 def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
-                            n_layers: int | None = None, scheme: str | None = None, m=0) -> Roots:
+                            n_layers: int | None = None, scheme: str | None = None, m=0,
+                            outer: Fluid | None = None) -> Roots:
     """(V̂_cr, status) for every axial mode n = 1 … n_max in one compiled call.
 
     α̂_n = 2nπη/(length_ratio λ_z) (:func:`jaxdea.axial_wavenumber`); each entry as
@@ -1295,6 +1325,7 @@ def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
     Returns:
         An instance of :class:`Roots` whose ``omega`` field holds V̂_cr, shape (n_max,).
     """
+    tube = with_outer(tube, outer)
     problem = describe(tube, None, fluid, n_layers, scheme, m)
     n_max = validate_max("n_max", n_max, 1)
     layers, short = checked_laminate(n_layers, scheme, canonical(tube),
@@ -1323,9 +1354,10 @@ def _critical_voltages(tube, n_max, n_layers, m=0.0, family=LONGITUDINAL):
 
 
 def critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None, n_layers: int | None = None,
-                      scheme: str | None = None, m=0):
+                      scheme: str | None = None, m=0, outer: Fluid | None = None):
     """V̂_cr of the axial modes n = 1 … n_max at order ``m``, shape (n_max,)
     (see :func:`solve_critical_voltages`)."""
+    tube = with_outer(tube, outer)
     return solve_critical_voltages(tube, n_max, fluid, n_layers, scheme, m).omega
 
 

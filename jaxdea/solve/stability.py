@@ -17,7 +17,7 @@ import jax.numpy as jnp
 
 from ..compiled import cached_jit, serializable
 from ..numerics.scalar import Status
-from ..params import Fluid, Tube, canonical, mode_wavenumber
+from ..params import Fluid, Tube, canonical, mode_wavenumber, with_outer
 from ..physics.problem import describe
 from ..physics.state_matrix import ORDER_M
 from ..physics.transfer import laminate
@@ -68,7 +68,7 @@ def _growth_grid(tube, fluid, n_max, m_max, n_layers, order):
 
 
 def stability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = None,
-              n_layers: int | None = None, scheme: str | None = None) -> Stability:
+              n_layers: int | None = None, scheme: str | None = None, outer: Fluid | None = None) -> Stability:
     """Is the state ``tube`` (at its own voltage) stable in every order 0 ≤ m ≤ m_max and axial
     mode 1 ≤ n ≤ n_max, and if not, which (m, n) grows fastest?
 
@@ -84,6 +84,9 @@ def stability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = 
         n_max: largest axial mode number (static, >= 1).
         m_max: largest circumferential order (static, >= 0; the ``"paper"`` coupling needs 0).
         fluid: a :class:`~jaxdea.Fluid` or None (it changes the growth rates, not their existence).
+        outer: a surrounding :class:`~jaxdea.Fluid` (unbounded, ``"acoustic"``) or None: the tube's own
+            ``tube.outer`` (None: vacuum). Subsonic modes carry its added mass
+            (docs/theory/real_tubes.md §6).
         n_layers, scheme: the discretisation (:func:`jaxdea.frequencies`).
 
     Returns:
@@ -97,6 +100,7 @@ def stability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = 
         >>> s = stability(Tube(voltage=0.05, lambda_i=0.9, lambda_z=1.2, eta=0.85), n_max=1)
         >>> bool(s.stable), int(s.m), int(s.n)  # (False, 2, 1): ovalisation grows fastest
     """
+    tube = with_outer(tube, outer)
     problem = describe(tube, None, fluid, n_layers, scheme)
     order = problem.order
     n_max = validate_max("n_max", n_max, 1)

@@ -88,6 +88,7 @@ from ..params import (
     validate_positive,
     validate_real,
     validate_tube,
+    with_outer,
 )
 from ..physics import characteristic
 from ..physics.leaves import FLUID_LEAVES, check_names, get_parameter, set_parameter
@@ -419,7 +420,7 @@ def _validate_finite(name, x):
 
 def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along: str = "alpha",
                  stop, max_points: int = 256, max_step=None, n_layers: int | None = None,
-                 scheme: str | None = None, m=0, torsional: bool = False) -> Branch:
+                 scheme: str | None = None, m=0, torsional: bool = False, outer: Fluid | None = None) -> Branch:
     """Follow the dispersion branch through the root ``omega`` along the parameter ``along``.
 
     The branch is the curve f(Ω; s) = 0 through (s_0, Ω_0), with f the characteristic function of
@@ -442,6 +443,9 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
         omega: a root Ω_0 > 0 of the branch at s_0 (e.g. from :func:`jaxdea.frequencies`).
         fluid: a :class:`~jaxdea.Fluid` or None. The paper coupling's Bessel order is static: it
             stays that of the start (pass ``bessel_order`` explicitly to trace along α̂).
+        outer: a surrounding :class:`~jaxdea.Fluid` (unbounded, ``"acoustic"``) or None: the tube's own
+            ``tube.outer`` (None: vacuum). Subsonic modes carry its added mass
+            (docs/theory/real_tubes.md §6).
         along: the parameter s, any name of :data:`jaxdea.physics.leaves.NAMES` except ``"n"`` (static).
         stop: where to stop (a value of s; the trace may go up or down).
         max_points: buffer length, ≥ 2 (static).
@@ -467,6 +471,7 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
         >>> k = int(branch.n_points)  # 24 points, status REACHED_STOP, last Ω(2.0) ≈ 3.8956
         >>> alphas, omegas = branch.parameter[:k], branch.omega[:k]
     """
+    tube = with_outer(tube, outer)
     problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
     if not isinstance(along, str):
         raise ValueError(f"along must be a parameter name (str), got {along!r}")

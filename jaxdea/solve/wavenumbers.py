@@ -44,6 +44,7 @@ from ..params import (
     validate_count,
     validate_fluid,
     validate_positive,
+    with_outer,
 )
 from ..physics import characteristic
 from ..physics.characteristic import Unknown
@@ -190,7 +191,7 @@ def validate_search(caller: str, tube, fixed, fluid, m, n_roots, limit) -> None:
 
 def wavenumbers(tube: Tube, omega, fluid: Fluid | None = None, n_roots: int = 4, m: int = 0,
                 n_layers: int | None = None, scheme: str | None = None, torsional: bool = False,
-                alpha_max=None) -> Wavenumbers:
+                alpha_max=None, outer: Fluid | None = None) -> Wavenumbers:
     """The ``n_roots`` complex wavenumbers α̂ at the real frequency Ω nearest the real axis.
 
     Roots of F(α̂; Ω) (module docstring) with Re α̂ ≥ 0, ordered by |Im α̂|, then Re α̂: the
@@ -204,6 +205,9 @@ def wavenumbers(tube: Tube, omega, fluid: Fluid | None = None, n_roots: int = 4,
         omega: Ω > 0, real.
         fluid: None or an ``"acoustic"`` :class:`~jaxdea.Fluid` (the paper's coupling has poles in
             α̂ and is not supported: ValueError).
+        outer: a surrounding :class:`~jaxdea.Fluid` (unbounded, ``"acoustic"``) or None: the tube's own
+            ``tube.outer`` (None: vacuum). Subsonic modes carry its added mass
+            (docs/theory/real_tubes.md §6).
         n_roots: how many roots, an integer ≥ 1.
         m, torsional, n_layers, scheme: the family and discretisation, as for
             :func:`jaxdea.frequencies` (the default discretisation is resolved at |α̂| = the box's
@@ -221,6 +225,7 @@ def wavenumbers(tube: Tube, omega, fluid: Fluid | None = None, n_roots: int = 4,
     Examples:
         >>> w = wavenumbers(Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0), 1.0, n_roots=3, m=1)
     """
+    tube = with_outer(tube, outer)
     validate_search("wavenumbers", tube, ("omega", omega), fluid, m, n_roots,
                     ("alpha_max", alpha_max))
     validate_positive("omega", omega)

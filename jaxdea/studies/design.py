@@ -75,6 +75,7 @@ from ..params import (
     require_x64,
     validate_layers,
     validate_real,
+    with_outer,
 )
 from ..physics.dispersion import characteristic
 from ..physics.problem import describe, family_of
@@ -153,7 +154,8 @@ class DesignResult(NamedTuple):
 
 
 def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: int | None = None,
-               scheme: str | None = None, m=0, torsional: bool = False, delta_p=None):
+               scheme: str | None = None, m=0, torsional: bool = False, delta_p=None,
+               outer: Fluid | None = None):
     """dΩ/dV̂ on the branch through the root ``omega``: T = −(∂f/∂V̂)/(∂f/∂Ω) (implicit function theorem).
 
     A tube held by its pressure difference (``delta_p`` = ΔP̂) has λ_i = λ_i(V̂; ΔP̂)
@@ -172,6 +174,9 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
         alpha: α̂ = α R_i.
         omega: a root Ω at that α̂.
         fluid: a :class:`~jaxdea.Fluid` or None.
+        outer: a surrounding :class:`~jaxdea.Fluid` (unbounded, ``"acoustic"``) or None: the tube's own
+            ``tube.outer`` (None: vacuum). Subsonic modes carry its added mass
+            (docs/theory/real_tubes.md §6).
         n_layers: sublayers N (static), or None: the accurate discretisation (:func:`jaxdea.frequencies`).
         scheme: the propagation scheme (static; :func:`jaxdea.frequencies`), that of the root.
         m: the circumferential order of the root (int >= 0, as :func:`jaxdea.frequencies`).
@@ -184,6 +189,7 @@ def tunability(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_layers: i
         >>> a = axial_wavenumber(t, 1)
         >>> tunability(t, a, frequencies(t, a)[0])  # ≈ −1.217
     """
+    tube = with_outer(tube, outer)
     require_x64()
     problem = describe(tube, alpha, fluid, n_layers, scheme, m, torsional)
     orders = dict(m=m, torsional=torsional) if problem.family.carries_m else {}

@@ -53,6 +53,7 @@ from ..params import (
     validate_layers,
     validate_positive,
     validate_roots,
+    with_outer,
 )
 from ..physics import characteristic
 from ..physics.base_state import inner_stretch_traced
@@ -586,12 +587,15 @@ def _grid_layers(n_layers, scheme, tube, fluid, grids, n_roots, m):
 def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max=None,
           n_layers: int | None = None, scheme: str | None = None, jacobian=None, chunk_size: int = CHUNK_SIZE,
           batch_size=None, progress=None, devices=None, client=None, m=0, torsional: bool = False,
-          n_growth: int = 0, delta_p=None, **axes) -> SweepResult:
+          n_growth: int = 0, delta_p=None, outer: Fluid | None = None, **axes) -> SweepResult:
     """The ``n_roots`` lowest frequencies over the grid spanned by ``axes``.
 
     Args:
         tube: the base :class:`~jaxdea.Tube`; grid axes override its fields.
         fluid: a :class:`~jaxdea.Fluid` or None.
+        outer: a surrounding :class:`~jaxdea.Fluid` (unbounded, ``"acoustic"``) or None: the tube's own
+            ``tube.outer`` (None: vacuum). Subsonic modes carry its added mass
+            (docs/theory/real_tubes.md §6).
         n_roots: K, roots per point (static).
         omega_max: upper end of each root search (None: automatic, see :func:`jaxdea.frequencies`).
         n_layers: sublayers N (static), or None: the accurate discretisation for the grid's
@@ -656,6 +660,7 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         >>> held = jd.pressure_difference(Tube(lambda_i=1.1, lambda_z=1.2))  # ΔP̂ at V̂ = 0
         >>> sweep(Tube(lambda_z=1.2), delta_p=held, voltage=[0, 0.2], n=1).lambda_i  # λ_i grows
     """
+    tube = with_outer(tube, outer)
     require_x64()
     if not isinstance(tube, Tube):
         raise ValueError(f"tube must be a jaxdea.Tube, got {type(tube).__name__}")

@@ -1,0 +1,193 @@
+"""A tube in a surrounding fluid (docs/theory/real_tubes.md §6): the outer K_m impedance against
+SciPy, the roots against an independent exact cylinder in an unbounded fluid, the long-wave limits
+of theory_next.md §7(d), the vacuum and torsion limits, and derivatives against central
+differences."""
+
+import math
+
+import exact_cylinder_m as ecm
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+from scipy.special import jvp, kve
+
+import jaxdea as jd
+from jaxdea.numerics.bessel import outer_impedance
+
+WATER = jd.Fluid(density_ratio=1.0, speed_ratio=50.0)
+"""A heavy, fast fluid outside: the wall's modes below ĉ_oα̂ are subsonic."""
+TUBE = jd.Tube(voltage=0.05, lambda_i=1.2, lambda_z=1.1)
+
+
+@pytest.mark.parametrize("m", [0, 1, 2, 5, 30])
+def test_outer_impedance_against_scipy(m):
+    """R_m(y) = yK_m'(y)/K_m(y) from y = 1e-8 to 1e6, and at complex y with Re y > 0."""
+    ys = np.array([1e-8, 1e-4, 0.01, 0.3, 1.0, 5.0, 30.0, 300.0, 1e4, 1e6])
+    if m == 30:
+        ys = ys[2:]  # K_30(y) overflows SciPy's kve below y ≈ 1e-3
+    ys = np.concatenate([ys, [0.5 + 0.3j, 2.0 - 1.0j, 10.0 + 5.0j, 0.01 + 0.001j]])
+    for y in ys:
+        below = kve(abs(m - 1), y)
+        reference = -m - y * below / kve(m, y)
+        got = complex(outer_impedance(jnp.asarray(y), m))
+        assert abs(got - reference) <= 5e-14 * abs(reference), (m, y, got, reference)
+
+
+def test_outer_impedance_traced_order_and_the_supersonic_side():
+    """One program for every m (vmap over m), NaN where Re y ≤ 0 (not on this sheet)."""
+    got = jax.vmap(outer_impedance, (None, 0))(jnp.asarray(0.7), jnp.arange(5.0))
+    reference = [-m - 0.7 * kve(abs(m - 1), 0.7) / kve(m, 0.7) for m in range(5)]
+    np.testing.assert_allclose(got, reference, rtol=1e-14)
+    assert np.isnan(outer_impedance(jnp.asarray(-0.5), 1))
+
+
+def _exact_outer_root(guess, alpha, m, eta, fluid):
+    a, b = 1.0, 1.0 / eta
+    f = lambda w: ecm.characteristic_m_outer(w, alpha, a, b, m, fluid.density_ratio,  # noqa: E731
+                                             fluid.speed_ratio)
+    lo, hi = guess * (1 - 1e-6), guess * (1 + 1e-6)
+    assert f(lo) * f(hi) < 0, "no sign change of the exact determinant next to the root"
+    return brentq(f, lo, hi, xtol=1e-15, rtol=1e-15)
+
+
+@pytest.mark.parametrize("m", [0, 1, 2])
+@pytest.mark.parametrize("alpha", [0.534, 2.0])
+def test_roots_against_the_exact_cylinder_in_a_fluid(m, alpha):
+    """Unstretched, unbiased tube (the exact linear cylinder) in an unbounded fluid: the exact
+    determinant (SciPy's Bessel functions, tests/exact_cylinder_m.py) changes sign within 1e-6 of
+    every root, and its root there equals jaxdea's to 1e-10; the fluid moves them by far more."""
+    tube = jd.Tube(eta=0.85)
+    got = np.asarray(jd.frequencies(tube, alpha, m=m, n_roots=3, outer=WATER))
+    vacuum = np.asarray(jd.frequencies(tube, alpha, m=m, n_roots=3))
+    exact = [_exact_outer_root(w, alpha, m, 0.85, WATER) for w in got]
+    np.testing.assert_allclose(got, exact, rtol=1e-10, atol=0.0)
+    assert abs(got[0] / vacuum[0] - 1.0) > 0.05  # the lowest mode carries a large added mass
+
+
+def test_vanishing_density_is_the_tube_in_vacuum():
+    """ρ̂_o → 0: the roots of the tube in vacuum (order m, longitudinal, with voltage)."""
+    thin = jd.Fluid(density_ratio=1e-12, speed_ratio=50.0)
+    for m in (0, 2):
+        got = jd.frequencies(TUBE, 0.5, m=m, outer=thin)
+        np.testing.assert_allclose(got, jd.frequencies(TUBE, 0.5, m=m), rtol=1e-10)
+
+
+def test_inner_fluid_of_zero_density_is_the_outer_only_case():
+    """A filling of vanishing density leaves the tube's roots in the outer fluid where they were,
+    and adds the filling's own rigid-wall modes, J_m'(χ̂r̂_i) = 0 (χ̂² = Ω²/ĉ_f² − α̂²: at m = 0 the
+    plane wave Ω = ĉ_fα̂ first)."""
+    fluid = jd.Fluid(density_ratio=1e-12, speed_ratio=0.27)
+    ri = 1.2  # r̂_i = λ_i
+    for m in (0, 1):
+        both = np.asarray(jd.frequencies(TUBE, 0.5, fluid=fluid, m=m, n_roots=5, outer=WATER))
+        outer_only = np.asarray(jd.frequencies(TUBE, 0.5, m=m, n_roots=2, outer=WATER))
+        matched = [np.min(np.abs(both - w)) <= 1e-10 * w for w in outer_only]
+        assert all(matched), (both, outer_only)
+        for w in both:
+            if np.min(np.abs(outer_only - w)) <= 1e-10 * w or w > outer_only[-1]:
+                continue
+            chi = math.sqrt(max((w / 0.27) ** 2 - 0.25, 0.0))
+            assert abs(jvp(m, chi * ri)) <= 1e-8 * max(1.0, chi * ri), (m, w)
+
+
+def test_torsion_and_the_static_instability_are_unchanged():
+    """An inviscid fluid exerts no shear (torsion) and no pressure at Ω = 0 (critical voltages)."""
+    np.testing.assert_array_equal(jd.frequencies(TUBE, 0.5, torsional=True, outer=WATER),
+                                  jd.frequencies(TUBE, 0.5, torsional=True))
+    for m in (0, 2):
+        assert (jd.critical_voltage(TUBE, 0.5, m=m, outer=WATER)
+                == jd.critical_voltage(TUBE, 0.5, m=m))
+
+
+def test_modes_above_the_sound_line_leak():
+    """Supersonic modes (Ω > ĉ_oα̂) radiate: no real root there (NO_ROOT), the subsonic ones found."""
+    slow = jd.Fluid(density_ratio=1.0, speed_ratio=2.0)
+    got = jd.solve_frequencies(TUBE, 0.3, n_roots=3, outer=slow)
+    omega = np.asarray(got.omega)
+    assert np.all(omega[np.isfinite(omega)] < 2.0 * 0.3)
+    assert got.status[-1] == jd.Status.NO_ROOT
+
+
+def test_outer_and_tube_outer_agree_and_bad_input_is_named():
+    np.testing.assert_array_equal(jd.frequencies(TUBE.replace(outer=WATER), 0.5),
+                                  jd.frequencies(TUBE, 0.5, outer=WATER))
+    with pytest.raises(ValueError, match="outer.density_ratio must be > 0"):
+        jd.frequencies(TUBE, 0.5, outer=jd.Fluid(density_ratio=0.0, speed_ratio=50.0))
+    with pytest.raises(ValueError, match="outer.speed_ratio must be > 0"):
+        jd.frequencies(TUBE, 0.5, outer=jd.Fluid(density_ratio=1.0, speed_ratio=-1.0))
+    with pytest.raises(ValueError, match="exists only as a filling"):
+        jd.frequencies(TUBE, 0.5, outer=jd.Fluid(coupling="paper"))
+    with pytest.raises(ValueError, match="give it once"):
+        jd.frequencies(TUBE.replace(outer=WATER), 0.5, outer=WATER)
+
+
+def test_invalid_outer_fluid_under_jit_is_nan_and_invalid():
+    def lowest(rho):
+        tube = TUBE.replace(outer=jd.Fluid(density_ratio=rho, speed_ratio=50.0))
+        return jd.solve_frequencies(tube, 0.5, n_roots=1, n_layers=16)
+
+    got = jax.jit(jax.vmap(lowest))(jnp.array([1.0, -1.0]))
+    assert np.isfinite(got.omega[0, 0]) and np.isnan(got.omega[1, 0])
+    assert got.status[1, 0] == jd.Status.INVALID
+
+
+@pytest.mark.parametrize("m", [0, 2])
+def test_derivatives_in_the_outer_fluid(m):
+    """dΩ/dρ̂_o and dΩ/dĉ_o (implicit derivatives) against central differences."""
+    def omega(rho, speed):
+        tube = TUBE.replace(outer=jd.Fluid(density_ratio=rho, speed_ratio=speed))
+        return jd.frequency(tube, 0.5, guess, m=m, n_layers=16)
+
+    guess = float(jd.frequencies(TUBE, 0.5, m=m, n_layers=16, outer=jd.Fluid(1.0, 3.0))[0])
+    grads = jax.grad(omega, argnums=(0, 1))(1.0, 3.0)
+    for i, h in ((0, 1e-5), (1, 1e-5)):
+        up, down = [[1.0, 3.0] for _ in range(2)]
+        up[i] += h
+        down[i] -= h
+        central = (omega(*up) - omega(*down)) / (2 * h)
+        assert abs(grads[i] - central) <= 1e-7 * max(abs(central), 1e-3), (i, grads[i], central)
+
+
+LAYERS = (jd.Layer(0.2, jd.NeoHookean(), shear_ratio=3.0, density_ratio=1.2),
+          jd.Layer(0.6, jd.Gent(97.2), active=True),
+          jd.Layer(0.2, jd.NeoHookean(), shear_ratio=3.0, density_ratio=0.8))
+
+
+def test_long_wave_bending_of_a_layered_tube_in_two_fluids():
+    """theory_next.md §7(d): m = 1, λ = 1, V̂ = 0, liner | DE | encapsulation, inner fluid
+    (0.13, 0.27) and outer (1, 50): Ω²/α̂⁴ → EI/(ρA + ρ̂_fπr̂_i² + ρ̂_oπr̂_o²) = 0.65374874. The
+    outer K_1 impedance brings α̂² ln α̂ terms: the fit in (1, α̂² ln α̂, α̂²) over α̂ = 0.01 … 0.04.
+    The limit also follows from the layers by hand (beam theory)."""
+    eta = 0.85
+    edges = 1.0 + (1.0 / eta - 1.0) * np.array([0.0, 0.2, 0.8, 1.0])
+    mu, rho = np.array([3.0, 1.0, 3.0]), np.array([1.2, 1.0, 0.8])
+    stiffness = np.sum(3.0 * mu * math.pi * (edges[1:] ** 4 - edges[:-1] ** 4) / 4.0)
+    mass = np.sum(rho * math.pi * (edges[1:] ** 2 - edges[:-1] ** 2))
+    limit = stiffness / (mass + 0.13 * math.pi + 1.0 * math.pi * edges[-1] ** 2)
+    assert abs(limit / 0.65374874 - 1.0) < 1e-8
+    tube = jd.Tube(eta=eta, layers=LAYERS)
+    alphas = np.array([0.01, 0.015, 0.02, 0.025, 0.03, 0.035, 0.04])
+    ratio = np.array([float(jd.frequencies(tube, a, fluid=jd.Fluid(0.13, 0.27), m=1, n_roots=1,
+                                           outer=WATER)[0]) ** 2 / a**4 for a in alphas])
+    basis = np.stack([np.ones_like(alphas), alphas**2 * np.log(alphas), alphas**2], axis=1)
+    fitted = np.linalg.lstsq(basis, ratio, rcond=None)[0][0]
+    assert abs(fitted / limit - 1.0) < 3e-6, (fitted, limit)
+
+
+def test_thin_ring_added_masses():
+    """Order m ≥ 2 at long waves on a thin wall: the ring frequency falls by the potential-flow added
+    mass ρ̂_o r̂_o/m outside (per unit area, acting on u_r alone). The inextensional ring mode has
+    u_θ = −u_r/m, so its own modal mass is ρĥ(1 + 1/m²):
+    Ω_fluid²/Ω_vacuum² → ĥ(1 + 1/m²)/(ĥ(1 + 1/m²) + ρ̂_o r̂_o/m), to O(ĥ) and O(α̂²)."""
+    eta, alpha = 0.98, 1e-3
+    tube = jd.Tube(eta=eta)
+    thickness = 1.0 / eta - 1.0
+    ro = 1.0 / eta
+    for m in (2, 3):
+        vacuum = float(jd.frequencies(tube, alpha, m=m, n_roots=1)[0])
+        wet = float(jd.frequencies(tube, alpha, m=m, n_roots=1, outer=WATER)[0])
+        own = thickness * (1.0 + 1.0 / m**2)
+        predicted = own / (own + WATER.density_ratio * ro / m)
+        assert abs((wet / vacuum) ** 2 / predicted - 1.0) < 0.02, (m, (wet / vacuum) ** 2, predicted)
