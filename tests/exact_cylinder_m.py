@@ -424,3 +424,34 @@ def complex_root(omega, alpha0, a, b, m, tol=1e-13, steps=60):
             return x2
         x0, f0, x1, f1 = x1, f1, x2, determinant_complex(omega, x2, a, b, m)
     raise RuntimeError("secant did not converge")
+
+
+def determinant_outer_complex(omega, alpha, a, b, m, rho_o, c_o):
+    """The unnormalised determinant of :func:`characteristic_m_outer` at a complex Ω right of the
+    sound line (Re Ω > c_o α): the outgoing wave p = A H_m^(2)(kr), k = sqrt(Ω²/c_o² − α²)
+    (principal), written as K_m(γr) with γ = ik (K_m(ix) ∝ H_m^(2)(x)), SciPy's principal-branch
+    ``kv`` at complex argument: a leaky mode (Im Ω > 0) grows radially."""
+    m = int(m)
+    sig, _, disp = _columns(complex(omega), complex(alpha), a, b, m, analytic=True,
+                            displacements=True)
+    gamma = 1j * np.sqrt(complex(omega) ** 2 / c_o**2 - alpha**2)
+    y = gamma * b
+    k_prime = -0.5 * (kv(m - 1, y) + kv(m + 1, y))
+    sig[:, 3, :] += rho_o * complex(omega) ** 2 * kv(m, y) / (gamma * k_prime) * disp[:, 3, :]
+    return complex(np.linalg.det(sig[0]))
+
+
+def leaky_root(guess, alpha, a, b, m, rho_o, c_o, tol=1e-14, steps=80):
+    """A leaky complex frequency of the exact cylinder in an unbounded fluid near ``guess``, by the
+    secant method on :func:`determinant_outer_complex`."""
+    def f(w):
+        return determinant_outer_complex(w, alpha, a, b, m, rho_o, c_o)
+
+    x0, x1 = complex(guess), complex(guess) * (1 + 1e-6)
+    f0, f1 = f(x0), f(x1)
+    for _ in range(steps):
+        x2 = x1 - f1 * (x1 - x0) / (f1 - f0)
+        if abs(x2 - x1) < tol * abs(x2):
+            return x2
+        x0, f0, x1, f1 = x1, f1, x2, f(x2)
+    raise RuntimeError("secant did not converge")

@@ -191,3 +191,25 @@ def test_thin_ring_added_masses():
         own = thickness * (1.0 + 1.0 / m**2)
         predicted = own / (own + WATER.density_ratio * ro / m)
         assert abs((wet / vacuum) ** 2 / predicted - 1.0) < 0.02, (m, (wet / vacuum) ** 2, predicted)
+
+
+@pytest.mark.parametrize("m", [0, 1])
+def test_leaky_roots_against_the_exact_cylinder(m):
+    """A slow surrounding fluid (ĉ_o = 1.5 at α̂ = 1): modes above the sound line radiate.
+    ``complex_frequencies`` finds them on the outgoing sheet (Im Ω > 0, finite Q) and the subsonic
+    ones real; the leaky roots equal the exact cylinder's (SciPy's K_m at complex argument, secant
+    in NumPy) to 1e-9, and the subsonic ones ``frequencies``."""
+    slow = jd.Fluid(density_ratio=0.3, speed_ratio=1.5)
+    tube = jd.Tube(eta=0.85, outer=slow)
+    got = jd.complex_frequencies(tube, 1.0, m=m, n_roots=3, omega_max=3.5)
+    omega = np.asarray(got.omega)
+    omega = omega[np.isfinite(omega)]
+    subsonic = omega[omega.real < 1.5]
+    leaky = omega[omega.real > 1.5]
+    real = np.asarray(jd.frequencies(tube, 1.0, m=m, n_roots=3))
+    np.testing.assert_allclose(subsonic.real, real[np.isfinite(real)], rtol=1e-10)
+    assert np.all(np.abs(subsonic.imag) <= 1e-12)
+    assert len(leaky) == 1 and 0.05 < leaky[0].imag < 0.15
+    exact = ecm.leaky_root(leaky[0] * 1.001, 1.0, 1.0, 1.0 / 0.85, m, 0.3, 1.5)
+    assert abs(leaky[0] - exact) <= 1e-9 * abs(exact), (leaky[0], exact)
+    assert got.certificate == jd.SearchStatus.CERTIFIED

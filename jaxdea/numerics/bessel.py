@@ -395,22 +395,34 @@ K_NODES = 96
 """Points of the trapezoidal rule of :func:`_k_ratio_01` on [0, T(y)]."""
 K_TAIL = 60.0
 """The rule stops at T with Re y (cosh T − 1) = K_TAIL: the integrand is e^{−60} of its peak there."""
+ARG_MAX = 0.9 * np.pi
+"""|arg y| < ARG_MAX for a complex y of :func:`outer_impedance` (the path of :func:`_k_ratio_01`
+is checked to there)."""
 OUTER_ORDER_MAX = 128
 """Orders m ≤ OUTER_ORDER_MAX of :func:`outer_impedance` (the forward recurrence runs that many
 masked steps for a traced m); NaN beyond."""
 
 
 def _k_ratio_01(y):
-    """K_0(y)/K_1(y) for Re y > 0 from e^y K_ν(y) = ∫_0^∞ e^{−y(cosh t − 1)} cosh νt dt (ν = 0, 1;
-    DLMF 10.32.9), by the trapezoidal rule on K_NODES + 1 points of [0, T]: the integrand is even and
-    analytic in the strip |Im t| < π/2 − |arg y|, so the rule errs by e^{−2πd/h} (h = T/K_NODES;
-    below 1e-16 for real y from 1e-8 to 1e6), and T from the tail bound K_TAIL."""
-    yr = jnp.maximum(jnp.real(y), 1e-300)
-    top = jnp.arccosh(1.0 + K_TAIL / yr)
-    t = jnp.linspace(0.0, 1.0, K_NODES + 1) * top[..., None]
+    """K_0(y)/K_1(y) for |arg y| < π from e^y K_ν(y) = ∫ e^{−y(cosh τ − 1)} cosh ντ dτ (ν = 0, 1;
+    DLMF 10.32.9) on the path τ(s) = s − iφ tanh s, s ∈ [0, T], φ = arg y: the real axis for real
+    y > 0, and for complex y a path along which y cosh τ turns real at large s, so the integral
+    converges and continues K analytically through |arg y| ≥ π/2 (the leaky side of the outer
+    fluid). The trapezoidal rule on K_NODES + 1 points of the even, analytic integrand errs by
+    e^{−2πd/h} (h = T/K_NODES; within 5e-14 of SciPy from |y| = 1e-8 to 1e6 and |arg y| ≤ 0.9π),
+    T from the tail bound K_TAIL."""
+    size = jnp.maximum(jnp.abs(y), 1e-300)
+    top = jnp.arccosh(1.0 + K_TAIL / size)
+    s = jnp.linspace(0.0, 1.0, K_NODES + 1) * top[..., None]
     weight = jnp.ones(K_NODES + 1).at[0].set(0.5)
-    kernel = weight * jnp.exp(-y[..., None] * (jnp.cosh(t) - 1.0))
-    return jnp.sum(kernel, axis=-1) / jnp.sum(kernel * jnp.cosh(t), axis=-1)
+    if jnp.iscomplexobj(y):
+        phase = jnp.angle(y)[..., None]
+        path = s - 1j * phase * jnp.tanh(s)
+        weight = weight * (1.0 - 1j * phase / jnp.cosh(s) ** 2)
+    else:
+        path = s
+    kernel = weight * jnp.exp(-y[..., None] * (jnp.cosh(path) - 1.0))
+    return jnp.sum(kernel, axis=-1) / jnp.sum(kernel * jnp.cosh(path), axis=-1)
 
 
 def outer_impedance(y, m):
@@ -419,8 +431,9 @@ def outer_impedance(y, m):
 
     The ratios ρ_n = K_{n−1}/K_n follow the forward recurrence ρ_{n+1} = 1/(ρ_n + 2n/y) (DLMF
     10.29.1; K is the dominant solution, so the recurrence is stable) from ρ_1 = K_0/K_1
-    (:func:`_k_ratio_01`), in OUTER_ORDER_MAX masked steps for a traced m. Real y > 0, or complex y
-    with Re y > 0 (analytic there); NaN for Re y ≤ 0 (the supersonic side, not on this sheet) and
+    (:func:`_k_ratio_01`), in OUTER_ORDER_MAX masked steps for a traced m. Real y > 0 (subsonic), or
+    complex y with |arg y| < ARG_MAX (analytic there: K_m continued through the upper or lower
+    half-plane, the leaky side of :func:`jaxdea.physics.dispersion.outer_face`); NaN elsewhere and
     for m > OUTER_ORDER_MAX.
 
     Args:
@@ -429,7 +442,11 @@ def outer_impedance(y, m):
     """
     y = jnp.asarray(y)
     m = jnp.asarray(m, dtype=jnp.float64)
-    ok = (jnp.real(y) > 0) & (m <= OUTER_ORDER_MAX)
+    if jnp.iscomplexobj(y):
+        ok = (jnp.abs(jnp.angle(y)) < ARG_MAX) & (jnp.abs(y) > 0)
+    else:
+        ok = y > 0
+    ok &= m <= OUTER_ORDER_MAX
     y_safe = jnp.where(ok, y, 1.0)
     first = _k_ratio_01(y_safe)
 

@@ -584,13 +584,19 @@ def outer_face(wall: Wall, omega_squared, alpha, m=0):
     """(R, L): the surrounding fluid's face condition R T + L U = 0 at r̂_o (docs/theory/real_tubes.md
     §6): T = −p*_o, p*_o = ρ̂_oΩ² K_m(y)/(γK_m'(y)) U, times γK_m'(y)r̂_o/K_m(y): R = y K_m'(y)/K_m(y)
     (:func:`jaxdea.numerics.bessel.outer_impedance`, < 0: an added mass) and L = ρ̂_o Ω² r̂_o, with
-    y = γr̂_o, γ = sqrt(α̂² − Ω²/ĉ_o²). Real for a subsonic real Ω (Ω < ĉ_oα̂), NaN on
-    the supersonic side (those modes leak; not on this sheet)."""
+    y = γr̂_o, γ = sqrt(α̂² − Ω²/ĉ_o²). Real for a subsonic real Ω (Ω < ĉ_oα̂), NaN above it in
+    real arithmetic. A complex Ω (Re Ω ≥ 0, Ω = sqrt(w)) left of the sound line, Re Ω ≤ ĉ_oα̂,
+    takes γ = sqrt(α̂² − Ω²/ĉ_o²) (principal; analytic in that half-strip); right of it the outgoing
+    wave γ = ik, k = sqrt(Ω²/ĉ_o² − α̂²) (principal; analytic there), so that K_m(γr) ∝ H_m^(2)(kr)
+    radiates (e^{iΩt}; a leaky mode, Im Ω > 0, grows radially: the improper sheet). The two sheets
+    meet with a jump along the vertical cut Re Ω = ĉ_oα̂ (:func:`jaxdea.complex_frequencies`
+    searches either side of it)."""
     fluid, ro = wall.outer, wall.r_outer
     rho, c_o = as_float(fluid.density_ratio), as_float(fluid.speed_ratio)
     y_squared = (alpha * alpha - omega_squared / (c_o * c_o)) * ro * ro
     if jnp.iscomplexobj(y_squared):
-        y = jnp.sqrt(y_squared)
+        leaky = jnp.real(jnp.sqrt(omega_squared)) > c_o * alpha
+        y = jnp.where(leaky, 1j * jnp.sqrt(-y_squared), jnp.sqrt(y_squared))
     else:
         y = jnp.sqrt(jnp.where(y_squared > 0, y_squared, jnp.nan))
     return outer_impedance(y, m), rho * omega_squared * ro

@@ -106,12 +106,12 @@ def complex_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: 
     else:
         edges = [float(omega_max)]
     roots, certificate, low = [], SearchStatus.CERTIFIED, 0.0
-    for high in edges:
+    for high in _split_at_the_sound_line(edges, tube, alpha):
         found, certificate = _box(problem, wall, alpha, fluid, m_value, low, high)
         roots += found
         if certificate != SearchStatus.CERTIFIED or len(roots) >= n_roots:
             break
-        low = high
+        low = high * SOUND_LINE_GAP ** 2 if high == _below_the_sound_line(tube, alpha) else high
     roots = sorted(roots, key=lambda z: (z.real, z.imag))[:n_roots]
     pad = n_roots - len(roots)
     omega = jnp.asarray(np.array(roots + [complex(np.nan, np.nan)] * pad, dtype=complex))
@@ -119,6 +119,30 @@ def complex_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: 
     if len(roots) < n_roots and certificate == SearchStatus.CERTIFIED and omega_max is None:
         certificate = SearchStatus.NOT_CERTIFIED
     return ComplexRoots(omega, quality_factor(omega), status, jnp.asarray(int(certificate), jnp.int32))
+
+
+SOUND_LINE_GAP = 1.0 + 1e-9
+"""The boxes either side of the sound line stop at ĉ_oα̂/SOUND_LINE_GAP and start at
+ĉ_oα̂·SOUND_LINE_GAP: off its branch point and its cut."""
+
+
+def _below_the_sound_line(tube, alpha):
+    """ĉ_oα̂/SOUND_LINE_GAP for a tube in a surrounding fluid (None without one): just left of the
+    cut Re Ω = ĉ_oα̂ between the subsonic and the leaky sheet
+    (:func:`jaxdea.physics.dispersion.outer_face`)."""
+    if tube.outer is None:
+        return None
+    return float(tube.outer.speed_ratio) * alpha / SOUND_LINE_GAP
+
+
+def _split_at_the_sound_line(edges, tube, alpha):
+    """The right edges of the boxes, with one just left of the sound line where it falls inside
+    (the next box starts just right of it): the argument principle holds on a contour inside one
+    sheet, never across the cut."""
+    line = _below_the_sound_line(tube, alpha)
+    if line is None or line >= edges[-1]:
+        return edges
+    return sorted({*(e for e in edges if e < line or e > line * SOUND_LINE_GAP ** 2), line})
 
 
 def quality_factor(omega):
