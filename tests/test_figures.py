@@ -22,7 +22,7 @@ from jaxdea.params import gent_limit_excess
 EXPECTED = ["static_response", "fig2_voltage_empty", "fig3_modes_empty", "fig4_modes_critical_empty",
             "fig5_voltage_fluid", "fig6_modes_fluid", "fig7_modes_critical_fluid", "fig8_speed_ratio",
             "fig9_density_ratio", "fig10_thickness_ratio", "comparison_couplings", "stability_map",
-            "cross_sections", "dispersion_order_m", "encapsulation"]
+            "cross_sections", "dispersion_order_m", "encapsulation", "surrounding_fluid"]
 
 
 def test_locking_stretch_is_where_i1_reaches_gent():
@@ -472,3 +472,22 @@ def test_encapsulation_values_are_direct_solves(written):
         np.testing.assert_allclose(float(r["v_first"]), float(inst.voltage), rtol=1e-12)
         omega = jd.frequencies(tube, float(r["alpha_hat"]), n_roots=2, n_layers=FIG_N)
         np.testing.assert_allclose(float(r["omega_1"]), float(omega[0]), rtol=1e-12)
+
+
+@pytest.mark.slow
+def test_surrounding_fluid_values_are_direct_solves(written):
+    """The surrounding-fluid CSV's roots are those of direct calls with the same fluids, and water
+    outside lowers the lowest root of n = 1 below the tube's in vacuum and in air."""
+    out, _ = written
+    cases = figures.surrounding_cases()
+    base = figures.PAPER_TUBE.replace(lambda_i=figures.SURROUNDING_STRETCH)
+    lowest = {}
+    for r in rows(out, "surrounding_fluid"):
+        fluid, outer = cases[r["case"]]
+        tube = base.replace(voltage=float(r["voltage"]))
+        omega = jd.frequencies(tube, float(r["alpha_hat"]), fluid, n_roots=1, n_layers=FIG_N,
+                               outer=outer)
+        np.testing.assert_allclose(float(r["omega"]), float(omega[0]), rtol=1e-12)
+        if r["n"] == "1" and float(r["voltage"]) == 0.0:
+            lowest[r["case"]] = float(r["omega"])
+    assert lowest["in water"] < lowest["in air"] < lowest["in vacuum"]

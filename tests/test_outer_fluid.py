@@ -213,3 +213,21 @@ def test_leaky_roots_against_the_exact_cylinder(m):
     exact = ecm.leaky_root(leaky[0] * 1.001, 1.0, 1.0, 1.0 / 0.85, m, 0.3, 1.5)
     assert abs(leaky[0] - exact) <= 1e-9 * abs(exact), (leaky[0], exact)
     assert got.certificate == jd.SearchStatus.CERTIFIED
+
+
+def test_si_presets():
+    """``fluid_from_si(scales, WATER)`` is the fluid of its two SI numbers, for a filling or outside,
+    and a preset with a sound speed besides is refused."""
+    from jaxdea.units import AIR, SILICONE_OIL, WATER, Scales, fluid_from_si
+
+    scales = Scales(shear_modulus=20e3, density=960.0, permittivity=4.2e-11, inner_radius=5e-3)
+    for preset in (WATER, AIR, SILICONE_OIL):
+        fluid = fluid_from_si(scales, preset)
+        by_hand = fluid_from_si(scales, preset.fluid_density, preset.sound_speed)
+        assert fluid == by_hand
+        assert float(fluid.speed_ratio) == pytest.approx(preset.sound_speed / math.sqrt(20e3 / 960.0),
+                                                         rel=1e-14)
+    with pytest.raises(ValueError, match="sound_speed"):
+        fluid_from_si(scales, WATER, 1500.0)
+    with pytest.raises(ValueError, match="sound_speed"):
+        fluid_from_si(scales, 1000.0)

@@ -61,7 +61,7 @@ from ..physics.leaves import apply_parameters
 from ..physics.state_matrix import ORDER_M
 from ..solve.curves import solve_critical_path, solve_path
 from ..solve.instability import first_instability
-from ..solve.roots import frequencies
+from ..solve.roots import critical_voltage, frequencies
 from ..solve.modes import mode_shape
 from . import plotstyle
 from .plotstyle import SHORT_LABELS, line_handle, new_figure, past_first_instability, patch_handle
@@ -1401,6 +1401,94 @@ def figure_encapsulation(ctx: Context):
     return fig, (left, right)
 
 
+SURROUNDING_SCALES = dict(shear_modulus=20e3, density=960.0)
+"""The VHB-like wall of :mod:`jaxdea.units`' worked example (μ = 20 kPa, ρ_s = 960 kg/m³, c_s = 4.56 m/s):
+the scales of the fluids' ratios in :func:`figure_surrounding_fluid`."""
+SURROUNDING_STRETCH = 1.1
+"""λ_i of the surrounding-fluid study: the paper's overcritical tube."""
+
+
+def surrounding_cases() -> dict:
+    """(fluid, outer) by label: the paper's tube in vacuum, in air, in water, filled with water, and
+    filled with and surrounded by water (acoustic couplings; SI presets of :mod:`jaxdea.units` on
+    :data:`SURROUNDING_SCALES`)."""
+    from ..physics.units import AIR, VACUUM_PERMITTIVITY, WATER, Scales, fluid_from_si
+
+    scales = Scales(permittivity=4.7 * VACUUM_PERMITTIVITY, inner_radius=5e-3, **SURROUNDING_SCALES)
+    air, water = (fluid_from_si(scales, preset) for preset in (AIR, WATER))
+    return {"in vacuum": (None, None), "in air": (None, air), "in water": (None, water),
+            "filled with water": (water, None), "filled with and in water": (water, water)}
+
+
+def _surrounding_style(case: int) -> dict:
+    """The tube in vacuum black and dashed, on top (air lies on it within 0.03 %), the others in
+    :data:`COLORS`."""
+    if case == 0:
+        return dict(color="k", ls="--", lw=1.4, zorder=5)
+    return dict(color=COLORS[case], ls="-")
+
+
+@_styled
+def figure_surrounding_fluid(ctx: Context):
+    """The lowest axisymmetric frequency of the paper's tube (λ_i = 1.1) in vacuum, in air, in water
+    and filled with water (:func:`surrounding_cases`): (a) against the axial mode n at V̂ = 0,
+    (b) of n = 1 against V̂ up to 0.9 V̂_cr(n = 1, m = 0), faded past the first instability (an
+    inviscid fluid leaves the critical voltages unchanged: Ω = 0). Returns (figure, axes)."""
+    name = "surrounding_fluid"
+    ctx.log(f"[{name}] the tube in air, in water, filled with water")
+    base = PAPER_TUBE.replace(lambda_i=SURROUNDING_STRETCH)
+    modes = np.arange(1, ctx.res.max_mode + 1)
+    alpha_1 = float(axial_wavenumber(base, 1))
+    v_cr = float(critical_voltage(base, alpha_1, n_layers=ctx.n_layers))
+    voltages = np.linspace(0.0, 0.9 * v_cr, ctx.res.voltages // 4 + 2)
+    first = first_instability(base, n_max=2, m_max=4, n_layers=ctx.n_layers)
+    v_first = float(first.voltage)
+    fig, (left, right) = new_figure(2, title=r"The paper's tube in a surrounding fluid ($\lambda_i = 1.1$, "
+                                    r"$\lambda_z = 1.2$, $\eta = 0.85$; VHB-like wall, $c_s = 4.56$ m/s)")
+    table = Table(name)
+    lowest_n1 = {}
+    for c, (label, (fluid, outer)) in enumerate(surrounding_cases().items()):
+        def lowest(tube, alpha, fluid=fluid, outer=outer):
+            return float(frequencies(tube, alpha, fluid, n_roots=1, n_layers=ctx.n_layers,
+                                     outer=outer)[0])
+
+        by_mode = [lowest(base, float(axial_wavenumber(base, int(n)))) for n in modes]
+        by_voltage = [lowest(base.replace(voltage=float(v)), alpha_1) for v in voltages]
+        lowest_n1[label] = by_mode[0]
+        for n, omega in zip(modes, by_mode, strict=True):
+            table.add(case=label, n=int(n), voltage=0.0, alpha_hat=float(axial_wavenumber(base, int(n))),
+                      omega=omega, v_first=v_first, past_first_instability=False)
+        for v, omega in zip(voltages, by_voltage, strict=True):
+            table.add(case=label, n=1, voltage=float(v), alpha_hat=alpha_1, omega=omega,
+                      v_first=v_first, past_first_instability=bool(v >= v_first))
+        style = _surrounding_style(c)
+        left.plot(modes, by_mode, marker="o", ms=4, **style)
+        plotstyle.plot_marked(right, voltages, by_voltage, voltages >= v_first, **style)
+    right.axvline(v_first, color="gray", ls=":", lw=1)
+    left.set_yscale("log")
+    left.set_title(r"(a) lowest root against the axial mode $n$ ($\hat V = 0$, $m = 0$)")
+    right.set_title(r"(b) lowest root of $n = 1$ against $\hat V$")
+    _axes_labels(left, SHORT_LABELS["n"], SHORT_LABELS["omega"])
+    _axes_labels(right, SHORT_LABELS["voltage"], SHORT_LABELS["omega"])
+    handles = [line_handle(label, **_surrounding_style(c)) for c, label in enumerate(surrounding_cases())]
+    handles.append(line_handle(rf"first instability $\hat V_{{first}} = {v_first:.4f}$ "
+                               rf"($m = {int(first.m)}$, $n = {int(first.n)}$; dotted)", color="gray",
+                               ls=":"))
+    plotstyle.legend_below(fig, handles, ncol=3)
+    vacuum = lowest_n1["in vacuum"]
+    shifts = ", ".join(f"{label} {omega:.4f} ({100 * (omega / vacuum - 1):+.2f} %)"
+                       for label, omega in lowest_n1.items() if label != "in vacuum")
+    caption = ("The paper's tube (λ_i = 1.1, λ_z = 1.2, η = 0.85, Gent G = 97.2) with a VHB-like wall "
+               "(μ = 20 kPa, ρ_s = 960 kg/m³: c_s = 4.56 m/s) in vacuum, in air and in water (an unbounded "
+               "acoustic fluid outside, docs/theory/real_tubes.md §6), filled with water, and both: "
+               "water's sound speed is 325 c_s, so every mode here is subsonic and the water adds mass. "
+               f"Lowest root of n = 1 at V̂ = 0: in vacuum {vacuum:.4f}; {shifts}. (a) Against n at "
+               "V̂ = 0. (b) Of n = 1 against V̂, to 0.9 V̂_cr(n = 1, m = 0), faded past the first "
+               "instability over m ≤ 4, n ≤ 2, which an inviscid fluid leaves where it is (Ω = 0).")
+    ctx.save(name, fig, table, caption)
+    return fig, (left, right)
+
+
 # ----------------------------------------------------------------------------- main job
 
 
@@ -1458,7 +1546,8 @@ def run_figures(out="figures", *, quick: bool = False, progress: bool = True, n_
 FIGURE_ORDER = ("fig2_voltage_empty", "fig3_modes_empty", "fig4_modes_critical_empty", "fig5_voltage_fluid",
                 "fig6_modes_fluid", "fig7_modes_critical_fluid", "fig8_speed_ratio", "fig9_density_ratio",
                 "fig10_thickness_ratio", "comparison_couplings", "stability_map", "dispersion_order_m",
-                "cross_sections", "static_response", "encapsulation")  # the order of the index
+                "cross_sections", "static_response", "encapsulation",
+                "surrounding_fluid")  # the order of the index
 
 
 def _paper_figures(ctx: Context) -> None:
@@ -1482,3 +1571,4 @@ def _paper_figures(ctx: Context) -> None:
     figure_fluid_parameter(ctx, "thickness_ratio")
     figure_comparison(ctx, {"modes": modes, "speed": speed})
     figure_encapsulation(ctx)
+    figure_surrounding_fluid(ctx)

@@ -328,6 +328,15 @@ class FluidSI(NamedTuple):
     sound_speed: jax.Array
 
 
+WATER = FluidSI(fluid_density=998.2, sound_speed=1482.0)
+"""Water at 20 °C (ρ = 998.2 kg/m³, c = 1482 m/s): ``fluid_from_si(scales, WATER)``."""
+AIR = FluidSI(fluid_density=1.204, sound_speed=343.2)
+"""Air at 20 °C and 1 atm (ρ = 1.204 kg/m³, c = 343.2 m/s)."""
+SILICONE_OIL = FluidSI(fluid_density=960.0, sound_speed=985.0)
+"""A 50 cSt polydimethylsiloxane oil at 25 °C (ρ ≈ 960 kg/m³, c ≈ 985 m/s; grades differ by a few
+per cent), the usual bath of DEA tests."""
+
+
 def tube_from_si(scales: Scales, outer_radius, length, voltage=0.0, lambda_i=None, lambda_z=1.0,
                  gent=97.2, material: str = "gent", pressure=None) -> Tube:
     """The dimensionless :class:`~jaxdea.Tube` of a tube given in SI units (docs/theory/axisymmetric.md §0).
@@ -445,13 +454,15 @@ def tube_to_si(scales: Scales, tube: Tube) -> TubeSI:
     )
 
 
-def fluid_from_si(scales: Scales, fluid_density, sound_speed, coupling: str = "acoustic",
+def fluid_from_si(scales: Scales, fluid_density, sound_speed=None, coupling: str = "acoustic",
                   bessel_order: int | None = None) -> Fluid:
-    """The dimensionless :class:`~jaxdea.Fluid`: ρ̂_f = ρ_f/ρ_s, ĉ_f = c_f/c_s (docs/theory/axisymmetric.md §0).
+    """The dimensionless :class:`~jaxdea.Fluid`: ρ̂_f = ρ_f/ρ_s, ĉ_f = c_f/c_s (docs/theory/axisymmetric.md §0),
+    for a filling (``fluid=``) or a surrounding fluid (``outer=``).
 
     Args:
         scales: the :class:`Scales` (ρ_s and c_s = sqrt(μ/ρ_s) come from it).
-        fluid_density: ρ_f > 0 in kg/m³ (water ≈ 1000, air ≈ 1.2).
+        fluid_density: ρ_f > 0 in kg/m³ (water ≈ 1000, air ≈ 1.2), or a :class:`FluidSI` such as
+            the presets :data:`WATER`, :data:`AIR`, :data:`SILICONE_OIL` (then no ``sound_speed``).
         sound_speed: c_f > 0 in m/s (water ≈ 1480, air ≈ 343).
         coupling: ``"acoustic"`` (consistent, default) or ``"paper"`` (docs/theory/axisymmetric.md §4).
         bessel_order: the ``"paper"`` coupling's Bessel order, as in :class:`~jaxdea.Fluid`.
@@ -463,6 +474,14 @@ def fluid_from_si(scales: Scales, fluid_density, sound_speed, coupling: str = "a
         >>> water = fluid_from_si(vhb, fluid_density=1000.0, sound_speed=1480.0)
     """
     _check_scales(scales)
+    if isinstance(fluid_density, FluidSI):
+        if sound_speed is not None:
+            raise ValueError("sound_speed: give a FluidSI preset alone, or fluid_density and "
+                             "sound_speed")
+        fluid_density, sound_speed = fluid_density
+    elif sound_speed is None:
+        raise ValueError("sound_speed: the fluid's sound speed in m/s is required (or give a "
+                         "FluidSI such as jaxdea.units.WATER)")
     _, rho_s, _, _ = scales._values()
     density_ratio = _positive("fluid_density", fluid_density, "kg/m^3") / rho_s
     speed_ratio = scales.speed_from_si(_positive("sound_speed", sound_speed, "m/s"))
