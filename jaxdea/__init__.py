@@ -39,7 +39,7 @@ from .solve.complex_frequencies import ComplexRoots, complex_frequencies, solve_
 from .solve.counting import CountStatus, RootCount, count_roots
 from .solve.curves import Curve, dispersion_curve
 from .solve.instability import first_instability
-from .solve.modes import ModeShape, fluid_pressure, mode_shape
+from .solve.modes import ModeShape, fluid_pressure, mode_shape, outer_pressure
 from .solve.roots import (
     Instability,
     Roots,
@@ -120,6 +120,7 @@ __all__ = [
     "maximise_tunability",
     "mode_shape",
     "ModeShape",
+    "outer_pressure",
     "phase_velocity",
     "plot_fit",
     "pressure_difference",

@@ -231,3 +231,29 @@ def test_si_presets():
         fluid_from_si(scales, WATER, 1500.0)
     with pytest.raises(ValueError, match="sound_speed"):
         fluid_from_si(scales, 1000.0)
+
+
+@pytest.mark.parametrize("m", [0, 2])
+def test_outer_pressure_field(m):
+    """``outer_pressure``: −T̄ at the outer face, the fluid's momentum dp̂/dr̂ = ρ̂_oΩ²ū there (a
+    fourth-order one-sided difference of the field against the wall's ū of ``mode_shape``) and the
+    Helmholtz equation p'' + p'/r − (γ² + m²/r²)p = 0 (central differences)."""
+    fluid = jd.Fluid(density_ratio=1.0, speed_ratio=3.0)
+    tube = TUBE.replace(outer=fluid)
+    omega = float(jd.frequencies(tube, 0.5, m=m, n_roots=1)[0])
+    shape = jd.mode_shape(tube, 0.5, omega, m=m, n_points=4001)  # the same normalisation
+    r, p = (np.asarray(x) for x in jd.outer_pressure(tube, 0.5, omega, m=m, n_points=4001,
+                                                     extent=2.0))
+    assert p[0] == pytest.approx(-float(shape.T[-1]), rel=1e-14)
+    h = r[1] - r[0]
+    slope = (-25 * p[0] + 48 * p[1] - 36 * p[2] + 16 * p[3] - 3 * p[4]) / (12 * h)
+    assert slope == pytest.approx(omega**2 * float(shape.u[-1]), rel=1e-8)
+    gamma2 = 0.25 - (omega / 3.0) ** 2
+    second = (p[2:] - 2 * p[1:-1] + p[:-2]) / h**2
+    first = (p[2:] - p[:-2]) / (2 * h)
+    residual = second + first / r[1:-1] - (gamma2 + m**2 / r[1:-1] ** 2) * p[1:-1]
+    assert np.max(np.abs(residual)) <= 1e-5 * np.max(np.abs(p))  # O(h²) of the differences: 2e-6
+    with pytest.raises(ValueError, match="subsonic"):
+        jd.outer_pressure(tube, 0.5, 2.0, m=m)
+    with pytest.raises(ValueError, match="no surrounding fluid"):
+        jd.outer_pressure(TUBE, 0.5, omega, m=m)

@@ -27,9 +27,19 @@ import jax
 import jax.numpy as jnp
 
 from ..compiled import cached_jit
-from ..numerics.bessel import coupling_log_factor, coupling_pair
+from ..numerics.bessel import coupling_log_factor, coupling_pair, scaled_k
 from ..numerics.scalar import ROOT_RTOL, newton_distance, refuse_non_root, value_and_slope
-from ..params import Fluid, Tube, admissible, as_float, canonical, validate_count, validate_real, with_outer
+from ..params import (
+    Fluid,
+    Tube,
+    admissible,
+    as_float,
+    canonical,
+    validate_count,
+    validate_positive,
+    validate_real,
+    with_outer,
+)
 from ..physics.characteristic import problem_function
 from ..physics.dispersion import (
     OUTER_ROWS,
@@ -337,7 +347,8 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
 
 
 def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64,
-                   n_layers: int | None = None, m=0, scheme: str | None = None, outer: Fluid | None = None):
+                   n_layers: int | None = None, m=0, scheme: str | None = None,
+                   outer: Fluid | None = None):
     """The acoustic excess pressure p̂*(r̂) in the cavity for the root ``omega`` (docs/theory/axisymmetric.md
     §4(c)).
 
@@ -398,3 +409,45 @@ def fluid_pressure(tube: Tube, alpha, omega, fluid: Fluid, n_points: int = 64,
         )
     _, _, r, p = _solve(tube, alpha, omega, fluid, n_points, n_layers, scheme, m, False)
     return r, p
+
+
+def outer_pressure(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: int = 64,
+                   extent=4.0, n_layers: int | None = None, m=0, scheme: str | None = None,
+                   outer: Fluid | None = None):
+    """The acoustic excess pressure p̂*_o(r̂) in the surrounding fluid for the subsonic root ``omega``
+    (docs/theory/real_tubes.md §6), in the normalisation of :func:`mode_shape`:
+
+        p̂*_o(r̂) = −T̄(r̂_o) K_m(γr̂)/K_m(γr̂_o),  γ = sqrt(α̂² − Ω²/ĉ_o²),
+
+    the field that decays away from the tube (Helmholtz, radiation condition), equal to −T̄ at the
+    outer face (the face condition) and with dp̂*_o/dr̂ = ρ̂_oΩ²ū at r̂_o (the fluid's momentum).
+
+    Args:
+        tube, alpha, omega, fluid, n_layers, scheme, m: as for :func:`mode_shape` (``omega`` a
+            root of the tube in its surrounding fluid).
+        outer: the surrounding :class:`~jaxdea.Fluid`, or None for the tube's own ``tube.outer``.
+        n_points: number of radii (static).
+        extent: the field is sampled on r̂_o ≤ r̂ ≤ r̂_o + extent/γ (its decay lengths), > 0.
+
+    Returns:
+        (r, p): radii r̂ (n_points,) from r̂_o outwards and p̂*_o(r̂) (n_points,).
+
+    Raises:
+        ValueError: without a surrounding fluid, for a supersonic ``omega`` (Ω ≥ ĉ_oα̂: a leaky mode,
+            whose field grows radially), and for invalid concrete inputs, naming the parameter.
+    """
+    tube = with_outer(tube, outer)
+    if tube.outer is None:
+        raise ValueError("outer: the tube has no surrounding fluid (outer=None, tube.outer=None)")
+    validate_positive("extent", extent)
+    speed = as_float(tube.outer.speed_ratio)
+    gamma_squared = as_float(alpha) ** 2 - (as_float(omega) / speed) ** 2
+    if not isinstance(gamma_squared, jax.core.Tracer) and not gamma_squared > 0:
+        raise ValueError(f"omega must be subsonic, below the sound line speed_ratio * alpha = "
+                         f"{float(speed * as_float(alpha))!r}, got {float(omega)!r}")
+    shape = mode_shape(tube, alpha, omega, fluid, n_points, n_layers, m, False, scheme)
+    gamma = jnp.sqrt(gamma_squared)
+    r_outer = shape.r[-1]
+    r = r_outer + as_float(extent) / gamma * jnp.linspace(0.0, 1.0, n_points)
+    decay = scaled_k(gamma * r, m) / scaled_k(gamma * r_outer, m) * jnp.exp(-gamma * (r - r_outer))
+    return r, -shape.T[-1] * decay
