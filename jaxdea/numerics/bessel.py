@@ -32,6 +32,7 @@ direction of (N_ν, D_ν) is within 1e-11 of scipy's for ν ≤ 40 over the whol
 beyond x + ν ≥ RANGE the result is NaN (reported, never wrong).
 """
 
+import functools
 import math
 
 import jax
@@ -391,8 +392,12 @@ def coupling_log_factor(s):
 
 # --- The outer face: K_m of an unbounded fluid (docs/theory/real_tubes.md §6) ----------------------
 
-K_NODES = 96
-"""Points of the trapezoidal rule of :func:`_k_ratio_01` on [0, T(y)]."""
+K_NODES = 32
+"""Points of the trapezoidal rule of :func:`_k_ratio_01` on [0, T(y)], |y| > K_SERIES."""
+K_COMPLEX_NODES = 96
+"""Points of the rule of :func:`_k_ratio_01` for complex y (the rotated path needs them)."""
+K_WIDE_NODES = 384
+"""Points of the rules of :func:`_k_ratio_real` and :func:`scaled_k`, over every y > 0 and order."""
 K_TAIL = 60.0
 """The rule stops at T with Re y (cosh T − 1) = K_TAIL: the integrand is e^{−60} of its peak there."""
 ARG_MAX = 0.9 * np.pi
@@ -404,17 +409,21 @@ masked steps for a traced m); NaN beyond."""
 
 
 def _k_ratio_01(y):
-    """K_0(y)/K_1(y) for |arg y| < π from e^y K_ν(y) = ∫ e^{−y(cosh τ − 1)} cosh ντ dτ (ν = 0, 1;
-    DLMF 10.32.9) on the path τ(s) = s − iφ tanh s, s ∈ [0, T], φ = arg y: the real axis for real
-    y > 0, and for complex y a path along which y cosh τ turns real at large s, so the integral
-    converges and continues K analytically through |arg y| ≥ π/2 (the leaky side of the outer
-    fluid). The trapezoidal rule on K_NODES + 1 points of the even, analytic integrand errs by
-    e^{−2πd/h} (h = T/K_NODES; within 5e-14 of SciPy from |y| = 1e-8 to 1e6 and |arg y| ≤ 0.9π),
-    T from the tail bound K_TAIL."""
-    size = jnp.maximum(jnp.abs(y), 1e-300)
-    top = jnp.arccosh(1.0 + K_TAIL / size)
-    s = jnp.linspace(0.0, 1.0, K_NODES + 1) * top[..., None]
-    weight = jnp.ones(K_NODES + 1).at[0].set(0.5)
+    """K_0(y)/K_1(y) for |arg y| < π: the series at |y| ≤ K_SERIES (:func:`_k_series_01`), else
+    e^y K_ν(y) = ∫ e^{−y(cosh τ − 1)} cosh ντ dτ (ν = 0, 1; DLMF 10.32.9) on the path
+    τ(s) = s − iφ tanh s, s ∈ [0, T], φ = arg y: the real axis for real y > 0, and for complex y a
+    path along which y cosh τ turns real at large s, so that the integral converges and continues
+    K analytically through |arg y| ≥ π/2 (the leaky side of the outer fluid). The trapezoidal rule
+    on K_NODES + 1 points (K_COMPLEX_NODES + 1 for complex y) of the even, analytic integrand errs
+    by e^{−2πd/h} (h = T/K_NODES ≤ 0.13, T from the tail bound K_TAIL). Within 3e-15 of SciPy for
+    real y from 1e-8 to 1e6, 3e-12 for complex y to |y| = 1e4 and |arg y| ≤ 0.9π."""
+    small = jnp.abs(y) <= K_SERIES
+    k_0, k_1 = _k_series_01(jnp.where(small, y, 1.0))
+    y = jnp.where(small, 2.0 * K_SERIES, y)
+    nodes = K_COMPLEX_NODES if jnp.iscomplexobj(y) else K_NODES
+    top = jnp.arccosh(1.0 + K_TAIL / jnp.abs(y))
+    s = jnp.linspace(0.0, 1.0, nodes + 1) * top[..., None]
+    weight = jnp.ones(nodes + 1).at[0].set(0.5)
     if jnp.iscomplexobj(y):
         phase = jnp.angle(y)[..., None]
         path = s - 1j * phase * jnp.tanh(s)
@@ -422,31 +431,108 @@ def _k_ratio_01(y):
     else:
         path = s
     kernel = weight * jnp.exp(-y[..., None] * 2.0 * jnp.sinh(0.5 * path) ** 2)
-    return jnp.sum(kernel, axis=-1) / jnp.sum(kernel * jnp.cosh(path), axis=-1)
+    ratio = jnp.sum(kernel, axis=-1) / jnp.sum(kernel * jnp.cosh(path), axis=-1)
+    return jnp.where(small, k_0 / k_1, ratio)
+
+
+K_SERIES = 2.0
+"""|y| ≤ K_SERIES: K_0, K_1 by their ascending series (:func:`_k_series_01`)."""
+K_TERMS = 24
+"""Terms of those series: (|y|²/4)^k/(k!)² < 1e-40 beyond."""
+
+
+def _k_series_01(y):
+    """(K_0(y), K_1(y)) by the ascending series (DLMF 10.31.1–10.31.2, principal log: analytic for
+    |arg y| < π), with z = y²/4, H_k the harmonic numbers and γ Euler's constant:
+
+        K_0 = −(ln(y/2) + γ) I_0 + Σ_{k≥1} H_k z^k/(k!)²,
+        K_1 = 1/y + ln(y/2) I_1 − (y/4) Σ_{k≥0} (2H_k + 1/(k+1) − 2γ) z^k/(k!(k+1)!),
+
+    I_0 = Σ z^k/(k!)², I_1 = (y/2) Σ z^k/(k!(k+1)!)."""
+    k = np.arange(K_TERMS)
+    harmonic = np.concatenate([[0.0], np.cumsum(1.0 / np.arange(1, K_TERMS))])
+    inverse_square = np.exp(-2.0 * gammaln_np(k + 1.0))
+    inverse_next = np.exp(-gammaln_np(k + 1.0) - gammaln_np(k + 2.0))
+    z = (0.25 * y * y)[..., None] ** k
+    log_half = jnp.log(0.5 * y)
+    i_0 = jnp.sum(z * inverse_square, axis=-1)
+    i_1 = 0.5 * y * jnp.sum(z * inverse_next, axis=-1)
+    k_0 = -(log_half + np.euler_gamma) * i_0 + jnp.sum(z * harmonic * inverse_square, axis=-1)
+    psi_sum = 2.0 * harmonic + 1.0 / (k + 1.0) - 2.0 * np.euler_gamma
+    k_1 = 1.0 / y + log_half * i_1 - 0.25 * y * jnp.sum(z * psi_sum * inverse_next, axis=-1)
+    return k_0, k_1
+
+
+def gammaln_np(x):
+    """log Γ(x) of a NumPy array (the series' constant coefficients, at import-free module level)."""
+    return np.array([math.lgamma(v) for v in np.ravel(x)]).reshape(np.shape(x))
 
 
 def outer_impedance(y, m):
     """R_m(y) = y K_m'(y)/K_m(y) = −m − y K_{m−1}(y)/K_m(y) (K_{−1} = K_1), the outer fluid's face
     factor at y = γr̂_o, γ = sqrt(α̂² − Ω²/ĉ_o²) (subsonic: y > 0, R_m < 0: added mass).
 
-    The ratios ρ_n = K_{n−1}/K_n follow the forward recurrence ρ_{n+1} = 1/(ρ_n + 2n/y) (DLMF
-    10.29.1; K is the dominant solution, so the recurrence is stable) from ρ_1 = K_0/K_1
-    (:func:`_k_ratio_01`), in OUTER_ORDER_MAX masked steps for a traced m. Real y > 0 (subsonic), or
-    complex y with |arg y| < ARG_MAX (analytic there: K_m continued through the upper or lower
-    half-plane, the leaky side of :func:`jaxdea.physics.dispersion.outer_face`); NaN elsewhere and
-    for m > OUTER_ORDER_MAX.
+    A static m (a Python number; the longitudinal family's 0): the ratios ρ_n = K_{n−1}/K_n by the
+    forward recurrence ρ_{n+1} = 1/(ρ_n + 2n/y) (DLMF 10.29.1; K is the dominant solution, so the
+    recurrence is stable), m steps from ρ_1 = K_0/K_1 (:func:`_k_ratio_01`, K_NODES points). A
+    traced m: K_{|m−1|}/K_m in one quadrature of K_WIDE_NODES points for real y
+    (:func:`_k_ratio_real`), the recurrence in OUTER_ORDER_MAX masked steps for complex y. Real
+    y > 0 (subsonic), or complex y with |arg y| < ARG_MAX (analytic there: K_m continued through
+    the upper or lower half-plane, the leaky side of :func:`jaxdea.physics.dispersion.outer_face`);
+    NaN elsewhere and for m > OUTER_ORDER_MAX. The derivative in y is the exact
+    dR_m/dy = (y² + m² − R_m²)/y (:func:`_impedance_slope`).
 
     Args:
         y: γr̂_o, real or complex, scalar.
         m: the circumferential order, an integer ≥ 0 (traced or not).
     """
     y = jnp.asarray(y)
-    m = jnp.asarray(m, dtype=jnp.float64)
+    static = isinstance(m, (int, float)) and float(m) == int(m) and 0 <= m <= OUTER_ORDER_MAX
+    if static:
+        return _impedance_static(y, int(m))
+    return _impedance_traced(y, jnp.asarray(m, dtype=jnp.float64))
+
+
+def _impedance_slope(y, m, impedance):
+    """dR_m/dy = (y² + m² − R_m²)/y: Bessel's equation y²K'' + yK' − (y² + m²)K = 0 in
+    R = yK'/K (exact, analytic: the slope never differentiates a quadrature)."""
+    return (y * y + m * m - impedance * impedance) / y
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(1,))
+def _impedance_static(y, order: int):
+    """:func:`outer_impedance` of a static order: ``order`` recurrence steps from K_0/K_1."""
+    m = float(order)
     if jnp.iscomplexobj(y):
         ok = (jnp.abs(jnp.angle(y)) < ARG_MAX) & (jnp.abs(y) > 0)
     else:
         ok = y > 0
-    ok &= m <= OUTER_ORDER_MAX
+    y_safe = jnp.where(ok, y, 1.0)
+    first = _k_ratio_01(y_safe)
+    ratio = 1.0 / first  # ρ_0 = K_{−1}/K_0 = K_1/K_0
+    if order >= 1:
+        ratio = first
+        for n in range(1, order):
+            ratio = 1.0 / (ratio + 2.0 * n / y_safe)
+    return jnp.where(ok, -m - y_safe * ratio, jnp.nan)
+
+
+@_impedance_static.defjvp
+def _impedance_static_jvp(order, primals, tangents):
+    (y,), (y_dot,) = primals, tangents
+    impedance = _impedance_static(y, order)
+    return impedance, _impedance_slope(y, float(order), impedance) * y_dot
+
+
+@jax.custom_jvp
+def _impedance_traced(y, m):
+    """:func:`outer_impedance` of a traced order m."""
+    ok = m <= OUTER_ORDER_MAX
+    if not jnp.iscomplexobj(y):
+        ok &= y > 0
+        y_safe = jnp.where(ok, y, 1.0)
+        return jnp.where(ok, -m - y_safe * _k_ratio_real(y_safe, m), jnp.nan)
+    ok &= (jnp.abs(jnp.angle(y)) < ARG_MAX) & (jnp.abs(y) > 0)
     y_safe = jnp.where(ok, y, 1.0)
     first = _k_ratio_01(y_safe)
 
@@ -454,20 +540,51 @@ def outer_impedance(y, m):
         return jnp.where(n < m, 1.0 / (ratio + 2.0 * n / y_safe), ratio), None
 
     ratio, _ = jax.lax.scan(step, first, jnp.arange(1.0, OUTER_ORDER_MAX + 1.0))
-    ratio = jnp.where(m == 0, 1.0 / first, ratio)  # ρ_0 = K_{−1}/K_0 = K_1/K_0
+    ratio = jnp.where(m == 0, 1.0 / first, ratio)
     return jnp.where(ok, -m - y_safe * ratio, jnp.nan)
+
+
+@_impedance_traced.defjvp
+def _impedance_traced_jvp(primals, tangents):
+    (y, m), (y_dot, _) = primals, tangents
+    impedance = _impedance_traced(y, m)
+    return impedance, _impedance_slope(y, m, impedance) * y_dot
+
+
+def _log_cosh(x):
+    """log cosh x without overflow: |x| + log1p(e^{−2|x|}) − log 2."""
+    x = jnp.abs(x)
+    return x + jnp.log1p(jnp.exp(-2.0 * x)) - np.log(2.0)
+
+
+def _k_ratio_real(y, m):
+    """K_{|m−1|}(y)/K_m(y) for real y > 0 and a real order m ≥ 0 (traced), from
+    e^y K_ν(y) = ∫_0^∞ e^{−y(cosh t − 1)} cosh νt dt (DLMF 10.32.9) at ν = |m − 1| and m on the same
+    K_WIDE_NODES + 1 trapezoidal points of [0, T], T past the peak of the integrand (sinh t = m/y) by
+    the tail bound K_TAIL, each integrand scaled by the largest of order m (no overflow at large m,
+    small y): within 3e-14 of SciPy for m ≤ 128 and 1e-8 ≤ y ≤ 1e6."""
+    peak = jnp.arcsinh(m / y)
+    top = jnp.arccosh(1.0 + (K_TAIL + m * peak) / y)  # beyond the peak: y(cosh T − 1) > m·peak
+    count = K_WIDE_NODES
+    t = jnp.linspace(0.0, 1.0, count + 1) * top
+    weight = jnp.ones(count + 1).at[0].set(0.5)
+    base = -y * 2.0 * jnp.sinh(0.5 * t) ** 2  # −y(cosh t − 1) without cancellation
+    upper = base + _log_cosh(m * t)
+    lower = base + _log_cosh((m - 1.0) * t)
+    shift = jnp.max(upper)
+    return jnp.sum(weight * jnp.exp(lower - shift)) / jnp.sum(weight * jnp.exp(upper - shift))
 
 
 def scaled_k(y, m):
     """e^y K_m(y) for real y > 0 and an order m ≥ 0 (traced or not): ∫_0^T e^{−y(cosh t − 1)}
-    cosh mt dt (DLMF 10.32.9) by the trapezoidal rule on 4·K_NODES + 1 points, T past the peak of
-    the integrand (sinh t = m/y) by the tail bound K_TAIL: within 2e-15 of SciPy's ``kve`` for
+    cosh mt dt (DLMF 10.32.9) by the trapezoidal rule on K_WIDE_NODES + 1 points, T past the peak of
+    the integrand (sinh t = m/y) by the tail bound K_TAIL: within 3e-15 of SciPy's ``kve`` for
     m ≤ 20 and 1e-3 ≤ y ≤ 1e4 (the outer fluid's pressure field, :func:`jaxdea.outer_pressure`)."""
     y = jnp.asarray(y, jnp.float64)
     m = jnp.asarray(m, jnp.float64)
     peak = jnp.arcsinh(m / y)
-    top = jnp.maximum(jnp.arccosh(1.0 + (K_TAIL + m * peak) / y), peak + 1.0)
-    count = 4 * K_NODES
+    top = jnp.arccosh(1.0 + (K_TAIL + m * peak) / y)  # beyond the peak: y(cosh T − 1) > m·peak
+    count = K_WIDE_NODES
     t = jnp.linspace(0.0, 1.0, count + 1) * top[..., None]
     weight = jnp.ones(count + 1).at[0].set(0.5) * (top / count)[..., None]
     exponent = -y[..., None] * 2.0 * jnp.sinh(0.5 * t) ** 2  # cosh t − 1 without cancellation

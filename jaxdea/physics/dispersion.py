@@ -142,11 +142,22 @@ def characteristic_and_scale(wall: Wall, omega, alpha, fluid=None, order=0, meth
 
 def outer_rows_of(wall: Wall, alpha, m=0, family: str = LONGITUDINAL, w_of=None):
     """x ↦ Out at w = ``w_of``(x) (Ω² of x = Ω by default) for a wall in a surrounding fluid
-    (:func:`outer_conditions`); None without one, where the rows do not depend on x."""
+    (:func:`outer_conditions`); None without one, where the rows do not depend on x. The
+    longitudinal rows (Φ, T, S) are formed from (R, L) of :func:`outer_face` directly."""
     if wall.outer is None:
         return None
     w_of = _squared if w_of is None else w_of
-    return lambda x: outer_conditions(wall, alpha, m, family, omega_squared=w_of(x))
+    if family != LONGITUDINAL:
+        return lambda x: outer_conditions(wall, alpha, m, family, omega_squared=w_of(x))
+
+    def rows(x):
+        impedance, load = outer_face(wall, w_of(x), alpha, 0)
+        zero, one = jnp.zeros_like(impedance), jnp.ones_like(impedance)
+        return jnp.stack([jnp.stack([zero, zero, one, zero, zero, zero]),  # Φ
+                          jnp.stack([load, zero, zero, impedance, zero, zero]),  # R T + L U
+                          jnp.stack([zero, zero, zero, zero, one, zero])])  # S
+
+    return rows
 
 
 def characteristic_on_wall(wall: Wall, omega, alpha, fluid=None, order=0, method="taylor", m=0,
