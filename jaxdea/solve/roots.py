@@ -747,7 +747,8 @@ def scan_roots(wall: Wall, fun, alpha, fluid, omega_max, n_roots: int, m=0.0,
     :func:`pole_steps`)."""
     end = default_omega_max(wall, alpha, n_roots, m) if omega_max is None else as_float(omega_max)
     ok = jnp.isfinite(end) & (end > 0)
-    end = jnp.minimum(end, sound_line(wall, alpha))
+    if Family(family) is not Family.TORSIONAL:  # an inviscid fluid leaves torsion alone: no leak
+        end = jnp.minimum(end, sound_line(wall, alpha))
     step = jnp.minimum(scan_step(wall, fluid, family), end / CHUNK)
     next_point = cutoff_steps(wall, alpha, fluid, step, family)
     paper = Face.of(fluid).has_poles
