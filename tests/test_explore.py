@@ -158,15 +158,34 @@ def test_toggle_rows_are_labelled_and_fluid_controls_follow_the_tube(app):
     assert c["density_ratio"].disabled
 
 
+def test_the_outside_control_puts_the_tube_in_water(app):
+    """"outside": water around the tube gives the curves of ``dispersion_curve(..., outer=water)``."""
+    from jaxdea.apps.explore import outside_fluids
+
+    water = outside_fluids()["water"]
+    app.controls["outside"].value = "water"
+    try:
+        tube, fluid, m = app.parameters()
+        assert tube.outer == water and fluid is None
+        curve = jd.dispersion_curve(tube, app.data.alpha, n_roots=3)
+        np.testing.assert_allclose(app.data.omega, curve.omega, rtol=1e-12)
+        vacuum = jd.dispersion_curve(tube.replace(outer=None), app.data.alpha, n_roots=3)
+        ratio = np.asarray(curve.omega)[:, 0] / np.asarray(vacuum.omega)[:, 0]
+        assert np.all(ratio <= 1.0) and np.min(ratio) < 0.7  # the water's added mass
+    finally:
+        app.controls["outside"].value = "vacuum"
+    assert app.parameters()[0].outer is None
+
+
 def test_compiling_status_shows_once_per_kind_of_problem(app):
-    kind = ("paper", True)  # never solved here
+    kind = ("paper", False, True)  # never solved here
     app._compiling("curve", kind)
     assert "compiling (once)" in app.busy.value
     app._compiled_now("curve", kind)
     assert app.busy.value == ""
     app._compiling("curve", kind)  # compiled: nothing to say
     assert app.busy.value == ""
-    assert ("curve", ("empty", False)) in app._compiled  # what the app solved is known compiled
+    assert ("curve", ("empty", False, False)) in app._compiled  # what the app solved is known compiled
 
 
 def test_empty_mode_panel_draws_no_axes_and_no_legend():

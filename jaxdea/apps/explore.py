@@ -268,6 +268,17 @@ def _slider(widgets, description, value, low, high, step, log=False):
 FLUID_CONTROLS = ("density_ratio", "speed_ratio", "coupling", "bessel_order")
 
 
+def outside_fluids(given: Fluid | None = None) -> dict:
+    """The choices of the explorer's "outside" control: vacuum, air and water around a VHB-like
+    wall (μ = 20 kPa, ρ_s = 960 kg/m³; :data:`jaxdea.units.AIR`, :data:`jaxdea.units.WATER`), led by
+    the tube's own surrounding fluid ("as given") where it has one."""
+    from ..physics.units import AIR, WATER, Scales, fluid_from_si
+
+    scales = Scales(shear_modulus=20e3, density=960.0, permittivity=4.2e-11, inner_radius=5e-3)
+    choices = {"vacuum": None, "air": fluid_from_si(scales, AIR), "water": fluid_from_si(scales, WATER)}
+    return choices if given is None else {"as given": given, **choices}
+
+
 @functools.cache
 def _app_class():
     """The app's class (a ``VBox``), defined on first use so that ipywidgets stays optional."""
@@ -296,6 +307,7 @@ def _app_class():
             self._pending_growth = None  # (state key, future) of the background growth-rate scan
             self._lock = threading.RLock()  # one recomputation or redraw at a time
             shown = fluid if fluid is not None else Fluid()
+            self.outside = outside_fluids(tube.outer)
             wide = dict(description_width="initial")
             c = self.controls = dict(
                 voltage=_slider(widgets, "V̂", tube.voltage, 0.0, 0.3, 0.002),
@@ -313,6 +325,8 @@ def _app_class():
                                                description="fluid model", style=wide),
                 bessel_order=widgets.BoundedIntText(value=shown.bessel_order or 1, min=0, max=20,
                                                     description="ν (paper)"),
+                outside=widgets.ToggleButtons(options=list(self.outside), value=next(iter(self.outside)),
+                                              description="outside", style=wide),
             )
             self.pick = dict(
                 alpha=widgets.FloatSlider(value=float(alphas[0]), min=float(alphas.min()),
@@ -356,7 +370,8 @@ def _app_class():
         def parameters(self):
             """(tube, fluid, m) of the controls (the fluid None for the empty tube)."""
             c = self.controls
-            tube = self.base_tube.replace(**{k: float(c[k].value) for k in
+            tube = self.base_tube.replace(outer=self.outside[c["outside"].value],
+                                          **{k: float(c[k].value) for k in
                                              ("voltage", "lambda_i", "lambda_z", "eta", "gent")})
             fluid = None
             if c["filled"].value == "filled":
@@ -375,10 +390,11 @@ def _app_class():
             return (tube.lambda_i, tube.lambda_z, tube.eta, tube.gent, tube.length_ratio,
                     tube.material)
 
-        @staticmethod
-        def _kind(fluid, m):
-            """The kind of problem (one set of compiled programs): the fluid model and m = 0 or m ≥ 1."""
-            return ("empty" if fluid is None else fluid.coupling, m > 0)
+        def _kind(self, fluid, m):
+            """The kind of problem (one set of compiled programs): the fluid model, a surrounding
+            fluid or none, and m = 0 or m ≥ 1."""
+            return ("empty" if fluid is None else fluid.coupling,
+                    self.outside[self.controls["outside"].value] is not None, m > 0)
 
         def _compiling(self, what, kind):
             """Say "compiling (once)…" while a kind of problem is solved for the first time."""
@@ -434,7 +450,7 @@ def _app_class():
 
         def _state_key(self, tube, fluid, m):
             return (tuple(float(getattr(tube, k)) for k in ("voltage", "lambda_i", "lambda_z", "eta", "gent")),
-                    fluid, m)
+                    fluid, tube.outer, m)
 
         def _unstable_alphas(self, tube, fluid, m):
             """The α̂ flags of :func:`unstable_alphas` when known for this state; else None, and
@@ -652,6 +668,8 @@ def _app_class():
             ax.legend(handles=handles, loc="upper left", fontsize=7)
             tube, fluid, m = self.parameters()
             filled = "empty" if fluid is None else f"filled ({fluid.coupling})"
+            outside = self.controls["outside"].value
+            filled += "" if tube.outer is None else f", in {outside}"
             ax.set_title(f"order $m$ = {m}, {filled}, $\\hat V$ = {float(tube.voltage):.3g}", pad=12)
             axv.set_title(self.status.text if self.status is not None else "", fontsize=8,
                           color="#b00020" if unstable else "black")
