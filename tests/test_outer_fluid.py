@@ -257,3 +257,21 @@ def test_outer_pressure_field(m):
         jd.outer_pressure(tube, 0.5, 2.0, m=m)
     with pytest.raises(ValueError, match="no surrounding fluid"):
         jd.outer_pressure(TUBE, 0.5, omega, m=m)
+
+
+def test_sweep_over_the_surrounding_fluid():
+    """A sweep axis ``outer_density_ratio`` gives ``frequencies`` at each point, and its Jacobian
+    columns dΩ/dρ̂_o, dΩ/dĉ_o are the implicit derivatives of ``frequency``."""
+    tube = TUBE.replace(outer=WATER)
+    got = jd.sweep(tube, alpha=[0.5], outer_density_ratio=[0.5, 1.0], n_layers=16,
+                   jacobian=["outer_density_ratio", "outer_speed_ratio"], progress=False)
+    for j, rho in enumerate((0.5, 1.0)):
+        point = tube.replace(outer=jd.Fluid(rho, 50.0))
+        expected = np.asarray(jd.frequencies(point, 0.5, n_layers=16))
+        np.testing.assert_allclose(np.asarray(got.omega)[0, j], expected, rtol=1e-12)
+        grads = jax.grad(lambda r, s: jd.frequency(tube.replace(outer=jd.Fluid(r, s)), 0.5,
+                                                   float(expected[0]), n_layers=16),
+                         argnums=(0, 1))(rho, 50.0)
+        np.testing.assert_allclose(np.asarray(got.jacobian)[0, j, 0], grads, rtol=1e-10)
+    with pytest.raises(ValueError, match="surrounding fluid"):
+        jd.sweep(TUBE, alpha=[0.5], outer_density_ratio=[0.5], progress=False)

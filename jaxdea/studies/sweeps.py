@@ -695,13 +695,13 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
     if n_growth > MAX_ROOTS:
         raise ValueError(f"n_growth must be <= MAX_ROOTS = {MAX_ROOTS}, got {n_growth!r}")
     m_axis, family = _orders(m, torsional, fluid)
-    check_names(list(axes), fluid)
+    check_names(list(axes), fluid, tube=tube)
     if m_axis is not None:
         axes = {"m": m_axis, **axes}
     if "alpha" not in axes and "n" not in axes:
         raise ValueError("give the wavenumber axis: alpha=... (α̂) or n=... (axial mode numbers)")
     axes = {name: v if name == "m" else _axis(name, v) for name, v in axes.items()}
-    jac_names = _jacobian_names(jacobian, fluid)
+    jac_names = _jacobian_names(jacobian, fluid, tube)
     delta_p = _check_pressure(delta_p, axes, jac_names)
     if omega_max is not None:
         validate_positive("omega_max", omega_max, "a finite number > 0")
@@ -877,7 +877,7 @@ def _on_dask(client, chunks, starts, base, omega_max, static):
         client.cancel(futures)
 
 
-def _jacobian_names(jacobian, fluid):
+def _jacobian_names(jacobian, fluid, tube=None):
     if jacobian is None or jacobian is False:
         return None
     if jacobian is True:
@@ -889,7 +889,7 @@ def _jacobian_names(jacobian, fluid):
     if names is None or not all(isinstance(n, str) for n in names):
         raise ValueError("jacobian must be None, True, a parameter name or a sequence of names, "
                          f"got {jacobian!r}")
-    check_names(names, fluid, allow_n=False)
+    check_names(names, fluid, allow_n=False, tube=tube)
     if "alpha" in names:
         raise ValueError("jacobian: dΩ/dα̂ is the group velocity, returned with every jacobian; "
                          "drop 'alpha' from the names")
