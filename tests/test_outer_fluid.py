@@ -275,3 +275,34 @@ def test_sweep_over_the_surrounding_fluid():
         np.testing.assert_allclose(np.asarray(got.jacobian)[0, j, 0], grads, rtol=1e-10)
     with pytest.raises(ValueError, match="surrounding fluid"):
         jd.sweep(TUBE, alpha=[0.5], outer_density_ratio=[0.5], progress=False)
+
+
+def test_sweep_config_outer_fluid_table():
+    """``[outer_fluid]`` in a sweep config: numbers, SI values or a preset (with [units]), and an
+    axis over its parameters; each mistake is named."""
+    from jaxdea.io.config import parse_config
+    from jaxdea.units import WATER, Scales, fluid_from_si
+
+    units = dict(shear_modulus=20e3, density=960.0, relative_permittivity=4.7, inner_radius=5e-3)
+    base = {"axes": {"alpha": [0.5]}}
+    cfg = parse_config({**base, "outer_fluid": {"preset": "water"}, "units": units})
+    scales = Scales(shear_modulus=20e3, density=960.0, permittivity=4.7 * 8.8541878188e-12,
+                    inner_radius=5e-3)
+    water = fluid_from_si(scales, WATER)
+    assert cfg.outer == {"density_ratio": float(water.density_ratio),
+                         "speed_ratio": float(water.speed_ratio)}
+    cfg = parse_config({**base, "outer_fluid": {"fluid_density_kg_m3": 998.2, "sound_speed_m_s": 1482.0},
+                        "units": units})
+    assert cfg.outer["density_ratio"] == pytest.approx(float(water.density_ratio), rel=1e-15)
+    cfg = parse_config({"axes": {"alpha": [0.5], "outer_density_ratio": [0.5, 1.0]},
+                        "outer_fluid": {"density_ratio": 1.0, "speed_ratio": 50.0}})
+    np.testing.assert_array_equal(cfg.axes["outer_density_ratio"], [0.5, 1.0])
+    for bad, message in (
+            ({**base, "outer_fluid": {"preset": "water"}}, "add a \\[units\\] table"),
+            ({**base, "outer_fluid": {"preset": "oil"}, "units": units}, "outer_fluid.preset"),
+            ({**base, "outer_fluid": {"density_ratio": 1.0}}, "outer_fluid.speed_ratio' is missing"),
+            ({**base, "outer_fluid": {"density_ratio": -1.0, "speed_ratio": 5.0}},
+             "outer_fluid.density_ratio"),
+            ({"axes": {"alpha": [0.5], "outer_speed_ratio": [2.0]}}, "add an \\[outer_fluid\\]")):
+        with pytest.raises(ValueError, match=message):
+            parse_config(bad)

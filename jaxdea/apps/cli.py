@@ -250,7 +250,7 @@ def _sweep(args):
         return _error("sweep", problem)
     t0 = time.perf_counter()
     try:
-        tube = Tube(**cfg.tube)
+        tube = Tube(**cfg.tube, outer=None if cfg.outer is None else Fluid(**cfg.outer))
         fluid = None if cfg.fluid is None else Fluid(**cfg.fluid)
         result = sweep(tube, fluid, progress=False if args.quiet else None, **cfg.sweep_arguments())
     except ValueError as exc:

@@ -22,18 +22,21 @@ import numpy as np
 
 from ..files import load_document
 from ..params import COUPLINGS, MATERIALS, MAX_LAYERS, MAX_ROOTS
-from ..physics.leaves import FLUID_LEAVES, NAMES, TUBE_LEAVES
+from ..physics.leaves import FLUID_LEAVES, NAMES, OUTER_LEAVES, TUBE_LEAVES
 from ..physics.transfer import SCHEMES
 from ..physics.units import VACUUM_PERMITTIVITY, Scales
 from ..studies.sweeps import MAX_POINTS, SENSITIVITY, SI_QUANTITIES, check_size
 
-TOP_KEYS = ("tube", "fluid", "axes", "solver", "output", "units")
+TOP_KEYS = ("tube", "fluid", "outer_fluid", "axes", "solver", "output", "units")
 TUBE_KEYS = (*TUBE_LEAVES, "thickness_ratio", "material", "delta_p")
 PRESSURE_SI_KEY = "pressure_Pa"  # [tube] ΔP in Pa (with [units]): delta_p = ΔP/μ
 FLUID_KEYS = (*FLUID_LEAVES, "coupling", "bessel_order")
 SI_NAMES = {si_name: name for name, (si_name, *_) in SI_QUANTITIES.items()}  # SI key -> parameter
 TUBE_SI_KEYS = tuple(k for k, name in SI_NAMES.items() if name in TUBE_KEYS)
 FLUID_SI_KEYS = tuple(k for k, name in SI_NAMES.items() if name in FLUID_KEYS)
+OUTER_PRESETS = ("water", "air", "silicone_oil")
+"""``outer_fluid.preset``: :data:`jaxdea.units.WATER`, :data:`~jaxdea.units.AIR`,
+:data:`~jaxdea.units.SILICONE_OIL` (SI: needs [units])."""
 UNITS_KEYS = {"shear_modulus": "Pa", "density": "kg/m^3", "permittivity": "F/m",
               "relative_permittivity": "ε/ε_0", "inner_radius": "m"}
 SOLVER_KEYS = ("n_roots", "n_layers", "scheme", "jacobian", "omega_max", "m", "torsional",
@@ -54,9 +57,13 @@ FORMAT = f"""\
 [fluid]   optional (leave it out for an empty tube): density_ratio ρ̂_f, speed_ratio ĉ_f (numbers),
           coupling = {' | '.join(f'"{c}"' for c in COUPLINGS)}, bessel_order = ν (integer >= 0; paper only,
           default ν = n)
+[outer_fluid] optional (leave it out for a tube in vacuum): an unbounded fluid around the tube,
+          density_ratio ρ̂_o, speed_ratio ĉ_o (numbers; or {', '.join(FLUID_SI_KEYS)} with [units]),
+          or preset = {' | '.join(f'"{p}"' for p in OUTER_PRESETS)} (with [units])
 [axes]    the grid, in order: NAME = [v1, v2, ...] | {{start = a, stop = b, num = k}} | v (fixed);
           NAME one of {', '.join((*TUBE_LEAVES, 'thickness_ratio'))},
-          {', '.join((*FLUID_LEAVES, 'alpha', 'n'))}, m (circumferential orders, integers >= 0);
+          {', '.join((*FLUID_LEAVES, *OUTER_LEAVES, 'alpha', 'n'))}, m (circumferential orders,
+          integers >= 0);
           exactly one of alpha (α̂) and n (axial mode numbers, integers >= 1); a parameter is fixed
           in [tube]/[fluid]/[solver] or swept here, not both; the plot's x axis is the first axis
           with more than one value
@@ -89,6 +96,8 @@ RANGES = {
     "delta_p": ("a finite number (ΔP̂ = ΔP/μ)", lambda v: np.isfinite(v)),
     "density_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
     "speed_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
+    "outer_density_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
+    "outer_speed_ratio": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
     "alpha": ("a finite number > 0", lambda v: np.isfinite(v) & (v > 0)),
     "n": ("integers >= 1 (axial mode numbers)", lambda v: np.isfinite(v) & (v >= 1) & (v == np.round(v))),
     "m": ("integers >= 0 (circumferential orders)",
@@ -108,6 +117,8 @@ class SweepConfig:
     Attributes:
         tube: keyword arguments of :class:`jaxdea.Tube` (only the keys given).
         fluid: keyword arguments of :class:`jaxdea.Fluid`, or None for an empty tube.
+        outer: keyword arguments of the surrounding :class:`jaxdea.Fluid` (``Tube(outer=...)``),
+            or None for a tube in vacuum.
         axes: ``{name: 1-D float64 array}`` in grid order (a fixed ``tube.thickness_ratio`` comes
             last, as an axis of length 1).
         n_roots: K, roots per point.
@@ -133,6 +144,7 @@ class SweepConfig:
     tube: dict
     fluid: dict | None
     axes: dict
+    outer: dict | None = None
     n_roots: int = 3
     n_layers: int | None = None
     scheme: str | None = None
@@ -340,7 +352,32 @@ def _parse_fluid(data, units: dict | None = None) -> dict:
     return fluid
 
 
-def _parse_axes(data, tube: dict, fluid: dict | None, units: dict | None = None) -> dict:
+def _parse_outer(data, units: dict | None = None) -> dict:
+    """The [outer_fluid] table as the fields of the surrounding :class:`jaxdea.Fluid`."""
+    outer, seen = {}, {}
+    table = _table(data, "outer_fluid", (*FLUID_LEAVES, *FLUID_SI_KEYS, "preset"))
+    if "preset" in table:
+        preset = _choice("outer_fluid.preset", table.pop("preset"), OUTER_PRESETS)
+        if table:
+            _fail(f"'outer_fluid.preset' sets the whole fluid: remove 'outer_fluid.{next(iter(table))}'")
+        if units is None:
+            _fail("'outer_fluid.preset' is in SI units: add a [units] table (shear_modulus, density, "
+                  "permittivity, inner_radius)")
+        from ..physics import units as si
+
+        fluid = si.fluid_from_si(Scales(**units), getattr(si, preset.upper()))
+        return {k: float(getattr(fluid, k)) for k in FLUID_LEAVES}
+    for k, v in table.items():
+        name = _parameter("outer_fluid", k, seen)
+        outer[name] = _fixed(f"outer_fluid.{k}", k, v, units)
+    for k in FLUID_LEAVES:
+        if k not in outer:
+            _fail(f"'outer_fluid.{k}' is missing: give density_ratio and speed_ratio (or a preset)")
+    return outer
+
+
+def _parse_axes(data, tube: dict, fluid: dict | None, units: dict | None = None,
+                outer: dict | None = None) -> dict:
     if "axes" not in data:
         _fail("missing table 'axes' (the sweep grid, e.g. n = [1, 2, 3])")
     table = _table(data["axes"], "axes", (*AXIS_NAMES, *SI_NAMES))
@@ -355,6 +392,8 @@ def _parse_axes(data, tube: dict, fluid: dict | None, units: dict | None = None)
                   f"MAX_POINTS = {MAX_POINTS:,}: split it into several sweeps")
         if name in FLUID_LEAVES and fluid is None:
             _fail(f"'axes.{key}' is a fluid parameter: add a [fluid] table")
+        if name in OUTER_LEAVES and outer is None:
+            _fail(f"'axes.{key}' is a parameter of the surrounding fluid: add an [outer_fluid] table")
         given = f"'tube.{name}'" if name in tube else (f"'fluid.{name}'" if name in (fluid or {}) else "")
         if given:
             _fail(f"{given} is also a sweep axis ('axes.{key}'); give it in one place")
@@ -372,7 +411,7 @@ def _parse_axes(data, tube: dict, fluid: dict | None, units: dict | None = None)
     return axes
 
 
-def _parse_solver(data, fluid: dict | None) -> dict:
+def _parse_solver(data, fluid: dict | None, outer: dict | None = None) -> dict:
     table = _table(data.get("solver", {}), "solver", SOLVER_KEYS)
     out = {}
     for k, high in (("n_roots", MAX_ROOTS), ("n_layers", MAX_LAYERS)):
@@ -395,7 +434,9 @@ def _parse_solver(data, fluid: dict | None) -> dict:
         out["omega_max"] = float(v)
     if "jacobian" in table:
         jac = table["jacobian"]
-        allowed = [n for n in NAMES if n not in ("alpha", "n") and (fluid is not None or n not in FLUID_LEAVES)]
+        allowed = [n for n in NAMES if n not in ("alpha", "n")
+                   and (fluid is not None or n not in FLUID_LEAVES)
+                   and (outer is not None or n not in OUTER_LEAVES)]
         if isinstance(jac, list):
             for i, name in enumerate(jac):
                 if name not in allowed:
@@ -457,8 +498,9 @@ def parse_config(data, default_name: str = "sweep") -> SweepConfig:
     delta_p = tube.pop("delta_p", None)
     fixed = set(tube)  # before a fixed thickness_ratio moves to the axes
     fluid = _parse_fluid(data["fluid"], units) if "fluid" in data else None
-    axes = _parse_axes(data, tube, fluid, units)
-    solver = _parse_solver(data, fluid)
+    outer = _parse_outer(data["outer_fluid"], units) if "outer_fluid" in data else None
+    axes = _parse_axes(data, tube, fluid, units, outer)
+    solver = _parse_solver(data, fluid, outer)
     if delta_p is not None:
         held = "'tube.delta_p'" if "delta_p" in data.get("tube", {}) else f"'tube.{PRESSURE_SI_KEY}'"
         for where, keys in (("tube", fixed), ("axes", set(axes) - fixed)):
@@ -487,8 +529,8 @@ def parse_config(data, default_name: str = "sweep") -> SweepConfig:
     if (fluid is not None and fluid.get("coupling") == "paper" and fluid.get("bessel_order") is None
             and "n" not in axes):
         _fail("the paper coupling needs 'fluid.bessel_order' (ν), or a sweep over 'axes.n' (ν = n)")
-    return SweepConfig(tube=tube, fluid=fluid, axes=axes, **solver, delta_p=delta_p, units=units,
-                       **_parse_output(data, default_name))
+    return SweepConfig(tube=tube, fluid=fluid, axes=axes, outer=outer, **solver, delta_p=delta_p,
+                       units=units, **_parse_output(data, default_name))
 
 
 def load_config(path) -> SweepConfig:
