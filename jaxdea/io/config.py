@@ -27,7 +27,7 @@ from ..physics.transfer import SCHEMES
 from ..physics.units import VACUUM_PERMITTIVITY, Scales
 from ..studies.sweeps import MAX_POINTS, SENSITIVITY, SI_QUANTITIES, check_size
 
-TOP_KEYS = ("tube", "fluid", "outer_fluid", "axes", "solver", "output", "units")
+TOP_KEYS = ("tube", "fluid", "axes", "solver", "output", "units", "outer_fluid")
 TUBE_KEYS = (*TUBE_LEAVES, "thickness_ratio", "material", "delta_p")
 PRESSURE_SI_KEY = "pressure_Pa"  # [tube] ΔP in Pa (with [units]): delta_p = ΔP/μ
 FLUID_KEYS = (*FLUID_LEAVES, "coupling", "bessel_order")
