@@ -306,3 +306,42 @@ def test_sweep_config_outer_fluid_table():
             ({"axes": {"alpha": [0.5], "outer_speed_ratio": [2.0]}}, "add an \\[outer_fluid\\]")):
         with pytest.raises(ValueError, match=message):
             parse_config(bad)
+
+
+def test_fit_in_water_recovers_the_modulus():
+    """``fit(..., outer=WATER)``: peaks of a tube in water (made with the public SI conversions)
+    give back μ to 1e-8; fitted as if in vacuum they give a μ biased by the added mass."""
+    from jaxdea.studies.fit import fit
+    from jaxdea.units import VACUUM_PERMITTIVITY, WATER, Scales, fluid_from_si, tube_from_si
+
+    truth = dict(shear_modulus=1e5, density=1000.0, permittivity=4.7 * VACUUM_PERMITTIVITY,
+                 inner_radius=5e-3, length=50e-3, eta=0.85, lambda_i=1.0, lambda_z=1.2, gent=97.0)
+    scales = Scales(truth["shear_modulus"], truth["density"], truth["permittivity"],
+                    truth["inner_radius"])
+    water = fluid_from_si(scales, WATER)
+    rows = []
+    for voltage, m, n in [(v, m, n) for v in (2e3, 5e3) for m in (0, 1) for n in (1, 2)]:
+        tube = tube_from_si(scales, outer_radius=truth["inner_radius"] / truth["eta"],
+                            length=truth["length"], voltage=voltage, lambda_i=truth["lambda_i"],
+                            lambda_z=truth["lambda_z"], gent=truth["gent"])
+        omega = jd.frequencies(tube, jd.axial_wavenumber(tube, n), n_roots=1, m=m, n_layers=12,
+                               outer=water)[0]
+        rows.append((voltage, float(scales.omega_to_hz(omega)), m, n))
+    table = np.array(rows)
+    data = dict(voltage_V=table[:, 0], frequency_Hz=table[:, 1], m=table[:, 2].astype(int),
+                n=table[:, 3].astype(int))
+    free = dict(shear_modulus=(5e4, 2e5))
+    fixed = {k: v for k, v in truth.items() if k not in free}
+    result = fit(data, free, fixed, initial=dict(shear_modulus=1.2e5), n_layers=12, n_starts=0,
+                 outer=WATER)
+    assert abs(result.estimate["shear_modulus"] / truth["shear_modulus"] - 1.0) <= 1e-8
+    dry = fit(data, dict(shear_modulus=(1e4, 2e5)), fixed, initial=dict(shear_modulus=1.2e5),
+              n_layers=12, n_starts=0)
+    assert dry.estimate["shear_modulus"] < 0.9 * truth["shear_modulus"]
+    # the vacuum model pushes μ onto a bound it cannot pass: a warning, not a singular solve
+    with pytest.warns(jd.studies.fit.FitQualityWarning):
+        bound = fit(data, free, fixed, initial=dict(shear_modulus=1.2e5), n_layers=12, n_starts=0)
+    assert bound.estimate["shear_modulus"] == pytest.approx(5e4, rel=1e-6)
+    with pytest.raises(ValueError, match="outer"):
+        fit(data, free, fixed, initial=dict(shear_modulus=1.2e5), n_layers=12, n_starts=0,
+            outer=(1000.0, -1.0))

@@ -227,7 +227,7 @@ class FitResult(NamedTuple):
 
 
 def dimensionless(values, voltage_V, n, coupling=None, bessel_order=None, load=None,
-                  by_pressure=False):
+                  by_pressure=False, outer=None):
     """(Tube, α̂_n, Fluid or None, Hz per unit Ω) of a parameter vector in ``NAMES`` order.
 
     V̂ = V sqrt(ε/μ)/R_i, length_ratio = L/R_o = Lη/R_i, α̂_n = 2nπ R_i/(λ_z L),
@@ -235,6 +235,7 @@ def dimensionless(values, voltage_V, n, coupling=None, bessel_order=None, load=N
     ``load``: optional (λ_i, λ_z, ΔP in Pa) of this point, NaN entries taken from ``values``.
     ``by_pressure``: λ_i is the inner stretch that ΔP̂ = ΔP/μ holds at V̂, λ_z
     (:func:`jaxdea.inner_stretch`, docs/theory/axisymmetric.md Eq. 1.1; implicit derivatives).
+    ``outer``: None, or (ρ_o, c_o) in SI of a surrounding fluid: ρ̂_o = ρ_o/ρ_s, ĉ_o = c_o/c_s.
     """
     mu, rho, eps, ri, length, eta, li, lz, gent, dp, rho_f, c_f = (values[i] for i in range(12))
     if load is not None:
@@ -244,6 +245,9 @@ def dimensionless(values, voltage_V, n, coupling=None, bessel_order=None, load=N
     if by_pressure:
         tube = tube.replace(lambda_i=inner_stretch_traced(tube, dp / mu)[0])
     alpha = 2.0 * math.pi * n * ri / (lz * length)
+    if outer is not None:
+        tube = tube.replace(outer=Fluid(density_ratio=outer[0] / rho,
+                                        speed_ratio=outer[1] / jnp.sqrt(mu / rho)))
     fluid = None if coupling is None else Fluid(density_ratio=rho_f / rho,
                                                 speed_ratio=c_f / jnp.sqrt(mu / rho),
                                                 coupling=coupling, bessel_order=bessel_order)
@@ -267,16 +271,17 @@ def _solver_family(family, order):
 @partial(jax.jit, static_argnames=("n_roots", "n_layers", "coupling", "bessel_order", "family",
                                    "by_pressure"))
 def mode_roots(values, voltage_V, n, m, n_roots, n_layers, coupling, bessel_order, family,
-               by_pressure=False, load=None):
+               by_pressure=False, load=None, outer=None):
     """Ω of the ``n_roots`` lowest positive roots of order m at α̂_n, per point: (points, n_roots).
 
     ``family``: one of :data:`FAMILIES` (every m is 0 but for ``ORDER_M``, m ≥ 1, traced);
-    ``load``: (points, 3) of (λ_i, λ_z, ΔP) per point, NaN where ``values`` holds it (None: all).
+    ``load``: (points, 3) of (λ_i, λ_z, ΔP) per point, NaN where ``values`` holds it (None: all);
+    ``outer``: (ρ_o, c_o) in SI of a surrounding fluid, or None (:func:`dimensionless`).
     """
     load = jnp.full((voltage_V.shape[0], 3), jnp.nan) if load is None else load
     def one(v, k, order, point):
         tube, alpha, fluid, _ = dimensionless(values, v, k, coupling, bessel_order, point,
-                                              by_pressure)
+                                              by_pressure, outer)
         m, torsional = _solver_family(family, order)
         return frequencies(tube, alpha, fluid, n_roots, n_layers=n_layers, m=m,
                            torsional=torsional)
@@ -285,7 +290,7 @@ def mode_roots(values, voltage_V, n, m, n_roots, n_layers, coupling, bessel_orde
 
 @partial(jax.jit, static_argnames=("n_layers", "coupling", "bessel_order", "family", "by_pressure"))
 def model_and_jacobian(values, voltage_V, n, m, guess, n_layers, coupling, bessel_order,
-                       family, by_pressure=False, load=None):
+                       family, by_pressure=False, load=None, outer=None):
     """(Ω, f in Hz, ∂f/∂values) per point, Ω by Newton from ``guess`` (implicit derivatives);
     ``family``, ``by_pressure``, ``load`` as in :func:`mode_roots`.
 
@@ -294,7 +299,7 @@ def model_and_jacobian(values, voltage_V, n, m, guess, n_layers, coupling, besse
     def hz(vals):
         def one(v, k, order, point, g):
             tube, alpha, fluid, scale = dimensionless(vals, v, k, coupling, bessel_order, point,
-                                                      by_pressure)
+                                                      by_pressure, outer)
             m, torsional = _solver_family(family, order)
             omega = frequency(tube, alpha, g, fluid, n_layers, m=m, torsional=torsional)
             return jnp.stack([omega * scale, omega])
@@ -345,6 +350,31 @@ class _Problem(NamedTuple):
     condition: np.ndarray | None = None  # (N,) index of each peak's (V, load): peaks measured together
     reciprocal: np.ndarray | None = None  # (p,) bool: θ_k is 1/value (:data:`RECIPROCAL`)
     bounds: np.ndarray | None = None  # (p, 2) the bounds as given (lower, upper are internal)
+    outer: tuple | None = None  # (ρ_o, c_o) in SI of a surrounding fluid, or None
+
+
+def _outer_si(outer) -> tuple | None:
+    """(ρ_o, c_o) of ``fit``'s ``outer`` (a FluidSI or a pair, SI), validated; None for none.
+
+    Raises:
+        ValueError: naming ``outer``: not a pair of finite numbers > 0.
+    """
+    if outer is None:
+        return None
+    try:
+        density, speed = (float(x) for x in outer)
+    except (TypeError, ValueError):
+        raise ValueError("outer must be None, a jaxdea.units.FluidSI (e.g. jaxdea.units.WATER) or "
+                         f"(density kg/m^3, sound speed m/s), got {outer!r}") from None
+    for name, value in (("density", density), ("sound speed", speed)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"outer: the {name} must be a finite number > 0, got {value!r}")
+    return density, speed
+
+
+def _outer(problem: _Problem):
+    """The surrounding fluid (ρ_o, c_o) as a JAX array, or None."""
+    return None if problem.outer is None else jnp.asarray(problem.outer, jnp.float64)
 
 
 def _load(problem: _Problem, index=None):
@@ -391,7 +421,7 @@ def _roots(problem: _Problem, theta, voltage, n, m, n_roots, load, torsional=Non
     for index, found in _by_family(m, torsional, lambda p, family: mode_roots(
             values, jnp.asarray(voltage[p]), jnp.asarray(n[p], float), jnp.asarray(m[p], float),
             n_roots, problem.n_layers, problem.coupling, problem.bessel_order, family,
-            problem.by_pressure, jnp.asarray(load[p]))):
+            problem.by_pressure, jnp.asarray(load[p]), _outer(problem))):
         out[index] = np.asarray(found)[:index.size]
     return out
 
@@ -413,7 +443,7 @@ def _evaluate(problem: _Problem, theta, labels, guess):
             values, jnp.asarray(problem.voltage[where[p]]), jnp.asarray(labels[where[p], 1], float),
             jnp.asarray(m[p], float), jnp.asarray(guess[where[p]]), problem.n_layers,
             problem.coupling, problem.bessel_order, family, problem.by_pressure,
-            jnp.asarray(load[where[p]]))):
+            jnp.asarray(load[where[p]]), _outer(problem))):
         rows = where[index]
         omega[rows] = np.asarray(w)[:index.size]
         f[rows] = np.asarray(hz)[:index.size]
@@ -581,7 +611,10 @@ def levenberg_marquardt(problem: _Problem, theta0, labels, max_iterations=100, x
         diag = np.maximum(np.diag(a), 1e-30 * max(np.max(np.diag(a)), 1e-300))
         accepted = False
         while damping < 1e20:
-            step = np.linalg.solve(a + damping * np.diag(diag), -g)
+            try:
+                step = np.linalg.solve(a + damping * np.diag(diag), -g)
+            except np.linalg.LinAlgError:  # every free column vanished (parameters on their bounds)
+                step = np.zeros_like(g)
             if -(g @ step) - 0.5 * step @ a @ step <= ftol * cost:
                 break  # nothing left to gain that the rounding of the cost could show
             trial_theta, trial_dtheta = _to_free(problem, u + step)
@@ -991,7 +1024,7 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
         n_layers: int | None = None, scheme: str | None = None, m_max: int = 2, n_max: int = 3,
         n_branches: int = 2, torsional: bool = False, threshold: float = 0.1, outlier_sigma: float = 5.0,
         max_unmatched: float = 0.25, n_starts: int = 3, grid_points: int = 3,
-        max_iterations: int = 100, max_reassignments: int = 10) -> FitResult:
+        max_iterations: int = 100, max_reassignments: int = 10, outer=None) -> FitResult:
     """Material and geometry parameters from measured resonance frequencies (SI units).
 
     Minimises Σ ((f_model − f_data)/σ)² with f_model = Ω c_s/(2π R_i) of the labelled (or assigned)
@@ -1034,6 +1067,9 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
             :data:`MAX_GRID` points instead (fixed seed).
         max_iterations: Levenberg–Marquardt iterations per fit.
         max_reassignments: outer assign–fit rounds for unlabelled peaks.
+        outer: None (the tube in vacuum or air), or the known surrounding fluid in SI: a
+            :class:`jaxdea.units.FluidSI` such as :data:`jaxdea.units.WATER`, or
+            (density kg/m³, sound speed m/s). Its ratios ρ_o/ρ_s, c_o/c_s follow the fitted μ, ρ_s.
 
     Returns:
         An instance of :class:`FitResult`.
@@ -1081,7 +1117,8 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
             raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
     if not (isinstance(max_unmatched, (int, float, np.floating)) and 0 <= max_unmatched <= 1):
         raise ValueError(f"max_unmatched must be a number in [0, 1], got {max_unmatched!r}")
-    problem = problem._replace(threshold=float(threshold), outlier=float(outlier_sigma))
+    problem = problem._replace(threshold=float(threshold), outlier=float(outlier_sigma),
+                               outer=_outer_si(outer))
     initial_starts, candidates = _starts(problem, initial, grid_points)
     if not isinstance(torsional, (bool, np.bool_)):
         raise ValueError(f"torsional must be True or False, got {torsional!r}")
@@ -1231,7 +1268,8 @@ def _result(problem, best, max_unmatched, max_iterations):
                     scheme=getattr(layers, "scheme", "midpoint"),
                     graded=bool(getattr(layers, "graded", False)), coupling=problem.coupling,
                     bessel_order=problem.bessel_order,
-                    loading="pressure" if problem.by_pressure else "stretch")
+                    loading="pressure" if problem.by_pressure else "stretch",
+                    outer=None if problem.outer is None else list(problem.outer))
     torsional = final_labels[:, 3] > 0
     final_labels = final_labels[:, :3]
     bounds = _bounds(problem)
@@ -1467,7 +1505,8 @@ def fitted_frequencies(result: FitResult, voltage_V, m, n, branch=0, *, torsiona
     base = np.array([result.parameters.get(k, 1.0) for k in NAMES], dtype=np.float64)
     problem = _Problem(voltage, np.ones_like(voltage), np.ones_like(voltage), False, (),
                        np.zeros(0), np.zeros(0), base, np.zeros(0, int), layers,
-                       settings["coupling"], settings["bessel_order"], by_pressure=by_pressure)
+                       settings["coupling"], settings["bessel_order"], by_pressure=by_pressure,
+                       outer=_outer_si(settings.get("outer")))
     out = np.full(voltage.size, np.nan)
     if voltage.size:
         n_roots = int(branch.max()) + 1
