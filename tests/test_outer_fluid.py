@@ -345,3 +345,20 @@ def test_fit_in_water_recovers_the_modulus():
     with pytest.raises(ValueError, match="outer"):
         fit(data, free, fixed, initial=dict(shear_modulus=1.2e5), n_layers=12, n_starts=0,
             outer=(1000.0, -1.0))
+
+
+def test_fit_config_outer_fluid_table():
+    from jaxdea.io.fit_io import parse_fit_config
+    from jaxdea.units import WATER
+
+    base = {"free": {"shear_modulus": [5e4, 2e5]}, "fixed": {"density": 1000.0}}
+    assert parse_fit_config({**base, "outer_fluid": {"preset": "water"}}).outer == tuple(WATER)
+    assert parse_fit_config({**base, "outer_fluid": {"fluid_density": 960.0,
+                                                     "sound_speed": 985.0}}).outer == (960.0, 985.0)
+    assert parse_fit_config(base).outer is None
+    for bad, message in (({"preset": "mud"}, "outer_fluid.preset"),
+                         ({"fluid_density": 960.0}, "outer_fluid.sound_speed: missing"),
+                         ({"fluid_density": -1.0, "sound_speed": 5.0}, "outer_fluid.fluid_density"),
+                         ({"preset": "water", "sound_speed": 5.0}, "outer_fluid.preset")):
+        with pytest.raises(ValueError, match=message):
+            parse_fit_config({**base, "outer_fluid": bad})

@@ -36,7 +36,9 @@ from ..studies.fit import (
 )
 from ..studies.peaks import read_peaks
 
-TOP_KEYS = ("free", "fixed", "fluid", "options")
+TOP_KEYS = ("free", "fixed", "fluid", "options", "outer_fluid")
+OUTER_KEYS = ("preset", "fluid_density", "sound_speed")
+OUTER_PRESETS = ("water", "air", "silicone_oil")
 FREE_KEYS = ("lower", "upper", "initial")
 FLUID_KEYS = ("coupling", "bessel_order")
 OPTION_KEYS = ("n_layers", "scheme", "m_max", "n_max", "n_branches", "torsional", "threshold",
@@ -55,6 +57,8 @@ fluid = "acoustic"   optional, before the tables (leave it out for an empty tube
           pressure (Pa, P_i - P_o, any finite value) instead of lambda_i for a tube held by its
           pressure (lambda_i follows from it at every voltage); a peak column pressure_Pa,
           lambda_i or lambda_z replaces the parameter of that name (several loadings)
+[outer_fluid] optional: the known fluid around the tube, preset = "water" | "air" | "silicone_oil"
+          or fluid_density (kg/m^3) and sound_speed (m/s)
 [options] of jaxdea.fit: n_layers, scheme (default: the accurate graded magnus6 laminate; n_layers
           alone: equal midpoint sublayers), m_max = 2, n_max = 3, n_branches = 2, torsional = false
           (the modes unlabelled peaks may be assigned to), threshold = 0.1 (|log f_model - log f_data| beyond
@@ -224,6 +228,7 @@ class FitConfig:
     fluid: object
     initial: dict | None
     options: dict
+    outer: tuple | None = None
 
 
 def _number(key, x, allow_inf=False):
@@ -310,7 +315,34 @@ def parse_fit_config(data) -> FitConfig:
     if initial and len(initial) != len(free):
         missing = [k for k in free if k not in initial]
         raise ValueError(f"free.{missing[0]}.initial: needed when another free parameter has one")
-    return FitConfig(free, fixed, fluid, initial or None, options)
+    return FitConfig(free, fixed, fluid, initial or None, options, _outer_fluid(data))
+
+
+def _outer_fluid(data) -> tuple | None:
+    """(ρ_o kg/m³, c_o m/s) of the [outer_fluid] table (a preset of :mod:`jaxdea.units` or both
+    numbers), or None."""
+    if "outer_fluid" not in data:
+        return None
+    table = _table("outer_fluid", data["outer_fluid"], OUTER_KEYS)
+    if "preset" in table:
+        if len(table) > 1:
+            raise ValueError("outer_fluid.preset: sets the whole fluid; remove "
+                             f"outer_fluid.{next(k for k in table if k != 'preset')}")
+        if table["preset"] not in OUTER_PRESETS:
+            raise ValueError(f"outer_fluid.preset: expected one of {', '.join(OUTER_PRESETS)}, got "
+                             f"{table['preset']!r}")
+        from ..physics import units
+
+        return tuple(float(x) for x in getattr(units, table["preset"].upper()))
+    values = []
+    for key in ("fluid_density", "sound_speed"):
+        if key not in table:
+            raise ValueError(f"outer_fluid.{key}: missing (or give outer_fluid.preset)")
+        value = _number(f"outer_fluid.{key}", table[key])
+        if value <= 0:
+            raise ValueError(f"outer_fluid.{key}: expected a number > 0, got {value!r}")
+        values.append(value)
+    return tuple(values)
 
 
 def load_fit_config(path) -> FitConfig:
@@ -379,7 +411,7 @@ def run_fit(data_path, config_path, out=None):
         warnings.simplefilter("always", IdentifiabilityWarning)
         warnings.simplefilter("always", FitQualityWarning)
         result = fit(data, config.free, config.fixed, config.fluid, initial=config.initial,
-                     **config.options)
+                     outer=config.outer, **config.options)
     messages = [str(w.message) for w in caught
                 if issubclass(w.category, (IdentifiabilityWarning, FitQualityWarning))]
     try:  # both or neither
