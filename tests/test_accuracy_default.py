@@ -400,7 +400,8 @@ def test_newton_from_a_guess_at_a_jump_of_f():
     log-scale ℓ of F = f e^ℓ varies fast over the step on f, the lanes step on F instead
     (numerics.scalar.newton_slope): the root of the scan, to 1e-8 of the reference. A start from
     the middle of the gap between the two surface-like roots ends on one of them, not elsewhere.
-    trace_branch's start correction (Newton on f at fixed α̂) had the same fault."""
+    trace_branch's start correction (Newton on f at fixed α̂) had the same fault (its trace went
+    along the 61.399 branch)."""
     tube, alpha = SURFACE_WAVE_TUBE, SURFACE_WAVE_ALPHA
     scanned = np.asarray(jd.solve_frequencies(tube, alpha, n_roots=3, omega_max=62.0).omega[:2])
     for guess in (61.4680225, 61.47):

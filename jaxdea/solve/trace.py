@@ -186,25 +186,29 @@ _E_OMEGA = np.array([0.0, 1.0])
 _EYE = np.eye(2)
 
 
-def _value_and_gradient(fun, x):
+def _value_and_gradient(fun, x, scaled=False):
     """(f(x), ∇f(x)) for a scalar f of x ∈ R² by forward mode: two tangents, the primal once.
 
     ``fun`` may return (f, ℓ), ℓ the log-scale of F = f e^ℓ (:func:`_trace_branch`): the gradient
-    is then ∇f, or ∇f + f∇ℓ = e^{−ℓ}∇F where ‖∇f + f∇ℓ‖ > NEWTON_SCALE_RATIO ‖∇f‖, so that
-    Newton steps on F where f turns sign in a near-jump, as the root solvers' lanes do
-    (:func:`jaxdea.numerics.scalar.newton_slope`); near an ordinary root, ∇f."""
+    is then ∇f, or, where ``scaled`` (the start correction), ∇f + f∇ℓ = e^{−ℓ}∇F where
+    ‖∇f + f∇ℓ‖ > NEWTON_SCALE_RATIO ‖∇f‖, so that Newton steps on F where f turns sign in a
+    near-jump, as the root solvers' lanes do (:func:`jaxdea.numerics.scalar.newton_slope`); near an
+    ordinary root, ∇f. Only the start: along the trace the same rule fired at a veering (∇f ≈ 0
+    between two close roots of a light-fluid tube) and moved the points of
+    tests/test_trace.py::test_fluid_veering_keeps_identity."""
     value, gradient = jax.vmap(lambda v: jax.jvp(fun, (x,), (v,)), out_axes=(None, 0))(_EYE)
     if not isinstance(value, tuple):
         return value, gradient
     (f, _), (df, dlog_scale) = value, gradient
-    scaled = df + f * dlog_scale
-    jumps = jnp.linalg.norm(scaled) > NEWTON_SCALE_RATIO * jnp.linalg.norm(df)
+    use_scale, scaled = scaled, df + f * dlog_scale
+    jumps = use_scale & (jnp.linalg.norm(scaled) > NEWTON_SCALE_RATIO * jnp.linalg.norm(df))
     return f, jnp.where(jumps, scaled, df)
 
 
-def _correct(fun, x_pred, normal, max_iter, max_omega_step, omega_scale):
+def _correct(fun, x_pred, normal, max_iter, max_omega_step, omega_scale, scaled=False):
     """Newton on {f(x) = 0, normal · (x − x_pred) = 0} from x_pred (2×2, Cramer's rule); updates
-    capped so that |ΔΩ| = W|Δx_Ω| ≤ max_omega_step.
+    capped so that |ΔΩ| = W|Δx_Ω| ≤ max_omega_step. ``scaled``: Newton on F where f nearly jumps
+    (:func:`_value_and_gradient`; the start correction).
 
     Returns:
         (x, iterations, converged, finite, ∇f): ∇f at the last evaluated point, one update before x
@@ -216,7 +220,7 @@ def _correct(fun, x_pred, normal, max_iter, max_omega_step, omega_scale):
 
     def body(c):
         x, it, *_ = c
-        f, g = _value_and_gradient(fun, x)
+        f, g = _value_and_gradient(fun, x, scaled)
         r = normal @ (x - x_pred)
         det = g[0] * normal[1] - g[1] * normal[0]
         delta = jnp.stack([(-f * normal[1] + g[1] * r) / det, (-g[0] * r + normal[0] * f) / det])
@@ -300,7 +304,7 @@ def continue_branch(fun, s0, omega0, stop, max_points: int, max_step=DEFAULT_MAX
         max_iter = jnp.where(turning | zeroing, EVENT_ITERATIONS,
                              jnp.where(first, START_ITERATIONS, CORRECTOR_ITERATIONS))
         xc, iters, converged, finite, g = _correct(lambda y: fun(*point(y, w)), x_pred, normal,
-                                                   max_iter, max_omega_step, w)
+                                                   max_iter, max_omega_step, w, first)
         s_c, om_c = point(xc, w)
         t_new = tangent_of(g, st.orientation)
         solved = converged & finite
