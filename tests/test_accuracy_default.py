@@ -390,3 +390,34 @@ def test_default_check_at_a_jump_of_f():
     true = abs(omega - SURFACE_WAVE_OMEGA)
     estimate = abs(float(steps[1])) / 63.0
     assert 1 / 3 < estimate / true < 3, (estimate, true)
+
+
+def test_newton_from_a_guess_at_a_jump_of_f():
+    """jd.solve_frequency / jd.frequency (and their vmap over the guess) ran Newton on the
+    normalised f, which turns sign in a near-jump at the inner-face wave (±7.1e-3 on either side of
+    Ω ≈ 61.468): the step on f, −0.086 there, points to the zero of f's continuous part, and from
+    61.4680225 (2e-11 from the root) they returned the root below, 61.39944, CONVERGED. Where the
+    log-scale ℓ of F = f e^ℓ varies fast over the step on f, the lanes step on F instead
+    (numerics.scalar.newton_slope): the root of the scan, to 1e-8 of the reference. A start from
+    the middle of the gap between the two surface-like roots ends on one of them, not elsewhere.
+    trace_branch's start correction (Newton on f at fixed α̂) had the same fault (its trace went
+    along the 61.399 branch)."""
+    tube, alpha = SURFACE_WAVE_TUBE, SURFACE_WAVE_ALPHA
+    scanned = np.asarray(jd.solve_frequencies(tube, alpha, n_roots=3, omega_max=62.0).omega[:2])
+    for guess in (61.4680225, 61.47):
+        got = jd.solve_frequency(tube, alpha, guess)
+        assert int(got.status) == jd.Status.CONVERGED, guess
+        omega = float(got.omega)
+        assert abs(omega - SURFACE_WAVE_OMEGA) / SURFACE_WAVE_OMEGA <= TOL, (guess, omega)
+        assert abs(omega - scanned[1]) <= 1e-13 * omega, (guess, omega, scanned[1])
+        assert float(jd.frequency(tube, alpha, guess)) == omega
+    middle = float(np.mean(scanned))
+    got = jd.solve_frequency(tube, alpha, middle)
+    if int(got.status) == jd.Status.CONVERGED:
+        assert np.min(np.abs(float(got.omega) - scanned)) <= 1e-13 * scanned[1], float(got.omega)
+    along = jax.vmap(lambda g: jd.frequency(tube, alpha, g))(jnp.array([61.4680225, 61.47]))
+    err = np.max(np.abs(np.asarray(along) - SURFACE_WAVE_OMEGA)) / SURFACE_WAVE_OMEGA
+    assert err <= TOL, np.asarray(along)
+    branch = jd.trace_branch(tube, alpha, 61.4680225, stop=alpha * 1.001, max_points=2)
+    start = float(branch.omega[0])
+    assert abs(start - SURFACE_WAVE_OMEGA) / SURFACE_WAVE_OMEGA <= TOL, start

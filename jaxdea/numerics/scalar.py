@@ -65,6 +65,30 @@ def value_and_slope(fun, x):
     return jax.jvp(fun, (x,), (jnp.ones_like(x),))
 
 
+NEWTON_SCALE_RATIO = 8.0
+""":func:`newton_slope` steps on F where that step is more than this many times shorter than f's."""
+
+
+def newton_slope(f, df, dlog_scale):
+    """The slope that Newton steps with on f = F e^{−ℓ} (F = f e^ℓ the unnormalised determinant,
+    ℓ its log-scale, f' and ℓ' their slopes): f' + f ℓ' = F' e^{−ℓ}, whose step −f/(f' + f ℓ') =
+    −F/F' is Newton's on F, where that step is more than :data:`NEWTON_SCALE_RATIO` times shorter
+    than the step −f/f' on f (|f' + f ℓ'| > 8 |f'|); f' itself elsewhere.
+
+    Where e^ℓ dips to almost zero (A S nearly rank-deficient: the inner-face waves of a thick wall
+    at large α̂ĥ) f turns sign in a near-jump instead of passing through zero (±7.1e-3 on either
+    side of the root near Ω = 61.468 of η = 0.3 at α̂ĥ = 150, where ℓ' ≈ 1/(Ω − Ω₀)): the step
+    on f points to the zero of f's continuous part, 0.086 away, and Newton from 2e-11 of that root
+    went to the root below it. F has an ordinary simple root there, and its step is the shorter
+    one within about 0.086/8 of the root (by 46 at Ω₀ + 0.002, by 10 at Ω₀ − 0.008). Near an
+    ordinary root f → 0 and the two steps agree, so the iterations are those on f, bit for bit.
+    Far from a root the steps on f and F both merely head somewhere; f's is kept unless F's is
+    much shorter (a factor 6 at Ω = 0.3 of the golden file's acoustic case, whose Newton goes on
+    to its root 0.768, as before, not to the nearer 0.1176). NaN ℓ' keeps f'."""
+    scaled = df + f * dlog_scale
+    return jnp.where(jnp.abs(scaled) > NEWTON_SCALE_RATIO * jnp.abs(df), scaled, df)
+
+
 @functools.partial(jax.custom_jvp, nondiff_argnums=(0,))
 def attach_implicit(residual, x, params):
     """Roots ``x`` of residual(x, params) = 0 (solved without derivatives) with the
@@ -276,11 +300,13 @@ def lanes_from_slots(a, b, fa, fb, dfa, dfb, kind, side, max_step=None, curvatur
     return _enter_bracket(lanes, (kind == 1) & (side == 0), a, b, fa, fb, dfa, dfb)
 
 
-def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200, slopes: bool = False):
+def run_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200, slopes: bool = False,
+              with_slope: bool = False):
     """The roots of :func:`iterate_lanes`: ``(roots, keys, status)``, roots NaN unless converged;
     keys order them (inf = no root). ``slopes``: also f' at each lane's last evaluated point (at a
-    converged lane, f' at the root to within its last step)."""
-    lanes = iterate_lanes(fun, lanes, rtol, max_iter)
+    converged lane, f' at the root to within its last step). ``with_slope`` (static): ``fun``
+    returns (f, f') itself, as for :func:`iterate_lanes`."""
+    lanes = iterate_lanes(fun, lanes, rtol, max_iter, with_slope)
     roots = jnp.where(lanes.status == Status.CONVERGED, lanes.x, jnp.nan)
     fallback = jnp.where(jnp.isfinite(lanes.key), lanes.key, 0.5 * (lanes.a + lanes.b))
     keys = jnp.where(lanes.status == Status.NO_ROOT, jnp.inf, fallback)

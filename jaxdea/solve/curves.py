@@ -99,7 +99,14 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..compiled import cached_jit, serializable
-from ..numerics.scalar import Status, iterate_lanes, lanes_from_slots, start_lanes, value_and_slope
+from ..numerics.scalar import (
+    Status,
+    iterate_lanes,
+    lanes_from_slots,
+    newton_slope,
+    start_lanes,
+    value_and_slope,
+)
 from ..params import (
     ALPHA_MIN,
     Fluid,
@@ -461,8 +468,10 @@ def frequency_along(tube, alpha, guess, fluid, m=0.0, *, n_layers, order, family
     (vectorised, as the points take alike few iterations), but each (f, f') from the lanes of a
     curve: the generators formed once as polynomials in α̂ of the one wall, the 4×4 propagation at
     V̂ = 0 (``decoupled``) and f' carried through the propagation instead of forward mode
-    (:func:`jaxdea.physics.dispersion.value_and_slope_on_wall`). Equal to the points alone to the Newton
-    tolerance (tests/test_vmap_rules.py)."""
+    (:func:`jaxdea.physics.dispersion.value_and_slope_on_wall`), with the log-scale's slope ℓ' beside
+    it: where f nearly jumps the lanes step on F = f e^ℓ (:func:`jaxdea.numerics.scalar.newton_slope`),
+    as a point alone does. Equal to the points alone to the Newton tolerance
+    (tests/test_vmap_rules.py)."""
     alpha, guess = jnp.broadcast_arrays(as_float(alpha), as_float(guess))
     ok, tube, _, fluid = guard(tube, 1.0, fluid)
     ok, m_safe = _family_order(ok, m, fluid, family)
@@ -477,9 +486,14 @@ def frequency_along(tube, alpha, guess, fluid, m=0.0, *, n_layers, order, family
         nan = jnp.full((1,), jnp.nan)
         lanes = start_lanes(x[None], x[None], nan, nan, nan, nan, jnp.array([3]), max_step=step,
                             pairs=False)
-        lanes = iterate_lanes(lambda om: characteristic.value_and_slope(
-            family, wall, om, a, fluid, order, m_safe, decoupled, generators), lanes,
-            with_slope=True)
+        scaled = characteristic.scaled(family, wall, a, fluid, order, m_safe, Unknown.OMEGA,
+                                       decoupled, generators)
+
+        def lane(om):  # f, f' of value_and_slope, and ℓ' to step on F where f nearly jumps
+            (f, _), (df, dlog_scale) = value_and_slope(scaled, om)
+            return f, newton_slope(f, df, dlog_scale)
+
+        lanes = iterate_lanes(lane, lanes, with_slope=True)
         return jnp.where(lanes.status == Status.CONVERGED, lanes.x, jnp.nan)[0], lanes.status[0]
 
     return invalid_where(ok, Roots(*jax.vmap(newton)(alpha, guess)))

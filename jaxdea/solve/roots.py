@@ -51,6 +51,7 @@ from ..numerics.scalar import (
     hermite_root,
     lanes_from_slots,
     newton_distance,
+    newton_slope,
     refuse_non_root,
     run_lanes,
     start_lanes,
@@ -76,7 +77,7 @@ from ..params import (
 )
 from ..physics import characteristic
 from ..physics.base_state import voltage_limit
-from ..physics.characteristic import Unknown, problem_function
+from ..physics.characteristic import Unknown
 from ..physics.dispersion import carried_jvp
 from ..physics.families import Face, Family
 from ..physics.problem import Problem, describe
@@ -714,9 +715,27 @@ def attach_derivatives(roots: Roots, params, n_layers, order, unknown="omega",
 
 
 def _problem(tube, alpha, fluid, n_layers, order, m=0.0, family=LONGITUDINAL):
-    """(wall, f) with f(Ω) the characteristic function of one case, for the solvers (values and
-    forward-mode slopes: the adaptive exponential); :func:`jaxdea.physics.characteristic.problem_function`."""
-    return problem_function(tube, alpha, fluid, n_layers, order, m, family)
+    """(wall, Ω ↦ (f, s)) for the Newton lanes of one case (``with_slope``): f the characteristic
+    function of :func:`jaxdea.physics.characteristic.problem_function` (the adaptive exponential), s
+    its forward-mode slope f', or f' + f ℓ' where the log-scale ℓ of F = f e^ℓ varies fast over the
+    Newton step on f (:func:`jaxdea.numerics.scalar.newton_slope`: the step on F, continuous
+    through the roots where f turns sign in a near-jump). f and f' are those of ``problem_function``
+    bit for bit (:func:`jaxdea.physics.characteristic.value_and_scale` is its arithmetic plus ℓ)."""
+    wall = discretize(tube, n_layers)
+    family = Family(family)
+    ok = family.admissible(m, fluid)
+    m_safe = family.safe_m(m, ok) if family.carries_m else 0
+
+    def value_and_newton_slope(om):
+        (f, log_scale), (df, dlog_scale) = value_and_slope(
+            lambda x: characteristic.value_and_scale(family, wall, x, alpha, fluid, order, m_safe),
+            om)
+        del log_scale
+        if family.carries_m:
+            f, df = jnp.where(ok, f, jnp.nan), jnp.where(ok, df, jnp.nan)
+        return f, newton_slope(f, df, dlog_scale)
+
+    return wall, value_and_newton_slope
 
 
 def invalid_where(ok, roots: Roots) -> Roots:
@@ -1028,7 +1047,7 @@ def follow_roots(tube, alpha, fluid, guesses, n_layers, order, m=0.0, family=LON
     cap = jnp.full_like(start, 0.25 * scan_step(wall, fluid, family))
     lanes = start_lanes(start, start, nan, nan, nan, nan, jnp.where(finite, 3, 0), max_step=cap,
                         pairs=False)
-    roots, _, status = run_lanes(fun, lanes)
+    roots, _, status = run_lanes(fun, lanes, with_slope=True)
     status = jnp.where(finite, status, Status.NO_ROOT)
     return jnp.where(status == Status.CONVERGED, roots, jnp.nan), status
 
@@ -1083,13 +1102,14 @@ def frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int = 3,
 
 
 def _newton_from_guess(fun, guess, max_step):
-    """Newton from ``guess`` with steps capped at ``max_step``; once two iterates bracket a sign
-    change, safeguarded bracketed Newton finishes (a FREE lane of :func:`run_lanes`)."""
+    """Newton from ``guess`` (``fun``: Ω ↦ (f, the slope to step with), :func:`_problem`) with
+    steps capped at ``max_step``; once two iterates bracket a sign change, safeguarded bracketed
+    Newton finishes (a FREE lane of :func:`run_lanes`)."""
     one = lambda v: jnp.reshape(v, (1,))  # noqa: E731
     nan = jnp.full((1,), jnp.nan)
     lanes = start_lanes(one(guess), one(guess), nan, nan, nan, nan, jnp.array([3]),
                         max_step=one(max_step), pairs=False)
-    roots, _, status = run_lanes(fun, lanes)
+    roots, _, status = run_lanes(fun, lanes, with_slope=True)
     return roots[0], status[0]
 
 

@@ -78,6 +78,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..compiled import cached_jit, serializable
+from ..numerics.scalar import NEWTON_SCALE_RATIO
 from ..params import (
     Fluid,
     Tube,
@@ -185,14 +186,29 @@ _E_OMEGA = np.array([0.0, 1.0])
 _EYE = np.eye(2)
 
 
-def _value_and_gradient(fun, x):
-    """(f(x), ∇f(x)) for a scalar f of x ∈ R² by forward mode: two tangents, the primal once."""
-    return jax.vmap(lambda v: jax.jvp(fun, (x,), (v,)), out_axes=(None, 0))(_EYE)
+def _value_and_gradient(fun, x, scaled=False):
+    """(f(x), ∇f(x)) for a scalar f of x ∈ R² by forward mode: two tangents, the primal once.
+
+    ``fun`` may return (f, ℓ), ℓ the log-scale of F = f e^ℓ (:func:`_trace_branch`): the gradient
+    is then ∇f, or, where ``scaled`` (the start correction), ∇f + f∇ℓ = e^{−ℓ}∇F where
+    ‖∇f + f∇ℓ‖ > NEWTON_SCALE_RATIO ‖∇f‖, so that Newton steps on F where f turns sign in a
+    near-jump, as the root solvers' lanes do (:func:`jaxdea.numerics.scalar.newton_slope`); near an
+    ordinary root, ∇f. Only the start: along the trace the same rule fired at a veering (∇f ≈ 0
+    between two close roots of a light-fluid tube) and moved the points of
+    tests/test_trace.py::test_fluid_veering_keeps_identity."""
+    value, gradient = jax.vmap(lambda v: jax.jvp(fun, (x,), (v,)), out_axes=(None, 0))(_EYE)
+    if not isinstance(value, tuple):
+        return value, gradient
+    (f, _), (df, dlog_scale) = value, gradient
+    use_scale, scaled = scaled, df + f * dlog_scale
+    jumps = use_scale & (jnp.linalg.norm(scaled) > NEWTON_SCALE_RATIO * jnp.linalg.norm(df))
+    return f, jnp.where(jumps, scaled, df)
 
 
-def _correct(fun, x_pred, normal, max_iter, max_omega_step, omega_scale):
+def _correct(fun, x_pred, normal, max_iter, max_omega_step, omega_scale, scaled=False):
     """Newton on {f(x) = 0, normal · (x − x_pred) = 0} from x_pred (2×2, Cramer's rule); updates
-    capped so that |ΔΩ| = W|Δx_Ω| ≤ max_omega_step.
+    capped so that |ΔΩ| = W|Δx_Ω| ≤ max_omega_step. ``scaled``: Newton on F where f nearly jumps
+    (:func:`_value_and_gradient`; the start correction).
 
     Returns:
         (x, iterations, converged, finite, ∇f): ∇f at the last evaluated point, one update before x
@@ -204,7 +220,7 @@ def _correct(fun, x_pred, normal, max_iter, max_omega_step, omega_scale):
 
     def body(c):
         x, it, *_ = c
-        f, g = _value_and_gradient(fun, x)
+        f, g = _value_and_gradient(fun, x, scaled)
         r = normal @ (x - x_pred)
         det = g[0] * normal[1] - g[1] * normal[0]
         delta = jnp.stack([(-f * normal[1] + g[1] * r) / det, (-g[0] * r + normal[0] * f) / det])
@@ -230,7 +246,9 @@ def continue_branch(fun, s0, omega0, stop, max_points: int, max_step=DEFAULT_MAX
     alike, which keeps the compiled program small.
 
     Args:
-        fun: f(s, Ω) → scalar, differentiable by forward-mode autodiff.
+        fun: f(s, Ω) → scalar, differentiable by forward-mode autodiff; or → (f, ℓ) with ℓ the
+            log-scale of F = f e^ℓ, Newton then stepping on F where f nearly jumps
+            (:func:`_value_and_gradient`).
         s0: start value of the parameter s.
         omega0: guess of the root at s0; corrected by Newton at fixed s0 first.
         stop: the trace goes from s0 towards ``stop`` (either direction).
@@ -286,7 +304,7 @@ def continue_branch(fun, s0, omega0, stop, max_points: int, max_step=DEFAULT_MAX
         max_iter = jnp.where(turning | zeroing, EVENT_ITERATIONS,
                              jnp.where(first, START_ITERATIONS, CORRECTOR_ITERATIONS))
         xc, iters, converged, finite, g = _correct(lambda y: fun(*point(y, w)), x_pred, normal,
-                                                   max_iter, max_omega_step, w)
+                                                   max_iter, max_omega_step, w, first)
         s_c, om_c = point(xc, w)
         t_new = tangent_of(g, st.orientation)
         solved = converged & finite
@@ -407,8 +425,10 @@ def _trace_branch(tube, alpha, omega, fluid, stop, max_step, along, max_points, 
     def residual(s, om):
         t, a, fl = set_parameter(tube, alpha, fluid, along, s)
         wall = wall0 if wall_is_fixed else discretize(t, n_layers)
-        f = characteristic.value(family, wall, om, as_float(a), fl, order, m_safe)
-        return jnp.where(ok, f, jnp.nan)
+        # (f, ℓ): f that of characteristic.value bit for bit, ℓ for Newton on F where f nearly jumps
+        f, log_scale = characteristic.value_and_scale(family, wall, om, as_float(a), fl, order,
+                                                      m_safe, method="taylor")
+        return jnp.where(ok, f, jnp.nan), log_scale
 
     return continue_branch(residual, s0, omega, stop, max_points, max_step,
                            4.0 * scan_step(wall0, fluid, family))
