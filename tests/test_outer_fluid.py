@@ -362,3 +362,23 @@ def test_fit_config_outer_fluid_table():
                          ({"preset": "water", "sound_speed": 5.0}, "outer_fluid.preset")):
         with pytest.raises(ValueError, match=message):
             parse_fit_config({**base, "outer_fluid": bad})
+
+
+def test_group_velocity_and_design_in_water():
+    """``group_velocity`` in a surrounding fluid is dΩ/dα̂ of ``frequency`` (central differences),
+    and ``design_for_frequency`` of a tube in water meets its target in water."""
+    tube = TUBE.replace(outer=WATER)
+    omega = float(jd.frequencies(tube, 0.5, n_layers=16)[0])
+    slope = float(jd.group_velocity(tube, 0.5, omega, n_layers=16))
+    h = 1e-5
+    central = (float(jd.frequency(tube, 0.5 + h, omega, n_layers=16))
+               - float(jd.frequency(tube, 0.5 - h, omega, n_layers=16))) / (2 * h)
+    assert slope == pytest.approx(central, rel=1e-7)
+    paper = jd.Tube(lambda_i=1.1, lambda_z=1.2, eta=0.85, outer=WATER)
+    target = 0.8 * float(jd.frequencies(paper, float(jd.axial_wavenumber(paper, 1)), n_layers=16)[0])
+    design = jd.design_for_frequency(paper, target, n=1, n_layers=16, m_max=2, n_max=2)
+    assert design.status == jd.DesignStatus.CONVERGED
+    made = design.tube
+    assert made.outer == WATER
+    reached = float(jd.frequencies(made, float(jd.axial_wavenumber(made, 1)), n_layers=16)[0])
+    assert reached == pytest.approx(target, rel=1e-5)

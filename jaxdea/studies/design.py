@@ -509,7 +509,11 @@ def _finish(aux, history, status, bound, material, n_layers, scheme, mode=(0, Fa
     """Verify the tracked root with :func:`jaxdea.frequencies` and build the result."""
     leaves = {k: float(getattr(aux["tube"], k)) for k in ("voltage", "lambda_i", "lambda_z", "eta",
                                                           "gent", "length_ratio")}
-    tube = Tube(**leaves, material=material)
+    outer = aux["tube"].outer
+    if outer is not None:  # the surrounding fluid, as plain floats
+        outer = outer.replace(density_ratio=float(outer.density_ratio),
+                              speed_ratio=float(outer.speed_ratio))
+    tube = Tube(**leaves, material=material, outer=outer)
     alpha = float(aux["alpha"])
     lowest = float(frequencies(tube, alpha, n_roots=1, n_layers=n_layers, scheme=scheme,
                                **_orders(mode))[0])
