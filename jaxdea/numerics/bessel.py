@@ -449,10 +449,7 @@ def _k_series_01(y):
         K_1 = 1/y + ln(y/2) I_1 − (y/4) Σ_{k≥0} (2H_k + 1/(k+1) − 2γ) z^k/(k!(k+1)!),
 
     I_0 = Σ z^k/(k!)², I_1 = (y/2) Σ z^k/(k!(k+1)!)."""
-    k = np.arange(K_TERMS)
-    harmonic = np.concatenate([[0.0], np.cumsum(1.0 / np.arange(1, K_TERMS))])
-    inverse_square = np.exp(-2.0 * gammaln_np(k + 1.0))
-    inverse_next = np.exp(-gammaln_np(k + 1.0) - gammaln_np(k + 2.0))
+    k, harmonic, inverse_square, inverse_next = _K_SERIES
     z = (0.25 * y * y)[..., None] ** k
     log_half = jnp.log(0.5 * y)
     i_0 = jnp.sum(z * inverse_square, axis=-1)
@@ -463,9 +460,12 @@ def _k_series_01(y):
     return k_0, k_1
 
 
-def gammaln_np(x):
-    """log Γ(x) of a NumPy array (the series' constant coefficients, at import-free module level)."""
-    return np.array([math.lgamma(v) for v in np.ravel(x)]).reshape(np.shape(x))
+_FACTORIALS = np.array([math.factorial(k) for k in range(K_TERMS + 1)], dtype=np.float64)
+_K_SERIES = (np.arange(K_TERMS),
+             np.concatenate([[0.0], np.cumsum(1.0 / np.arange(1, K_TERMS))]),  # H_k
+             1.0 / _FACTORIALS[:-1] ** 2,  # 1/(k!)²
+             1.0 / (_FACTORIALS[:-1] * _FACTORIALS[1:]))  # 1/(k!(k+1)!)
+"""(k, H_k, 1/(k!)², 1/(k!(k+1)!)) of :func:`_k_series_01`."""
 
 
 def outer_impedance(y, m):
