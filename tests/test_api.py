@@ -458,6 +458,11 @@ def test_hermite_extremum_of_a_cubic():
         assert abs(got - want) <= 4 * abs(np.spacing(want))
 
 
+def _with_slope(f):
+    """x ↦ (f(x), f'(x)): the (value, slope to step with) that Newton from a guess takes."""
+    return lambda x: jax.jvp(f, (x,), (jnp.ones_like(x),))
+
+
 def _counted(f):
     """f with a host-side count of its evaluations (one per vectorised call)."""
     calls = []
@@ -512,7 +517,7 @@ def test_newton_stops_once_the_predicted_error_is_below_tolerance():
     evaluations (5 when waiting for a step below 1e-15·x). From x₂ (step 2.1e-6, K·step² ≈ 1.6e-12)
     it must not stop."""
     f, calls = _counted(lambda x: x * x - 2.0)
-    root, status = jax.jit(lambda: roots_module._newton_from_guess(f, 1.5, jnp.inf))()
+    root, status = jax.jit(lambda: roots_module._newton_from_guess(_with_slope(f), 1.5, jnp.inf))()
     assert int(status) == Status.CONVERGED
     assert abs(float(root) - np.sqrt(2.0)) <= np.spacing(np.sqrt(2.0))
     assert len(calls) == 4
@@ -524,7 +529,7 @@ def test_frequency_from_a_close_guess_takes_few_newton_steps():
     tube, alpha, coarse = jd.Tube(), 0.15, 1.8540488  # the N = 30 root, 5e-6 below N = 60's
     wall = roots_module.discretize(tube, 60)
     fun, calls = _counted(lambda om: roots_module.characteristic_on_wall(wall, om, alpha))
-    root, status = jax.jit(lambda: roots_module._newton_from_guess(fun, coarse, 4.0))()
+    root, status = jax.jit(lambda: roots_module._newton_from_guess(_with_slope(fun), coarse, 4.0))()
     assert int(status) == Status.CONVERGED
     np.testing.assert_allclose(root, jd.frequency(tube, alpha, coarse, n_layers=60), rtol=1e-15)
     # a root of the N = 60 laminate (f changes sign within ±1e-12 of it), away from the guess
