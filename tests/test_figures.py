@@ -485,9 +485,10 @@ def test_surrounding_fluid_values_are_direct_solves(written):
     for r in rows(out, "surrounding_fluid"):
         fluid, outer = cases[r["case"]]
         tube = base.replace(voltage=float(r["voltage"]))
-        omega = jd.frequencies(tube, float(r["alpha_hat"]), fluid, n_roots=1, n_layers=FIG_N,
-                               outer=outer)
-        np.testing.assert_allclose(float(r["omega"]), float(omega[0]), rtol=1e-12)
+        alpha = float(jd.axial_wavenumber(base, int(r["n"])))  # exact: the CSV keeps 12 digits
+        assert float(r["alpha_hat"]) == pytest.approx(alpha, rel=1e-11)  # 12 digits kept
+        omega = jd.frequencies(tube, alpha, fluid, n_roots=1, n_layers=FIG_N, outer=outer)
+        np.testing.assert_allclose(float(r["omega"]), float(omega[0]), rtol=1e-11)  # 12 digits
         if r["n"] == "1" and float(r["voltage"]) == 0.0:
             lowest[r["case"]] = float(r["omega"])
     assert lowest["in water"] < lowest["in air"] < lowest["in vacuum"]
