@@ -62,7 +62,7 @@ def wall_names(tube: Tube | None) -> tuple:
     return tuple(names)
 
 
-def _wall_hint(name, tube) -> str:
+def wall_hint(name, tube) -> str:
     """Why ``name`` is no parameter of this tube's wall, in words ('' when it is not a wall name)."""
     match = _LAYER_NAME.fullmatch(name)
     if name.startswith("material_"):
@@ -73,6 +73,8 @@ def _wall_hint(name, tube) -> str:
         return ""
     layers = () if tube is None else tube.layers or ()
     k = int(match.group(1))
+    if not layers:
+        return " (layer names need a layered wall, Tube(layers=...))"
     if k >= len(layers):
         return f" (the tube has {len(layers)} layers: k from 0 to {len(layers) - 1})"
     if layers[k].active and match.group(2) in LAYER_LEAVES:
@@ -94,7 +96,7 @@ def check_names(names, fluid: Fluid | None, allow_n: bool = True, tube: Tube | N
             extra = " (fluid parameters need a Fluid)" if name in FLUID_LEAVES else ""
             if name in OUTER_LEAVES:
                 extra = " (the surrounding fluid's parameters need outer=Fluid(...))"
-            extra = extra or _wall_hint(name, tube)
+            extra = extra or wall_hint(name, tube)
             raise ValueError(f"unknown parameter {name!r}{extra}: allowed are {', '.join(allowed)}")
     if "alpha" in names and "n" in names:
         raise ValueError("give either 'alpha' or 'n' (the axial mode number), not both")
