@@ -10,6 +10,7 @@ import pytest
 
 import jaxdea as jd
 from jaxdea.physics.leaves import apply_parameters, wall_names
+from jaxdea.studies import sweeps as sweep_module
 from jaxdea.studies.sweeps import SweepResult, sweep
 
 EQUAL = dict(n_layers=12, scheme="magnus6")  # one discretisation for the sweep and the single solves
@@ -85,3 +86,17 @@ def test_wall_names_and_their_errors():
             sweep(tube, alpha=0.8, progress=False, **{name: [0.1]})
         with pytest.raises(ValueError, match=message):
             sweep(tube, alpha=0.8, progress=False, jacobian=[name])
+
+
+def test_saved_attributes_name_each_layer():
+    """The netCDF attributes of a layered sweep give each layer's fixed values as layer<k>_<field>,
+    without the swept ones and without the active fraction that follows them."""
+    settings = sweep_module._settings(SANDWICH, None, 2, None, 12)
+    res = SweepResult(axes={"alpha": np.array([0.8]), "layer2_fraction": np.array([0.1, 0.3])},
+                      omega=np.zeros((1, 2, 2)), status=np.zeros((1, 2, 2), np.int32),
+                      alpha=np.full((1, 2), 0.8), settings=settings)
+    attrs = res._attributes()
+    assert attrs["layer0_fraction"] == 0.2 and attrs["layer0_material_kind"] == "neo_hookean"
+    assert attrs["layer1_material_gent"] == 97.2 and attrs["layer1_active"] == 1
+    assert attrs["layer2_shear_ratio"] == 3.0
+    assert "layer2_fraction" not in attrs and "layer1_fraction" not in attrs

@@ -32,6 +32,7 @@ import importlib.util
 import json
 import math
 import os
+import re
 
 import jax
 import jax.numpy as jnp
@@ -360,7 +361,10 @@ class SweepResult:
                               if v is not None and not (key in ("tube", "fluid") and k in swept)
                               and f"{key}_{k}" not in swept})
             elif key == "layers":  # layer<k>_<field>, as the sweep names them
+                follows = any(re.fullmatch(r"layer\d+_fraction", name) for name in self.axes)
                 for k, layer in enumerate(value):
+                    if layer["active"] and follows:  # 1 − Σ f_passive at each point, not fixed
+                        swept.add(f"layer{k}_fraction")
                     for field, v in layer.items():
                         for sub, x in (v.items() if isinstance(v, dict) else [(None, v)]):
                             name = f"layer{k}_{field}" if sub is None else f"layer{k}_{field}_{sub}"
