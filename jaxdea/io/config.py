@@ -385,22 +385,35 @@ def _parse_tube(data, units: dict | None = None) -> dict:
     return tube
 
 
+def _wrong(message: str):
+    raise ValueError(message)
+
+
+def _known_keys(table: dict, key: str, allowed: tuple) -> None:
+    for k in table:
+        if k not in allowed:
+            _wrong(f"unknown key '{key}.{k}'; allowed: {', '.join(allowed)}")
+
+
 def material_from_table(key: str, table) -> object:
     """A material object of :data:`jaxdea.materials.KINDS` from a table ``{kind = ..., parameter =
     value, ...}`` (missing parameters: the class defaults), checked by
     :func:`jaxdea.params.validate_material` (finite, normalised to unit shear modulus).
 
     Raises:
-        ValueError: naming ``key`` (``material``, ``layers[1].material``, …) and what is allowed.
+        ValueError: naming ``key`` (``material``, ``layers[1].material``, …) and what is allowed
+            (without the prefix of :func:`parse_config`: the fit configuration reads it too).
     """
     kinds = ", ".join(f'"{k}"' for k in KINDS)
     if not isinstance(table, dict):
-        _fail(f"{key!r} must be a table {{kind = {kinds}, parameters...}}, got {table!r}")
+        _wrong(f"{key!r} must be a table {{kind = {kinds}, parameters...}}, got {table!r}")
     if "kind" not in table:
-        _fail(f"'{key}.kind' is missing: one of {kinds}")
-    kind = _choice(f"{key}.kind", table["kind"], tuple(KINDS))
+        _wrong(f"'{key}.kind' is missing: one of {kinds}")
+    kind = table["kind"]
+    if kind not in KINDS:
+        _wrong(f"'{key}.kind' must be one of {', '.join(KINDS)}, got {kind!r}")
     fields = tuple(f.name for f in dataclasses.fields(KINDS[kind]))
-    _table(table, key, ("kind", *fields))
+    _known_keys(table, key, ("kind", *fields))
     params = {}
     for k in fields:
         if k not in table:
@@ -408,42 +421,46 @@ def material_from_table(key: str, table) -> object:
         v = table[k]
         if kind == "ogden":  # tuples of one length
             if not isinstance(v, list) or not v or not all(_is_number(x) for x in v):
-                _fail(f"'{key}.{k}' must be a non-empty list of numbers, got {v!r}")
+                _wrong(f"'{key}.{k}' must be a non-empty list of numbers, got {v!r}")
             params[k] = tuple(float(x) for x in v)
         elif not _is_number(v):
-            _fail(f"'{key}.{k}' must be a number, got {v!r}")
+            _wrong(f"'{key}.{k}' must be a number, got {v!r}")
         else:
             params[k] = float(v)
     material = KINDS[kind](**params)
     try:
         validate_material(material)
     except ValueError as exc:
-        _fail(f"{key!r}: {exc}")
+        _wrong(f"{key!r}: {exc}")
     return material
 
 
-def _parse_layers(data) -> tuple:
-    """The ``[[layers]]`` array of tables as a tuple of :class:`jaxdea.Layer` (validated as a wall:
-    exactly one active, fractions > 0 summing to 1, the active layer's ratios 1)."""
+def layers_from_tables(data) -> tuple:
+    """The ``[[layers]]`` array of tables as a tuple of :class:`jaxdea.Layer`, validated as a wall
+    (exactly one active, fractions > 0 summing to 1, the active layer's ratios 1).
+
+    Raises:
+        ValueError: naming the key (``layers[1].active``, …), as :func:`material_from_table`.
+    """
     if not isinstance(data, list) or not data or not all(isinstance(x, dict) for x in data):
-        _fail(f"'layers' must be an array of tables ([[layers]], one per layer from the inner face "
+        _wrong(f"'layers' must be an array of tables ([[layers]], one per layer from the inner face "
               f"outwards), got {data!r}")
     layers = []
     for k, table in enumerate(data):
         key = f"layers[{k}]"
-        _table(table, key, LAYER_KEYS)
+        _known_keys(table, key, LAYER_KEYS)
         if "fraction" not in table:
-            _fail(f"'{key}.fraction' is missing (the layer's share of the undeformed wall)")
+            _wrong(f"'{key}.fraction' is missing (the layer's share of the undeformed wall)")
         values = {}
         for name in ("fraction", "shear_ratio", "density_ratio"):
             if name in table:
                 v = table[name]
                 if not _is_number(v) or not (math.isfinite(v) and v > 0):
-                    _fail(f"'{key}.{name}' must be a finite number > 0, got {v!r}")
+                    _wrong(f"'{key}.{name}' must be a finite number > 0, got {v!r}")
                 values[name] = float(v)
         if "active" in table:
             if not isinstance(table["active"], bool):
-                _fail(f"'{key}.active' must be true or false, got {table['active']!r}")
+                _wrong(f"'{key}.active' must be true or false, got {table['active']!r}")
             values["active"] = table["active"]
         if "material" in table:
             values["material"] = material_from_table(f"{key}.material", table["material"])
@@ -451,7 +468,7 @@ def _parse_layers(data) -> tuple:
     try:
         validate_wall_layers(Tube(layers=tuple(layers)))
     except ValueError as exc:
-        _fail(str(exc))
+        _wrong(str(exc))
     return tuple(layers)
 
 
@@ -464,10 +481,13 @@ def _parse_wall(data, tube: dict) -> None:
     if "material" in data and "layers" in data:
         _fail("'material' and 'layers' both set the wall's energy; with [[layers]] give each layer "
               "its material")
-    if "material" in data:
-        tube["material"] = material_from_table("material", data["material"])
-    if "layers" in data:
-        tube["layers"] = _parse_layers(data["layers"])
+    try:
+        if "material" in data:
+            tube["material"] = material_from_table("material", data["material"])
+        if "layers" in data:
+            tube["layers"] = layers_from_tables(data["layers"])
+    except ValueError as exc:
+        _fail(str(exc))
 
 
 def _parse_fluid(data, units: dict | None = None) -> dict:

@@ -47,6 +47,7 @@ from ..numerics.scalar import Status
 from ..params import (
     MAX_ROOTS,
     Fluid,
+    Layer,
     Tube,
     as_float,
     guard,
@@ -939,10 +940,7 @@ def _settings(tube, fluid, n_roots, omega_max, layers, m_axis=None, m=0, torsion
            "n_roots": int(n_roots), "omega_max": omega_max, "n_layers": count,
            "scheme": scheme, "graded": is_graded(layers)}
     if tube.layers is not None:
-        out["layers"] = [{"fraction": leaf(layer.fraction), "material": material_settings(layer.material),
-                          "shear_ratio": leaf(layer.shear_ratio),
-                          "density_ratio": leaf(layer.density_ratio), "active": layer.active}
-                         for layer in tube.layers]
+        out["layers"] = wall_settings(tube)["layers"]
     if m_axis is None and int(m) != 0:
         out["m"] = int(m)
     if torsional:
@@ -967,6 +965,41 @@ def material_settings(material):
     kind = next(k for k, cls in KINDS.items() if type(material) is cls)
     return {"kind": kind, **{f.name: np.asarray(getattr(material, f.name)).tolist()
                              for f in dataclasses.fields(material)}}
+
+
+def wall_settings(tube: Tube | None) -> dict:
+    """``{"material": ..., "layers": [...]}`` of a tube's wall as JSON (:func:`material_settings`;
+    ``layers`` only for a layered wall); {} for None."""
+    if tube is None:
+        return {}
+    out = {"material": material_settings(tube.material)}
+    if tube.layers is not None:
+        leaf = lambda x: float(np.asarray(x))  # noqa: E731
+        out["layers"] = [{"fraction": leaf(layer.fraction), "material": material_settings(layer.material),
+                          "shear_ratio": leaf(layer.shear_ratio),
+                          "density_ratio": leaf(layer.density_ratio), "active": layer.active}
+                         for layer in tube.layers]
+    return out
+
+
+def wall_from_settings(settings: dict) -> Tube | None:
+    """The wall (a :class:`~jaxdea.Tube` carrying the material and layers) of settings written by
+    :func:`wall_settings`; None where they name none. A user's ``Energy`` cannot be rebuilt."""
+    def material(value):
+        if isinstance(value, str):
+            return value
+        if value.get("kind") not in KINDS:
+            raise ValueError(f"the settings' material {value!r} cannot be rebuilt (a user's Energy "
+                             "function is not stored): pass the material again")
+        params = {k: tuple(v) if isinstance(v, list) else v for k, v in value.items() if k != "kind"}
+        return KINDS[value["kind"]](**params)
+
+    if "material" not in settings and "layers" not in settings:
+        return None
+    layers = settings.get("layers")
+    if layers is not None:
+        layers = tuple(Layer(**{**layer, "material": material(layer["material"])}) for layer in layers)
+    return Tube(material=material(settings.get("material", "gent")), layers=layers)
 
 
 class _NoBar:
