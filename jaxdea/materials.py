@@ -186,6 +186,10 @@ class Energy(InvariantMaterial):
 
 MATERIAL_TYPES = (Gent, NeoHookean, MooneyRivlin, GentGent, Ogden, Energy)
 """The material classes of the public API."""
+KINDS = {"gent": Gent, "neo_hookean": NeoHookean, "mooney_rivlin": MooneyRivlin,
+         "gent_gent": GentGent, "ogden": Ogden}
+"""The material classes by the ``kind`` that configuration files and sweep settings name them
+(``Energy``, a user's JAX function, has none)."""
 
 
 class Damping:

@@ -265,7 +265,60 @@ BAD_CONFIGS = [
 ]
 
 
-@pytest.mark.parametrize(("data", "message"), BAD_CONFIGS, ids=[m[:40] for _, m in BAD_CONFIGS])
+MOONEY = {"kind": "mooney_rivlin", "beta": 0.2}
+PASSIVE = {"fraction": 0.2, "material": {"kind": "neo_hookean"}, "shear_ratio": 3.0}
+ACTIVE = {"fraction": 0.8, "active": True}
+
+
+def _wall(axes=None, **tables):
+    """A config of the wall ``tables`` on the grid α̂ = 0.8 (and ``axes``)."""
+    return {"axes": {"alpha": 0.8, **(axes or {})}, **tables}
+
+
+BAD_WALL_CONFIGS = [  # [material] and [[layers]] (issue 44)
+    (_wall(material={"kind": "rubber"}),
+     "'material.kind' must be one of gent, neo_hookean, mooney_rivlin, gent_gent, ogden, got 'rubber'"),
+    (_wall(material={"beta": 0.2}), "'material.kind' is missing"),
+    (_wall(material="mooney_rivlin"), "'material' must be a table {kind = "),
+    (_wall(material={**MOONEY, "bta": 0.2}), "unknown key 'material.bta'; allowed: kind, beta"),
+    (_wall(material={**MOONEY, "beta": "x"}), "'material.beta' must be a number, got 'x'"),
+    (_wall(material={**MOONEY, "beta": 1.5}),
+     "'material': material MooneyRivlin: beta must be in [0, 1], got 1.5"),
+    (_wall(material={"kind": "ogden", "mu": [1.0], "alpha": [3.0]}),
+     "material Ogden is not normalised to unit shear modulus"),
+    (_wall(material={"kind": "ogden", "mu": 1.0}), "'material.mu' must be a non-empty list of numbers"),
+    (_wall(tube={"gent": 50.0}, material=MOONEY), "'material' and 'tube.gent' both set the wall's energy"),
+    (_wall(material=MOONEY, layers=[ACTIVE]), "'material' and 'layers' both set the wall's energy"),
+    (_wall(layers=ACTIVE), "'layers' must be an array of tables ([[layers]]"),
+    (_wall(layers=[{"active": True}]), "'layers[0].fraction' is missing"),
+    (_wall(layers=[PASSIVE, {**ACTIVE, "thickness": 1.0}]),
+     "unknown key 'layers[1].thickness'; allowed: fraction, material, shear_ratio, density_ratio, active"),
+    (_wall(layers=[{**PASSIVE, "shear_ratio": -1.0}, ACTIVE]),
+     "'layers[0].shear_ratio' must be a finite number > 0, got -1.0"),
+    (_wall(layers=[PASSIVE, {**ACTIVE, "active": "yes"}]), "'layers[1].active' must be true or false"),
+    (_wall(layers=[{**PASSIVE, "material": {"kind": "vhb"}}, ACTIVE]),
+     "'layers[0].material.kind' must be one of gent"),
+    (_wall(layers=[PASSIVE, {**ACTIVE, "fraction": 0.5}]), "layers: the fractions must sum to 1, got 0.7"),
+    (_wall(layers=[PASSIVE, {**ACTIVE, "active": False}]), "exactly one layer must be active"),
+    (_wall(layers=[{**PASSIVE, "active": True}, ACTIVE]),
+     "exactly one layer must be active (the dielectric with the electrodes), got 2"),
+    (_wall(layers=[PASSIVE, {**ACTIVE, "shear_ratio": 2.0}]),
+     "layers[1].shear_ratio must be 1 for the active layer"),
+    (_wall({"layer1_fraction": [0.5]}, layers=[PASSIVE, ACTIVE]),
+     "'axes.layer1_fraction' is no parameter of this wall (the active layer's fraction follows"),
+    (_wall({"layer2_fraction": [0.5]}, layers=[PASSIVE, ACTIVE]),
+     "'axes.layer2_fraction' is no parameter of this wall (the tube has 2 layers: k from 0 to 1)"),
+    (_wall({"material_beta": [0.5]}),
+     "'axes.material_beta' is no parameter of this wall (material_ names need a material object"),
+    (_wall({"layer0_fraction": [0.0]}, layers=[PASSIVE, ACTIVE]),
+     "'axes.layer0_fraction' must be in the open interval (0, 1), got 0.0"),
+    (_wall(layers=[PASSIVE, ACTIVE], solver={"jacobian": ["layer1_fraction"]}),
+     "'solver.jacobian[0]' = 'layer1_fraction' is no parameter of this case; allowed: voltage"),
+]
+
+
+@pytest.mark.parametrize(("data", "message"), BAD_CONFIGS + BAD_WALL_CONFIGS,
+                         ids=[m[:40] for _, m in BAD_CONFIGS + BAD_WALL_CONFIGS])
 def test_bad_config_names_the_key_and_exits_2(tmp_path, capsys, data, message):
     path = tmp_path / "bad.json"
     path.write_text(json.dumps(data), encoding="utf-8")

@@ -33,15 +33,16 @@ VOLTAGES = (2e3, 5e3)
 LABELLED = [(v, m, n) for v in VOLTAGES for m in (0, 1) for n in (1, 2)]
 
 
-def synthetic(points, truth=TRUTH):
-    """Peaks (V, m, n) of the lowest branch in Hz, through the public SI conversions."""
+def synthetic(points, truth=TRUTH, **wall):
+    """Peaks (V, m, n) of the lowest branch in Hz, through the public SI conversions (``wall``: the
+    tube's ``material`` or ``layers``, tests/test_fit_walls.py)."""
     scales = Scales(truth["shear_modulus"], truth["density"], truth["permittivity"],
                     truth["inner_radius"])
     rows = []
     for voltage, m, n in points:
         tube = tube_from_si(scales, outer_radius=truth["inner_radius"] / truth["eta"],
                             length=truth["length"], voltage=voltage, lambda_i=truth["lambda_i"],
-                            lambda_z=truth["lambda_z"], gent=truth["gent"])
+                            lambda_z=truth["lambda_z"], gent=truth.get("gent", 97.2)).replace(**wall)
         omega = jd.frequencies(tube, jd.axial_wavenumber(tube, n), n_roots=1, m=m,
                                n_layers=N_LAYERS)[0]
         rows.append((voltage, float(scales.omega_to_hz(omega)), m, n))

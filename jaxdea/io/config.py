@@ -21,13 +21,34 @@ from pathlib import Path
 import numpy as np
 
 from ..files import load_document
-from ..params import COUPLINGS, MATERIALS, MAX_LAYERS, MAX_ROOTS
-from ..physics.leaves import FLUID_LEAVES, NAMES, OUTER_LEAVES, TUBE_LEAVES
+from ..materials import KINDS
+from ..params import (
+    COUPLINGS,
+    MATERIALS,
+    MAX_LAYERS,
+    MAX_ROOTS,
+    Layer,
+    Tube,
+    validate_material,
+    validate_wall_layers,
+)
+from ..physics.leaves import (
+    FLUID_LEAVES,
+    LAYER_LEAVES,
+    NAMES,
+    OUTER_LEAVES,
+    TUBE_LEAVES,
+    wall_hint,
+    wall_names,
+)
 from ..physics.transfer import SCHEMES
 from ..physics.units import VACUUM_PERMITTIVITY, Scales
 from ..studies.sweeps import MAX_POINTS, SENSITIVITY, SI_QUANTITIES, check_size
 
-TOP_KEYS = ("tube", "fluid", "axes", "solver", "output", "units", "outer_fluid")
+TOP_KEYS = ("tube", "fluid", "axes", "solver", "output", "units", "outer_fluid", "material",
+            "layers")
+LAYER_KEYS = ("fraction", "material", "shear_ratio", "density_ratio", "active")
+"""The keys of a ``[[layers]]`` table (:class:`jaxdea.Layer`)."""
 TUBE_KEYS = (*TUBE_LEAVES, "thickness_ratio", "material", "delta_p")
 PRESSURE_SI_KEY = "pressure_Pa"  # [tube] ΔP in Pa (with [units]): delta_p = ΔP/μ
 FLUID_KEYS = (*FLUID_LEAVES, "coupling", "bessel_order")
@@ -54,6 +75,13 @@ FORMAT = f"""\
           length_ratio L/R_o; material = {' | '.join(f'"{m}"' for m in MATERIALS)};
           delta_p ΔP̂ = ΔP/μ (or {PRESSURE_SI_KEY} in Pa with [units]): the tube held by this pressure
           difference, λ_i solved at every point (jaxdea.inner_stretch), instead of lambda_i
+[material] optional, the wall's energy as an object: kind = {' | '.join(f'"{k}"' for k in KINDS)}
+          and its parameters (mooney_rivlin: beta; gent: gent; gent_gent: gent, beta; ogden: mu = [...],
+          alpha = [...]); instead of tube.material / tube.gent
+[[layers]] optional, one table per layer from the inner face outwards (a layered wall, instead of
+          [material]): fraction (share of the undeformed wall, the fractions sum to 1), material =
+          {{kind = ..., ...}} (as [material]; default gent, G = 97.2), shear_ratio μ_k/μ and
+          density_ratio ρ_k/ρ_s (default 1), active = true for exactly one layer (the dielectric)
 [fluid]   optional (leave it out for an empty tube): density_ratio ρ̂_f, speed_ratio ĉ_f (numbers),
           coupling = {' | '.join(f'"{c}"' for c in COUPLINGS)}, bessel_order = ν (integer >= 0; paper only,
           default ν = n)
@@ -63,7 +91,10 @@ FORMAT = f"""\
 [axes]    the grid, in order: NAME = [v1, v2, ...] | {{start = a, stop = b, num = k}} | v (fixed);
           NAME one of {', '.join((*TUBE_LEAVES, 'thickness_ratio'))},
           {', '.join((*FLUID_LEAVES, *OUTER_LEAVES, 'alpha', 'n'))}, m (circumferential orders,
-          integers >= 0);
+          integers >= 0), the wall's material_<parameter> (material_beta) and, with [[layers]],
+          layer<k>_fraction, layer<k>_shear_ratio, layer<k>_density_ratio of a passive layer k
+          (from 0, the innermost; the active layer's fraction follows: 1 − Σ the others) and
+          layer<k>_material_<parameter>;
           exactly one of alpha (α̂) and n (axial mode numbers, integers >= 1); a parameter is fixed
           in [tube]/[fluid]/[solver] or swept here, not both; the plot's x axis is the first axis
           with more than one value
@@ -115,7 +146,9 @@ class SweepConfig:
     """Validated settings of ``jaxdea sweep``.
 
     Attributes:
-        tube: keyword arguments of :class:`jaxdea.Tube` (only the keys given).
+        tube: keyword arguments of :class:`jaxdea.Tube` (only the keys given; ``material`` a
+            material object from ``[material]``, ``layers`` the :class:`jaxdea.Layer` of
+            ``[[layers]]``).
         fluid: keyword arguments of :class:`jaxdea.Fluid`, or None for an empty tube.
         outer: keyword arguments of the surrounding :class:`jaxdea.Fluid` (``Tube(outer=...)``),
             or None for a tube in vacuum.
@@ -256,8 +289,21 @@ def _length(spec) -> int:
     return 1
 
 
+def _range(name: str) -> tuple:
+    """(description, test) of a parameter's allowed values: :data:`RANGES`, or for the wall's names
+    (:func:`jaxdea.physics.leaves.wall_names`) by their field."""
+    if name in RANGES:
+        return RANGES[name]
+    field = name.split("_", 1)[1]  # after layer<k>_ or material_
+    if field == "fraction":
+        return ("in the open interval (0, 1)", lambda v: (v > 0) & (v < 1))
+    if field in LAYER_LEAVES or field.endswith("gent"):
+        return RANGES["lambda_i"]  # a finite number > 0
+    return RANGES["voltage"]  # a finite number (a material's own range: NaN points in the sweep)
+
+
 def _in_range(key: str, name: str, values: np.ndarray, converted: bool = False) -> np.ndarray:
-    allowed, ok = RANGES[name]
+    allowed, ok = _range(name)
     bad = ~ok(values)
     if np.any(bad):
         value = float(values[bad][0])
@@ -339,6 +385,111 @@ def _parse_tube(data, units: dict | None = None) -> dict:
     return tube
 
 
+def _wrong(message: str):
+    raise ValueError(message)
+
+
+def _known_keys(table: dict, key: str, allowed: tuple) -> None:
+    for k in table:
+        if k not in allowed:
+            _wrong(f"unknown key '{key}.{k}'; allowed: {', '.join(allowed)}")
+
+
+def material_from_table(key: str, table) -> object:
+    """A material object of :data:`jaxdea.materials.KINDS` from a table ``{kind = ..., parameter =
+    value, ...}`` (missing parameters: the class defaults), checked by
+    :func:`jaxdea.params.validate_material` (finite, normalised to unit shear modulus).
+
+    Raises:
+        ValueError: naming ``key`` (``material``, ``layers[1].material``, …) and what is allowed
+            (without the prefix of :func:`parse_config`: the fit configuration reads it too).
+    """
+    kinds = ", ".join(f'"{k}"' for k in KINDS)
+    if not isinstance(table, dict):
+        _wrong(f"{key!r} must be a table {{kind = {kinds}, parameters...}}, got {table!r}")
+    if "kind" not in table:
+        _wrong(f"'{key}.kind' is missing: one of {kinds}")
+    kind = table["kind"]
+    if kind not in KINDS:
+        _wrong(f"'{key}.kind' must be one of {', '.join(KINDS)}, got {kind!r}")
+    fields = tuple(f.name for f in dataclasses.fields(KINDS[kind]))
+    _known_keys(table, key, ("kind", *fields))
+    params = {}
+    for k in fields:
+        if k not in table:
+            continue
+        v = table[k]
+        if kind == "ogden":  # tuples of one length
+            if not isinstance(v, list) or not v or not all(_is_number(x) for x in v):
+                _wrong(f"'{key}.{k}' must be a non-empty list of numbers, got {v!r}")
+            params[k] = tuple(float(x) for x in v)
+        elif not _is_number(v):
+            _wrong(f"'{key}.{k}' must be a number, got {v!r}")
+        else:
+            params[k] = float(v)
+    material = KINDS[kind](**params)
+    try:
+        validate_material(material)
+    except ValueError as exc:
+        _wrong(f"{key!r}: {exc}")
+    return material
+
+
+def layers_from_tables(data) -> tuple:
+    """The ``[[layers]]`` array of tables as a tuple of :class:`jaxdea.Layer`, validated as a wall
+    (exactly one active, fractions > 0 summing to 1, the active layer's ratios 1).
+
+    Raises:
+        ValueError: naming the key (``layers[1].active``, …), as :func:`material_from_table`.
+    """
+    if not isinstance(data, list) or not data or not all(isinstance(x, dict) for x in data):
+        _wrong(f"'layers' must be an array of tables ([[layers]], one per layer from the inner face "
+              f"outwards), got {data!r}")
+    layers = []
+    for k, table in enumerate(data):
+        key = f"layers[{k}]"
+        _known_keys(table, key, LAYER_KEYS)
+        if "fraction" not in table:
+            _wrong(f"'{key}.fraction' is missing (the layer's share of the undeformed wall)")
+        values = {}
+        for name in ("fraction", "shear_ratio", "density_ratio"):
+            if name in table:
+                v = table[name]
+                if not _is_number(v) or not (math.isfinite(v) and v > 0):
+                    _wrong(f"'{key}.{name}' must be a finite number > 0, got {v!r}")
+                values[name] = float(v)
+        if "active" in table:
+            if not isinstance(table["active"], bool):
+                _wrong(f"'{key}.active' must be true or false, got {table['active']!r}")
+            values["active"] = table["active"]
+        if "material" in table:
+            values["material"] = material_from_table(f"{key}.material", table["material"])
+        layers.append(Layer(**values))
+    try:
+        validate_wall_layers(Tube(layers=tuple(layers)))
+    except ValueError as exc:
+        _wrong(str(exc))
+    return tuple(layers)
+
+
+def _parse_wall(data, tube: dict) -> None:
+    """``[material]`` or ``[[layers]]`` into ``tube`` (its ``material`` or ``layers``)."""
+    energy = [f"'tube.{k}'" for k in ("material", "gent") if k in tube]
+    for table in ("material", "layers"):
+        if table in data and energy:
+            _fail(f"'{table}' and {' and '.join(energy)} both set the wall's energy; give one")
+    if "material" in data and "layers" in data:
+        _fail("'material' and 'layers' both set the wall's energy; with [[layers]] give each layer "
+              "its material")
+    try:
+        if "material" in data:
+            tube["material"] = material_from_table("material", data["material"])
+        if "layers" in data:
+            tube["layers"] = layers_from_tables(data["layers"])
+    except ValueError as exc:
+        _fail(str(exc))
+
+
 def _parse_fluid(data, units: dict | None = None) -> dict:
     fluid, seen = {}, {}
     for k, v in _table(data, "fluid", (*FLUID_KEYS, *FLUID_SI_KEYS)).items():
@@ -377,10 +528,13 @@ def _parse_outer(data, units: dict | None = None) -> dict:
 
 
 def _parse_axes(data, tube: dict, fluid: dict | None, units: dict | None = None,
-                outer: dict | None = None) -> dict:
+                outer: dict | None = None, wall: Tube | None = None) -> dict:
     if "axes" not in data:
         _fail("missing table 'axes' (the sweep grid, e.g. n = [1, 2, 3])")
-    table = _table(data["axes"], "axes", (*AXIS_NAMES, *SI_NAMES))
+    for key in data["axes"] if isinstance(data["axes"], dict) else ():
+        if key not in wall_names(wall) and wall_hint(key, wall):
+            _fail(f"'axes.{key}' is no parameter of this wall{wall_hint(key, wall)}")
+    table = _table(data["axes"], "axes", (*AXIS_NAMES, *wall_names(wall), *SI_NAMES))
     if not table:
         _fail("'axes' is empty: give the wavenumber axis 'alpha' (α̂) or 'n' (axial mode numbers)")
     axes, seen, points = {}, {}, 1
@@ -411,7 +565,7 @@ def _parse_axes(data, tube: dict, fluid: dict | None, units: dict | None = None,
     return axes
 
 
-def _parse_solver(data, fluid: dict | None, outer: dict | None = None) -> dict:
+def _parse_solver(data, fluid: dict | None, outer: dict | None = None, wall: tuple = ()) -> dict:
     table = _table(data.get("solver", {}), "solver", SOLVER_KEYS)
     out = {}
     for k, high in (("n_roots", MAX_ROOTS), ("n_layers", MAX_LAYERS)):
@@ -436,7 +590,7 @@ def _parse_solver(data, fluid: dict | None, outer: dict | None = None) -> dict:
         jac = table["jacobian"]
         allowed = [n for n in NAMES if n not in ("alpha", "n")
                    and (fluid is not None or n not in FLUID_LEAVES)
-                   and (outer is not None or n not in OUTER_LEAVES)]
+                   and (outer is not None or n not in OUTER_LEAVES)] + list(wall)
         if isinstance(jac, list):
             for i, name in enumerate(jac):
                 if name not in allowed:
@@ -482,8 +636,9 @@ def parse_config(data, default_name: str = "sweep") -> SweepConfig:
     """Validate a sweep configuration (the parsed TOML/JSON document).
 
     Args:
-        data: the document as a dict (tables ``tube``, ``fluid``, ``axes``, ``solver``,
-            ``output``, ``units``; :data:`FORMAT` shows them all).
+        data: the document as a dict (tables ``tube``, ``material``, ``layers`` (an array of
+            tables), ``fluid``, ``axes``, ``solver``, ``output``, ``units``; :data:`FORMAT` shows
+            them all).
         default_name: file stem of the outputs when ``output.name`` is absent.
 
     Returns:
@@ -495,12 +650,14 @@ def parse_config(data, default_name: str = "sweep") -> SweepConfig:
     _table(data, "", TOP_KEYS)
     units = _parse_units(data)
     tube = _parse_tube(data.get("tube", {}), units)
+    _parse_wall(data, tube)
     delta_p = tube.pop("delta_p", None)
     fixed = set(tube)  # before a fixed thickness_ratio moves to the axes
     fluid = _parse_fluid(data["fluid"], units) if "fluid" in data else None
     outer = _parse_outer(data["outer_fluid"], units) if "outer_fluid" in data else None
-    axes = _parse_axes(data, tube, fluid, units, outer)
-    solver = _parse_solver(data, fluid, outer)
+    wall = Tube(material=tube.get("material", "gent"), layers=tube.get("layers"))
+    axes = _parse_axes(data, tube, fluid, units, outer, wall)
+    solver = _parse_solver(data, fluid, outer, wall_names(wall))
     if delta_p is not None:
         held = "'tube.delta_p'" if "delta_p" in data.get("tube", {}) else f"'tube.{PRESSURE_SI_KEY}'"
         for where, keys in (("tube", fixed), ("axes", set(axes) - fixed)):

@@ -35,8 +35,9 @@ from ..studies.fit import (
     fitted_frequencies,
 )
 from ..studies.peaks import read_peaks
+from .config import layers_from_tables, material_from_table
 
-TOP_KEYS = ("free", "fixed", "fluid", "options", "outer_fluid")
+TOP_KEYS = ("free", "fixed", "fluid", "options", "outer_fluid", "material", "layers")
 OUTER_KEYS = ("preset", "fluid_density", "sound_speed")
 OUTER_PRESETS = ("water", "air", "silicone_oil")
 FREE_KEYS = ("lower", "upper", "initial")
@@ -57,6 +58,11 @@ fluid = "acoustic"   optional, before the tables (leave it out for an empty tube
           pressure (Pa, P_i - P_o, any finite value) instead of lambda_i for a tube held by its
           pressure (lambda_i follows from it at every voltage); a peak column pressure_Pa,
           lambda_i or lambda_z replaces the parameter of that name (several loadings)
+[material] optional, the wall's material (fixed; then gent is no parameter): kind = "neo_hookean" |
+          "mooney_rivlin" | "gent_gent" | "ogden" and its parameters (as in jaxdea sweep's config)
+[[layers]] optional, one table per layer from the inner face outwards (instead of [material]):
+          fraction, material = {{kind = ..., ...}}, shear_ratio, density_ratio, active = true for
+          the dielectric (μ, density, permittivity are its own); gent is no parameter
 [outer_fluid] optional: the known fluid around the tube, preset = "water" | "air" | "silicone_oil"
           or fluid_density (kg/m^3) and sound_speed (m/s)
 [options] of jaxdea.fit: n_layers, scheme (default: the accurate graded magnus6 laminate; n_layers
@@ -229,6 +235,8 @@ class FitConfig:
     initial: dict | None
     options: dict
     outer: tuple | None = None
+    material: object = None
+    layers: tuple | None = None
 
 
 def _number(key, x, allow_inf=False):
@@ -315,7 +323,13 @@ def parse_fit_config(data) -> FitConfig:
     if initial and len(initial) != len(free):
         missing = [k for k in free if k not in initial]
         raise ValueError(f"free.{missing[0]}.initial: needed when another free parameter has one")
-    return FitConfig(free, fixed, fluid, initial or None, options, _outer_fluid(data))
+    if "material" in data and "layers" in data:
+        raise ValueError("material, layers: both set the wall's energy; with [[layers]] give each "
+                         "layer its material")
+    material = material_from_table("material", data["material"]) if "material" in data else None
+    layers = layers_from_tables(data["layers"]) if "layers" in data else None
+    return FitConfig(free, fixed, fluid, initial or None, options, _outer_fluid(data), material,
+                     layers)
 
 
 def _outer_fluid(data) -> tuple | None:
@@ -411,7 +425,8 @@ def run_fit(data_path, config_path, out=None):
         warnings.simplefilter("always", IdentifiabilityWarning)
         warnings.simplefilter("always", FitQualityWarning)
         result = fit(data, config.free, config.fixed, config.fluid, initial=config.initial,
-                     outer=config.outer, **config.options)
+                     outer=config.outer, material=config.material, layers=config.layers,
+                     **config.options)
     messages = [str(w.message) for w in caught
                 if issubclass(w.category, (IdentifiabilityWarning, FitQualityWarning))]
     try:  # both or neither

@@ -7,10 +7,23 @@ surrounding fluid ``tube.outer`` (``outer_density_ratio``, ``outer_speed_ratio``
 (α̂), ``n`` (axial mode number: α̂ = 2nπη/(length_ratio·λ_z), sweeps only) and ``thickness_ratio``
 (deformed h/R_i at the tube's λ_i, λ_z, set through :func:`jaxdea.with_thickness_ratio`, i.e. by η).
 
+Names of the wall (:func:`wall_names`, for a tube that has them): ``material_<field>``, a scalar
+parameter of the tube's material object (``material_beta`` of ``MooneyRivlin``); and per layer k
+(0 the innermost, as ``tube.layers[k]``) ``layer<k>_fraction``, ``layer<k>_shear_ratio``,
+``layer<k>_density_ratio`` (passive layers only: the active layer sets the units) and
+``layer<k>_material_<field>``. The fractions keep summing to 1: the active layer absorbs every
+change, f_active = 1 − Σ f_passive, so its own fraction is not a name (a wall held at η: a thicker
+encapsulation makes the dielectric thinner).
+
 Order of application (so that a combination means what it says): tube leaves and the surrounding
 fluid's, then ``thickness_ratio`` (h/R_i held at the final λ_i, λ_z), then fluid leaves, then ``alpha`` or ``n``
 (α̂ of mode n of the final tube).
 """
+
+import dataclasses
+import re
+
+import numpy as np
 
 from ..params import Fluid, Tube, as_float, mode_wavenumber
 from .base_state import geometry, with_thickness_ratio_unchecked
@@ -20,12 +33,60 @@ FLUID_LEAVES = ("density_ratio", "speed_ratio")
 OUTER_LEAVES = ("outer_density_ratio", "outer_speed_ratio")
 """The surrounding fluid's leaves (``tube.outer``): ``outer_`` and the :class:`~jaxdea.Fluid` field."""
 NAMES = (*TUBE_LEAVES, "thickness_ratio", *FLUID_LEAVES, *OUTER_LEAVES, "alpha", "n")
+LAYER_LEAVES = ("fraction", "shear_ratio", "density_ratio")
+"""The float fields of a :class:`~jaxdea.Layer` that a passive layer's names ``layer<k>_...`` set."""
+_LAYER_NAME = re.compile(r"layer(\d+)_(.+)")
+
+
+def material_fields(material) -> tuple:
+    """The scalar parameters of a material object (its dataclass fields holding one real number:
+    Ogden's tuples and a user's ``Energy`` params pytree are not names); () for a static name."""
+    if isinstance(material, str) or not dataclasses.is_dataclass(material):
+        return ()
+    return tuple(f.name for f in dataclasses.fields(material) if not f.metadata.get("static")
+                 and np.ndim(getattr(material, f.name)) == 0
+                 and np.isrealobj(getattr(material, f.name))
+                 and not isinstance(getattr(material, f.name), (str, bool, type(None))))
+
+
+def wall_names(tube: Tube | None) -> tuple:
+    """The names of the wall's own parameters for this tube (module docstring): the tube's material
+    object's, then each passive layer's and each layer's material's."""
+    if tube is None:
+        return ()
+    names = [f"material_{f}" for f in material_fields(tube.material)]
+    for k, layer in enumerate(tube.layers or ()):
+        if not layer.active:
+            names += [f"layer{k}_{f}" for f in LAYER_LEAVES]
+        names += [f"layer{k}_material_{f}" for f in material_fields(layer.material)]
+    return tuple(names)
+
+
+def wall_hint(name, tube) -> str:
+    """Why ``name`` is no parameter of this tube's wall, in words ('' when it is not a wall name)."""
+    match = _LAYER_NAME.fullmatch(name)
+    if name.startswith("material_"):
+        if tube is None or isinstance(tube.material, str):
+            return " (material_ names need a material object on the tube, e.g. MooneyRivlin)"
+        return f" (the tube's {type(tube.material).__name__} has no scalar parameter {name[9:]!r})"
+    if match is None:
+        return ""
+    layers = () if tube is None else tube.layers or ()
+    k = int(match.group(1))
+    if not layers:
+        return " (layer names need a layered wall, Tube(layers=...))"
+    if k >= len(layers):
+        return f" (the tube has {len(layers)} layers: k from 0 to {len(layers) - 1})"
+    if layers[k].active and match.group(2) in LAYER_LEAVES:
+        return (" (the active layer's fraction follows the others, 1 − Σ f_passive, and its "
+                "ratios are 1: set a passive layer's)")
+    return ""
 
 
 def check_names(names, fluid: Fluid | None, allow_n: bool = True, tube: Tube | None = None) -> None:
     """Raise ValueError unless every name is a parameter that can be set for this case (the
     surrounding fluid's with a ``tube`` that has one)."""
-    allowed = [n for n in NAMES if allow_n or n != "n"]
+    allowed = [n for n in NAMES if allow_n or n != "n"] + list(wall_names(tube))
     if fluid is None:
         allowed = [n for n in allowed if n not in FLUID_LEAVES]
     if tube is None or tube.outer is None:
@@ -35,6 +96,7 @@ def check_names(names, fluid: Fluid | None, allow_n: bool = True, tube: Tube | N
             extra = " (fluid parameters need a Fluid)" if name in FLUID_LEAVES else ""
             if name in OUTER_LEAVES:
                 extra = " (the surrounding fluid's parameters need outer=Fluid(...))"
+            extra = extra or wall_hint(name, tube)
             raise ValueError(f"unknown parameter {name!r}{extra}: allowed are {', '.join(allowed)}")
     if "alpha" in names and "n" in names:
         raise ValueError("give either 'alpha' or 'n' (the axial mode number), not both")
@@ -52,6 +114,14 @@ def get_parameter(tube: Tube, alpha, fluid: Fluid | None, name: str):
         return as_float(getattr(tube.outer, name.removeprefix("outer_")))
     if name == "thickness_ratio":
         return geometry(tube).thickness
+    if name.startswith("material_"):
+        return as_float(getattr(tube.material, name.removeprefix("material_")))
+    match = _LAYER_NAME.fullmatch(name)
+    if match is not None:
+        layer, field = tube.layers[int(match.group(1))], match.group(2)
+        if field.startswith("material_"):
+            return as_float(getattr(layer.material, field.removeprefix("material_")))
+        return as_float(getattr(layer, field))
     if name == "alpha":
         return as_float(alpha)
     raise ValueError(f"cannot read parameter {name!r}")
@@ -60,6 +130,7 @@ def get_parameter(tube: Tube, alpha, fluid: Fluid | None, name: str):
 def apply_parameters(tube: Tube, alpha, fluid: Fluid | None, values: dict):
     """(tube, alpha, fluid) with the named parameters set (module docstring for the order)."""
     tube = tube.replace(**{k: v for k, v in values.items() if k in TUBE_LEAVES})
+    tube = with_wall(tube, values)
     outer_values = {k.removeprefix("outer_"): v for k, v in values.items() if k in OUTER_LEAVES}
     if outer_values:
         tube = tube.replace(outer=tube.outer.replace(**outer_values))
@@ -78,3 +149,33 @@ def apply_parameters(tube: Tube, alpha, fluid: Fluid | None, values: dict):
 def set_parameter(tube: Tube, alpha, fluid: Fluid | None, name: str, value):
     """(tube, alpha, fluid) with one named parameter set to ``value``."""
     return apply_parameters(tube, alpha, fluid, {name: value})
+
+
+def with_wall(tube: Tube, values: dict) -> Tube:
+    """The tube with the wall's named parameters of ``values`` set (:func:`wall_names`; other names
+    ignored). A passive layer's new fraction is taken from the active layer: f_active = 1 − Σ
+    f_passive."""
+    material = {k.removeprefix("material_"): v for k, v in values.items()
+                if k.startswith("material_")}
+    if material:
+        tube = tube.replace(material=dataclasses.replace(tube.material, **material))
+    per_layer = {}
+    for name, value in values.items():
+        match = _LAYER_NAME.fullmatch(name)
+        if match is not None:
+            per_layer.setdefault(int(match.group(1)), {})[match.group(2)] = value
+    if not per_layer:
+        return tube
+    layers = list(tube.layers)
+    for k, changes in per_layer.items():
+        material = {f.removeprefix("material_"): v for f, v in changes.items()
+                    if f.startswith("material_")}
+        fields = {f: v for f, v in changes.items() if not f.startswith("material_")}
+        if material:
+            fields["material"] = dataclasses.replace(layers[k].material, **material)
+        layers[k] = dataclasses.replace(layers[k], **fields)
+    if any("fraction" in changes for changes in per_layer.values()):
+        active = next(k for k, layer in enumerate(layers) if layer.active)
+        passive = sum(as_float(layer.fraction) for layer in layers if not layer.active)
+        layers[active] = dataclasses.replace(layers[active], fraction=1.0 - passive)
+    return tube.replace(layers=tuple(layers))

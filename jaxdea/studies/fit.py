@@ -87,11 +87,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..params import Fluid, Tube, require_x64
+from ..materials import Gent
+from ..params import Fluid, Tube, require_x64, validate_material, validate_wall_layers
 from ..physics.base_state import inner_stretch_traced
 from ..physics.families import Face, Family
 from ..physics.transfer import Layers, laminate, validate_scheme
 from ..solve.roots import frequencies, frequency
+from .sweeps import wall_from_settings, wall_settings
 
 NAMES = ("shear_modulus", "density", "permittivity", "inner_radius", "length", "eta", "lambda_i",
          "lambda_z", "gent", "pressure", "fluid_density", "fluid_speed")
@@ -227,7 +229,7 @@ class FitResult(NamedTuple):
 
 
 def dimensionless(values, voltage_V, n, coupling=None, bessel_order=None, load=None,
-                  by_pressure=False, outer=None):
+                  by_pressure=False, outer=None, wall=None):
     """(Tube, α̂_n, Fluid or None, Hz per unit Ω) of a parameter vector in ``NAMES`` order.
 
     V̂ = V sqrt(ε/μ)/R_i, length_ratio = L/R_o = Lη/R_i, α̂_n = 2nπ R_i/(λ_z L),
@@ -236,12 +238,15 @@ def dimensionless(values, voltage_V, n, coupling=None, bessel_order=None, load=N
     ``by_pressure``: λ_i is the inner stretch that ΔP̂ = ΔP/μ holds at V̂, λ_z
     (:func:`jaxdea.inner_stretch`, docs/theory/axisymmetric.md Eq. 1.1; implicit derivatives).
     ``outer``: None, or (ρ_o, c_o) in SI of a surrounding fluid: ρ̂_o = ρ_o/ρ_s, ĉ_o = c_o/c_s.
+    ``wall``: None (the Gent wall of ``gent``), or a :class:`~jaxdea.Tube` whose material and layers
+    the model takes (:func:`fit`'s ``material``, ``layers``).
     """
     mu, rho, eps, ri, length, eta, li, lz, gent, dp, rho_f, c_f = (values[i] for i in range(12))
     if load is not None:
         li, lz, dp = (jnp.where(jnp.isnan(load[i]), x, load[i]) for i, x in enumerate((li, lz, dp)))
-    tube = Tube(voltage=voltage_V * jnp.sqrt(eps / mu) / ri, lambda_i=li, lambda_z=lz, eta=eta,
-                gent=gent, length_ratio=length * eta / ri)
+    fields = dict(voltage=voltage_V * jnp.sqrt(eps / mu) / ri, lambda_i=li, lambda_z=lz, eta=eta,
+                  gent=gent, length_ratio=length * eta / ri)
+    tube = Tube(**fields) if wall is None else wall.replace(**fields)
     if by_pressure:
         tube = tube.replace(lambda_i=inner_stretch_traced(tube, dp / mu)[0])
     alpha = 2.0 * math.pi * n * ri / (lz * length)
@@ -271,17 +276,18 @@ def _solver_family(family, order):
 @partial(jax.jit, static_argnames=("n_roots", "n_layers", "coupling", "bessel_order", "family",
                                    "by_pressure"))
 def mode_roots(values, voltage_V, n, m, n_roots, n_layers, coupling, bessel_order, family,
-               by_pressure=False, load=None, outer=None):
+               by_pressure=False, load=None, outer=None, wall=None):
     """Ω of the ``n_roots`` lowest positive roots of order m at α̂_n, per point: (points, n_roots).
 
     ``family``: one of :data:`FAMILIES` (every m is 0 but for ``ORDER_M``, m ≥ 1, traced);
     ``load``: (points, 3) of (λ_i, λ_z, ΔP) per point, NaN where ``values`` holds it (None: all);
-    ``outer``: (ρ_o, c_o) in SI of a surrounding fluid, or None (:func:`dimensionless`).
+    ``outer``: (ρ_o, c_o) in SI of a surrounding fluid, or None; ``wall``: the material and layers
+    (:func:`dimensionless`).
     """
     load = jnp.full((voltage_V.shape[0], 3), jnp.nan) if load is None else load
     def one(v, k, order, point):
         tube, alpha, fluid, _ = dimensionless(values, v, k, coupling, bessel_order, point,
-                                              by_pressure, outer)
+                                              by_pressure, outer, wall)
         m, torsional = _solver_family(family, order)
         return frequencies(tube, alpha, fluid, n_roots, n_layers=n_layers, m=m,
                            torsional=torsional)
@@ -290,16 +296,16 @@ def mode_roots(values, voltage_V, n, m, n_roots, n_layers, coupling, bessel_orde
 
 @partial(jax.jit, static_argnames=("n_layers", "coupling", "bessel_order", "family", "by_pressure"))
 def model_and_jacobian(values, voltage_V, n, m, guess, n_layers, coupling, bessel_order,
-                       family, by_pressure=False, load=None, outer=None):
+                       family, by_pressure=False, load=None, outer=None, wall=None):
     """(Ω, f in Hz, ∂f/∂values) per point, Ω by Newton from ``guess`` (implicit derivatives);
-    ``family``, ``by_pressure``, ``load`` as in :func:`mode_roots`.
+    ``family``, ``by_pressure``, ``load``, ``outer``, ``wall`` as in :func:`mode_roots`.
 
     The Jacobian is ``jax.jacfwd`` with respect to all 12 values (one program whatever is free)."""
     load = jnp.full((voltage_V.shape[0], 3), jnp.nan) if load is None else load
     def hz(vals):
         def one(v, k, order, point, g):
             tube, alpha, fluid, scale = dimensionless(vals, v, k, coupling, bessel_order, point,
-                                                      by_pressure, outer)
+                                                      by_pressure, outer, wall)
             m, torsional = _solver_family(family, order)
             omega = frequency(tube, alpha, g, fluid, n_layers, m=m, torsional=torsional)
             return jnp.stack([omega * scale, omega])
@@ -351,6 +357,7 @@ class _Problem(NamedTuple):
     reciprocal: np.ndarray | None = None  # (p,) bool: θ_k is 1/value (:data:`RECIPROCAL`)
     bounds: np.ndarray | None = None  # (p, 2) the bounds as given (lower, upper are internal)
     outer: tuple | None = None  # (ρ_o, c_o) in SI of a surrounding fluid, or None
+    wall: Tube | None = None  # the material and layers of the model (None: the Gent wall of gent)
 
 
 def _outer_si(outer) -> tuple | None:
@@ -370,6 +377,31 @@ def _outer_si(outer) -> tuple | None:
         if not (math.isfinite(value) and value > 0):
             raise ValueError(f"outer: the {name} must be a finite number > 0, got {value!r}")
     return density, speed
+
+
+def _wall(material, layers) -> Tube | None:
+    """The wall of ``fit``'s ``material`` and ``layers`` (a :class:`~jaxdea.Tube` that carries them),
+    validated; None for neither (the Gent wall of the parameter ``gent``).
+
+    Raises:
+        ValueError: naming ``material`` or ``layers`` (:func:`jaxdea.params.validate_material`,
+            :func:`jaxdea.params.validate_wall_layers`); ``material=Gent(G)``, whose G is the
+            parameter ``gent``.
+    """
+    if material is None and layers is None:
+        return None
+    if isinstance(material, Gent):
+        raise ValueError("material=Gent(G): leave material out and give the Gent constant as the "
+                         "parameter 'gent' (free or fixed)")
+    wall = Tube(material="gent" if material is None else material, layers=layers)
+    validate_material(wall.material)
+    validate_wall_layers(wall)
+    return wall
+
+
+def _uses_gent(wall) -> bool:
+    """Whether the model's energy is the Gent wall of the parameter ``gent``."""
+    return wall is None or (wall.layers is None and wall.material == "gent")
 
 
 def _outer(problem: _Problem):
@@ -421,7 +453,7 @@ def _roots(problem: _Problem, theta, voltage, n, m, n_roots, load, torsional=Non
     for index, found in _by_family(m, torsional, lambda p, family: mode_roots(
             values, jnp.asarray(voltage[p]), jnp.asarray(n[p], float), jnp.asarray(m[p], float),
             n_roots, problem.n_layers, problem.coupling, problem.bessel_order, family,
-            problem.by_pressure, jnp.asarray(load[p]), _outer(problem))):
+            problem.by_pressure, jnp.asarray(load[p]), _outer(problem), problem.wall)):
         out[index] = np.asarray(found)[:index.size]
     return out
 
@@ -443,7 +475,7 @@ def _evaluate(problem: _Problem, theta, labels, guess):
             values, jnp.asarray(problem.voltage[where[p]]), jnp.asarray(labels[where[p], 1], float),
             jnp.asarray(m[p], float), jnp.asarray(guess[where[p]]), problem.n_layers,
             problem.coupling, problem.bessel_order, family, problem.by_pressure,
-            jnp.asarray(load[where[p]]), _outer(problem))):
+            jnp.asarray(load[where[p]]), _outer(problem), problem.wall)):
         rows = where[index]
         omega[rows] = np.asarray(w)[:index.size]
         f[rows] = np.asarray(hz)[:index.size]
@@ -876,7 +908,7 @@ def _integer_column(data, name, low):
     return values.astype(int)
 
 
-def _validate(data, free, fixed, fluid):
+def _validate(data, free, fixed, fluid, wall=None):
     if not isinstance(data, Mapping) and not hasattr(data, "columns"):
         raise ValueError(f"data must be a mapping of columns (dict, DataFrame), got "
                          f"{type(data).__name__}")
@@ -893,6 +925,11 @@ def _validate(data, free, fixed, fluid):
     if coupling is not None and Face(coupling).has_poles and bessel_order is None:
         raise ValueError("fluid with the 'paper' coupling needs an explicit bessel_order")
     known = NAMES if coupling is not None else NAMES[:-2]
+    if not _uses_gent(wall):
+        if "gent" in free or "gent" in fixed:
+            raise ValueError("parameter 'gent' is the Gent constant of the default wall: this "
+                             "wall's energy is its material's (material=...) or its layers'")
+        known = tuple(name for name in known if name != "gent")
     for name in list(free) + list(fixed):
         if name not in known:
             extra = " (fluid parameters need fluid=...)" if name in FLUID_NAMES else ""
@@ -942,6 +979,7 @@ def _validate(data, free, fixed, fluid):
         lower.append(low)
         upper.append(high)
     base = np.ones(len(NAMES))
+    base[NAMES.index("gent")] = Tube.gent  # unused where the wall is not the Gent one
     for name, value in fixed.items():
         try:
             value = float(value)
@@ -1024,7 +1062,8 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
         n_layers: int | None = None, scheme: str | None = None, m_max: int = 2, n_max: int = 3,
         n_branches: int = 2, torsional: bool = False, threshold: float = 0.1, outlier_sigma: float = 5.0,
         max_unmatched: float = 0.25, n_starts: int = 3, grid_points: int = 3,
-        max_iterations: int = 100, max_reassignments: int = 10, outer=None) -> FitResult:
+        max_iterations: int = 100, max_reassignments: int = 10, outer=None, material=None,
+        layers=None) -> FitResult:
     """Material and geometry parameters from measured resonance frequencies (SI units).
 
     Minimises Σ ((f_model − f_data)/σ)² with f_model = Ω c_s/(2π R_i) of the labelled (or assigned)
@@ -1070,6 +1109,11 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
         outer: None (the tube in vacuum or air), or the known surrounding fluid in SI: a
             :class:`jaxdea.units.FluidSI` such as :data:`jaxdea.units.WATER`, or
             (density kg/m³, sound speed m/s). Its ratios ρ_o/ρ_s, c_o/c_s follow the fitted μ, ρ_s.
+        material: None (Gent, of the parameter ``gent``), or the wall's material object
+            (``jaxdea.MooneyRivlin(0.2)``, ``NeoHookean()``, …; fixed), as ``Tube(material=...)``.
+            Then ``gent`` is no parameter, and μ is the material's small-strain shear modulus.
+        layers: None, or the layered wall as ``Tube(layers=...)`` (fixed): μ, ρ_s and ε are the
+            active layer's, and ``gent`` is no parameter.
 
     Returns:
         An instance of :class:`FitResult`.
@@ -1100,7 +1144,8 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
         from .peaks import read_peaks
 
         data = read_peaks(data)
-    problem, labels = _validate(data, free, fixed, fluid)
+    wall = _wall(material, layers)
+    problem, labels = _validate(data, free, fixed, fluid, wall)
     if n_layers is not None and (not isinstance(n_layers, (int, np.integer))
                                  or isinstance(n_layers, bool) or n_layers < 1):
         raise ValueError(f"n_layers must be None or an integer >= 1, got {n_layers!r}")
@@ -1118,7 +1163,7 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
     if not (isinstance(max_unmatched, (int, float, np.floating)) and 0 <= max_unmatched <= 1):
         raise ValueError(f"max_unmatched must be a number in [0, 1], got {max_unmatched!r}")
     problem = problem._replace(threshold=float(threshold), outlier=float(outlier_sigma),
-                               outer=_outer_si(outer))
+                               outer=_outer_si(outer), wall=wall)
     initial_starts, candidates = _starts(problem, initial, grid_points)
     if not isinstance(torsional, (bool, np.bool_)):
         raise ValueError(f"torsional must be True or False, got {torsional!r}")
@@ -1233,7 +1278,8 @@ def _discretisation(problem, thetas, reach, n_layers, scheme):
         for load in loads:
             for voltage in voltages:
                 tube, alpha, _, _ = dimensionless(_values(problem, theta), voltage, float(n_top),
-                                                  load=load, by_pressure=problem.by_pressure)
+                                                  load=load, by_pressure=problem.by_pressure,
+                                                  wall=problem.wall)
                 if not np.isfinite(float(tube.lambda_i)):
                     continue  # no static state there (beyond pull-in): the fit reports it
                 layers = laminate(n_layers, scheme, tube, float(alpha), n_roots, m_top)
@@ -1242,7 +1288,8 @@ def _discretisation(problem, thetas, reach, n_layers, scheme):
                 if chosen is None or layers.count > chosen.count:
                     chosen = layers
     if chosen is None:  # no start had a static state: the accurate default at the first one
-        tube, alpha, _, _ = dimensionless(_values(problem, thetas[0]), 0.0, float(n_top))
+        tube, alpha, _, _ = dimensionless(_values(problem, thetas[0]), 0.0, float(n_top),
+                                          wall=problem.wall)
         chosen = laminate(n_layers, scheme, tube.replace(lambda_i=1.0), float(alpha), n_roots,
                           m_top)
     return chosen
@@ -1257,6 +1304,7 @@ def _result(problem, best, max_unmatched, max_iterations):
     residuals[active] = r if r.size == active.sum() else np.nan
     p = theta.size
     known = set(NAMES if problem.coupling is not None else NAMES[:-2])
+    known -= set() if _uses_gent(problem.wall) else {"gent"}
     load = _load(problem)
     known -= {name for name, given in zip(("lambda_i", "lambda_z", "pressure"),
                                           np.all(np.isfinite(load), axis=0), strict=True) if given}
@@ -1269,7 +1317,8 @@ def _result(problem, best, max_unmatched, max_iterations):
                     graded=bool(getattr(layers, "graded", False)), coupling=problem.coupling,
                     bessel_order=problem.bessel_order,
                     loading="pressure" if problem.by_pressure else "stretch",
-                    outer=None if problem.outer is None else list(problem.outer))
+                    outer=None if problem.outer is None else list(problem.outer),
+                    **wall_settings(problem.wall))
     torsional = final_labels[:, 3] > 0
     final_labels = final_labels[:, :3]
     bounds = _bounds(problem)
@@ -1503,10 +1552,11 @@ def fitted_frequencies(result: FitResult, voltage_V, m, n, branch=0, *, torsiona
     if settings.get("scheme", "midpoint") != "midpoint" or settings.get("graded", False):
         layers = Layers(int(layers), settings["scheme"], bool(settings.get("graded", False)))
     base = np.array([result.parameters.get(k, 1.0) for k in NAMES], dtype=np.float64)
+    base[NAMES.index("gent")] = result.parameters.get("gent", Tube.gent)  # as fit's, without one
     problem = _Problem(voltage, np.ones_like(voltage), np.ones_like(voltage), False, (),
                        np.zeros(0), np.zeros(0), base, np.zeros(0, int), layers,
                        settings["coupling"], settings["bessel_order"], by_pressure=by_pressure,
-                       outer=_outer_si(settings.get("outer")))
+                       outer=_outer_si(settings.get("outer")), wall=wall_from_settings(settings))
     out = np.full(voltage.size, np.nan)
     if voltage.size:
         n_roots = int(branch.max()) + 1

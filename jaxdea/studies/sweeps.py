@@ -2,10 +2,11 @@
 
 A grid is the Cartesian product of 1-D axes named after the parameters of :mod:`jaxdea.physics.leaves`
 (any Tube or Fluid float field, ``thickness_ratio`` h/R_i, and ``alpha`` α̂ or ``n`` the axial mode
-number). Its points are solved in fixed-size chunks by one jit-compiled, vmapped program: memory is
-bounded by the chunk (plus the result arrays), and every chunk reuses the same compilation. Points
-that fail (no root, non-finite transfer, inputs past Gent locking or out of range) give NaN and
-their status (:class:`jaxdea.Status`) without stopping the sweep.
+number; the wall's material and layer parameters, ``material_beta``, ``layer2_fraction``, …). Its
+points are solved in fixed-size chunks by one jit-compiled, vmapped program: memory is bounded by
+the chunk (plus the result arrays), and every chunk reuses the same compilation. Points that fail
+(no root, non-finite transfer, inputs past Gent locking or out of range) give NaN and their status
+(:class:`jaxdea.Status`) without stopping the sweep.
 
 Scale-out: with several JAX devices each chunk is split along its points over a 1-D
 :class:`jax.sharding.Mesh` of the devices, and every device runs the one-device chunk program on its
@@ -31,6 +32,7 @@ import importlib.util
 import json
 import math
 import os
+import re
 
 import jax
 import jax.numpy as jnp
@@ -40,10 +42,12 @@ from jax.sharding import PartitionSpec as P
 
 from ..compiled import cached_jit
 from ..files import atomic_write
+from ..materials import KINDS, Energy
 from ..numerics.scalar import Status
 from ..params import (
     MAX_ROOTS,
     Fluid,
+    Layer,
     Tube,
     as_float,
     guard,
@@ -355,7 +359,18 @@ class SweepResult:
         for key, value in self.settings.items():
             if isinstance(value, dict):
                 attrs.update({f"{key}_{k}": v for k, v in value.items()
-                              if v is not None and not (key in ("tube", "fluid") and k in swept)})
+                              if v is not None and not (key in ("tube", "fluid") and k in swept)
+                              and f"{key}_{k}" not in swept})
+            elif key == "layers":  # layer<k>_<field>, as the sweep names them
+                follows = any(re.fullmatch(r"layer\d+_fraction", name) for name in self.axes)
+                for k, layer in enumerate(value):
+                    if layer["active"] and follows:  # 1 − Σ f_passive at each point, not fixed
+                        swept.add(f"layer{k}_fraction")
+                    for field, v in layer.items():
+                        for sub, x in (v.items() if isinstance(v, dict) else [(None, v)]):
+                            name = f"layer{k}_{field}" if sub is None else f"layer{k}_{field}_{sub}"
+                            if name not in swept:
+                                attrs[name] = int(x) if isinstance(x, bool) else x
             elif value is not None:
                 attrs[key] = int(value) if isinstance(value, bool) else value
         attrs["status_meaning"] = ", ".join(f"{s.value}: {s.name.lower()}" for s in Status)
@@ -638,7 +653,13 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
             (no static state) a point is NaN, status INVALID. Not with an axis ``lambda_i`` or
             ``thickness_ratio`` (the deformed wall depends on λ_i: give ``eta``) or ``jacobian``.
         **axes: ``name=values`` grid axes (1-D arrays, or scalars for a fixed value) over the names
-            of :mod:`jaxdea.physics.leaves`; exactly one of ``alpha`` / ``n`` is required.
+            of :mod:`jaxdea.physics.leaves`; exactly one of ``alpha`` / ``n`` is required. The
+            wall's names (:func:`jaxdea.physics.leaves.wall_names`) are axes and jacobian names
+            too: ``material_beta`` (a scalar parameter of the tube's material object),
+            ``layer2_fraction``, ``layer2_shear_ratio``, ``layer2_density_ratio`` of a passive layer
+            (k from 0, the innermost) and ``layer1_material_gent`` of any layer's material. A
+            passive layer's fraction is taken from the active layer (f_active = 1 − Σ f_passive, η
+            held): a point where it reaches 0 is NaN, status INVALID.
 
     Returns:
         An instance of :class:`SweepResult` with Ω of shape (*grid_shape, n_roots) in the order of ``axes``.
@@ -678,8 +699,6 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
                 raise
             unused[name] = math.nan
     tube = tube.replace(**unused)
-    if not isinstance(tube.material, str):
-        raise ValueError(f"material must be a str, got {tube.material!r}")
     if progress is not None and not isinstance(progress, bool):
         raise ValueError(f"progress must be None, True or False, got {progress!r}")
     validate_layers(n_layers)
@@ -916,9 +935,12 @@ def _order(fluid, axes):
 def _settings(tube, fluid, n_roots, omega_max, layers, m_axis=None, m=0, torsional=False):
     leaf = lambda x: float(np.asarray(x)) if np.ndim(x) == 0 else np.asarray(x).tolist()  # noqa: E731
     count, scheme = split_layers(layers)
-    out = {"tube": {k: leaf(getattr(tube, k)) for k in TUBE_LEAVES}, "material": tube.material,
+    out = {"tube": {k: leaf(getattr(tube, k)) for k in TUBE_LEAVES},
+           "material": material_settings(tube.material),
            "n_roots": int(n_roots), "omega_max": omega_max, "n_layers": count,
            "scheme": scheme, "graded": is_graded(layers)}
+    if tube.layers is not None:
+        out["layers"] = wall_settings(tube)["layers"]
     if m_axis is None and int(m) != 0:
         out["m"] = int(m)
     if torsional:
@@ -928,6 +950,56 @@ def _settings(tube, fluid, n_roots, omega_max, layers, m_axis=None, m=0, torsion
         out["coupling"] = fluid.coupling
         out["bessel_order"] = fluid.bessel_order
     return out
+
+
+def material_settings(material):
+    """A material as JSON: its static name, or ``{"kind": ..., parameter: value, ...}`` (the kinds of
+    :data:`jaxdea.materials.KINDS`; a user's ``Energy`` as ``{"kind": "energy", "fn": its name,
+    "params": ...}``)."""
+    if isinstance(material, str):
+        return material
+    if isinstance(material, Energy):
+        params = jax.tree_util.tree_map(lambda x: np.asarray(x).tolist(), material.params)
+        return {"kind": "energy", "fn": getattr(material.fn, "__qualname__", repr(material.fn)),
+                "params": params}
+    kind = next(k for k, cls in KINDS.items() if type(material) is cls)
+    return {"kind": kind, **{f.name: np.asarray(getattr(material, f.name)).tolist()
+                             for f in dataclasses.fields(material)}}
+
+
+def wall_settings(tube: Tube | None) -> dict:
+    """``{"material": ..., "layers": [...]}`` of a tube's wall as JSON (:func:`material_settings`;
+    ``layers`` only for a layered wall); {} for None."""
+    if tube is None:
+        return {}
+    out = {"material": material_settings(tube.material)}
+    if tube.layers is not None:
+        leaf = lambda x: float(np.asarray(x))  # noqa: E731
+        out["layers"] = [{"fraction": leaf(layer.fraction), "material": material_settings(layer.material),
+                          "shear_ratio": leaf(layer.shear_ratio),
+                          "density_ratio": leaf(layer.density_ratio), "active": layer.active}
+                         for layer in tube.layers]
+    return out
+
+
+def wall_from_settings(settings: dict) -> Tube | None:
+    """The wall (a :class:`~jaxdea.Tube` carrying the material and layers) of settings written by
+    :func:`wall_settings`; None where they name none. A user's ``Energy`` cannot be rebuilt."""
+    def material(value):
+        if isinstance(value, str):
+            return value
+        if value.get("kind") not in KINDS:
+            raise ValueError(f"the settings' material {value!r} cannot be rebuilt (a user's Energy "
+                             "function is not stored): pass the material again")
+        params = {k: tuple(v) if isinstance(v, list) else v for k, v in value.items() if k != "kind"}
+        return KINDS[value["kind"]](**params)
+
+    if "material" not in settings and "layers" not in settings:
+        return None
+    layers = settings.get("layers")
+    if layers is not None:
+        layers = tuple(Layer(**{**layer, "material": material(layer["material"])}) for layer in layers)
+    return Tube(material=material(settings.get("material", "gent")), layers=layers)
 
 
 class _NoBar:
