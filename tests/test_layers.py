@@ -143,3 +143,42 @@ def test_traced_bad_fractions_give_nan_and_invalid():
     assert np.isnan(float(omega)) and int(status) == jd.Status.INVALID
     omega, status = jax.jit(lowest)(0.5)
     assert np.isfinite(float(omega)) and int(status) == jd.Status.CONVERGED
+
+
+def test_a_curve_through_layers_of_different_density_is_the_roots_at_each_point():
+    """The curve's generators, formed as polynomials in α̂ once per wall, carry each layer's
+    density ratio (they dropped it: the §7(d) sandwich's curve was 0.2 % off its own roots and
+    every point came back INACCURATE): dispersion_curve = frequencies at each α̂, to 1e-10."""
+    tube = jd.Tube(voltage=0.05, lambda_i=0.9, lambda_z=1.2, eta=0.85, layers=SANDWICH)
+    alphas = np.array([0.1, 1.0, 3.0])
+    curve = jd.dispersion_curve(tube, alphas, n_roots=4)
+    assert np.all(np.asarray(curve.status) == 0)
+    for a, row in zip(alphas, np.asarray(curve.omega)):
+        np.testing.assert_allclose(row, np.asarray(jd.frequencies(tube, a, n_roots=4)), rtol=1e-10)
+
+
+def test_mode_shape_of_a_layered_wall_meets_its_state_equation():
+    """The fields of mode_shape through the §7(d) sandwich (stiffness and density ratios ≠ 1,
+    V̂ = 0.05) are the solution of dY/dr̂ = M(r̂; Ω) Y with each layer's moduli and density,
+    integrated by SciPy's DOP853 from mode_shape's own Y(r̂_i): to 2e-3 of each field's largest
+    value (inside a sublayer mode_shape is second order: 1.2e-3 at N = 64, 1.8e-2 at 16). Inside
+    the sublayers it used the single wall's moduli (Φ off by 0.32, T̄ and S̄ by 0.05 of their
+    largest values). In the passive layers Φ = 0."""
+    from scipy.integrate import solve_ivp
+
+    from jaxdea.physics.state_matrix import state_matrix
+    from jaxdea.physics.transfer import layer_coefficients
+
+    tube = jd.Tube(voltage=0.05, lambda_i=0.9, lambda_z=1.2, eta=0.85, layers=SANDWICH)
+    alpha = 1.0
+    omega = float(jd.frequencies(tube, alpha, n_roots=2)[1])
+    r, fields = jd.mode_shape(tube, alpha, omega, n_points=201, n_layers=64, scheme="magnus6")
+    r, y = np.asarray(r), np.asarray(fields).T  # (n, 6): ū, w̄, Φ, T̄, S̄, D̄
+    matrix = jax.jit(lambda x: state_matrix(layer_coefficients(tube, x), x, omega, alpha))
+    exact = solve_ivp(lambda x, v: np.asarray(matrix(jnp.asarray(x))) @ v, (r[0], r[-1]), y[0],
+                      t_eval=r, rtol=1e-10, atol=1e-12, method="DOP853").y.T
+    scale = np.max(np.abs(y), axis=0)
+    np.testing.assert_array_less(np.max(np.abs(exact - y), axis=0), 2e-3 * scale)
+    edges = np.asarray(bs.interface_radii(tube))
+    passive = (r < edges[1]) | (r > edges[2])
+    assert np.max(np.abs(y[passive, 2])) < 1e-12 * np.max(np.abs(y[:, :2]))

@@ -222,6 +222,8 @@ def family_matrix(family: str, coef: Coefficients, r, omega_squared, alpha, m=0)
     ``"longitudinal"`` :func:`state_matrix` as M(0) − wE, ``"order_m"`` :func:`order_m_matrix`,
     ``"torsional"`` :func:`torsion_matrix`."""
     if family == LONGITUDINAL:
+        if coef.density is not None:  # a layer's ρ_k weights its inertia (as in general_matrix)
+            omega_squared = jnp.asarray(coef.density * omega_squared)[..., None, None]
         return state_matrix(coef, r, 0.0, alpha) - omega_squared * inertia_matrix(LONGITUDINAL)
     if family == ORDER_M:
         return order_m_matrix(coef, r, omega_squared, alpha, m)

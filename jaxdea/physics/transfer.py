@@ -418,6 +418,8 @@ def layer_coefficients(tube: Tube, r, moduli: str = "closed") -> Coefficients:
     autodiff Hessian of Ω(F, D_L) (docs/theory/axisymmetric.md §2), the general route, equal to rounding (tests)
     but far costlier to compile and to differentiate.
     """
+    if tube.layers is not None:
+        return layered_coefficients(tube, r)
     bs = base_state(tube, r)
     lz, gent = as_float(tube.lambda_z), as_float(tube.gent)
     if isinstance(tube.material, Material):
@@ -468,43 +470,77 @@ def discretize(tube: Tube, n_layers) -> Wall:
     )
 
 
-def discretize_layers(tube: Tube, n_layers) -> Wall:
-    """A layered wall (docs/theory/real_tubes.md §3): every layer cut into N equal sublayers of its
-    own (N of ``n_layers``: the same static count whatever the fractions, which may be traced), so
-    that no sublayer straddles an interface. Each node carries its layer's moduli (μ_k times those
-    of its material, the field in the active layer only), its density ratio and whether it is
-    active; U, V, W, T, Q, S pass the interfaces continuously, Φ and D are frozen in passive
-    layers. The state ``Out A S`` machinery then applies unchanged."""
-    count, scheme = split_layers(n_layers)
-    nodes = jnp.asarray(SCHEMES[scheme])
-    edges = interface_radii(tube)
-    integrals = layer_integrals(tube, edges)  # once for the wall: ΔP̂ and every layer's τ̂_rr
+def layered_coefficients(tube: Tube, r, owner=None, edges=None, integrals=None) -> Coefficients:
+    """The coefficients of a layered wall at radii r̂ (any shape), each in the layer ``owner`` (an
+    integer array of r̂'s shape; None: the layer that holds r̂): μ_k times those of its material
+    on the layered base state (docs/theory/real_tubes.md §3), its density ratio and whether it is
+    active. Every layer's formulas are evaluated at r̂ clipped into it (finite everywhere) and
+    the owner's are kept."""
+    edges = interface_radii(tube) if edges is None else edges
+    integrals = layer_integrals(tube, edges) if integrals is None else integrals
     lz = as_float(tube.lambda_z)
-    radii, steps, coefs, patterns, laws = [], [], [], [], []
+    if owner is None:
+        owner = jnp.clip(jnp.searchsorted(edges, r, side="right") - 1, 0, len(tube.layers) - 1)
+    coef = None
     for k, layer in enumerate(tube.layers):
-        step = (edges[k + 1] - edges[k]) / count
-        r = edges[k] + (jnp.arange(count)[:, None] + nodes) * step
-        if scheme == "midpoint":
-            r = r[:, 0]
-        state = layered_base_state(tube, k, r, edges, integrals)
+        state = layered_base_state(tube, k, jnp.clip(r, edges[k], edges[k + 1]), edges, integrals)
         flat = jax.vmap(lambda lam, d, p, layer=layer: material_coefficients(
             layer.material, lam, lz, d, p, as_float(layer.shear_ratio)))(
             *(jnp.ravel(x) for x in (state.stretch, state.displacement, state.pressure)))
         flat = flat._replace(density=jnp.full_like(flat.a, as_float(layer.density_ratio)),
                              active=jnp.full_like(flat.a, 1.0 if layer.active else 0.0))
-        coefs.append(jax.tree_util.tree_map(lambda x, shape=r.shape: jnp.reshape(x, shape), flat))
-        radii.append(r)
-        steps.append(jnp.full((count,), step))
-    coef = jax.tree_util.tree_map(lambda *x: jnp.concatenate(x), *coefs)
-    radii = jnp.concatenate(radii)
-    lam = stretch(tube, radii)
+        flat = jax.tree_util.tree_map(lambda x: jnp.reshape(x, jnp.shape(r)), flat)
+        coef = flat if coef is None else jax.tree_util.tree_map(
+            lambda new, old, k=k: jnp.where(owner == k, new, old), flat, coef)
+    return coef
+
+
+def layer_shares(tube: Tube, edges, count: int):
+    """(K + 1,) integer offsets c_0 = 0 < c_1 < … < c_K = N + K − 1 of the sublayers of a layered
+    wall of K layers cut into N + K − 1 sublayers in all (static, whatever the fractions, which may
+    be traced): layer k gets n_k = c_{k+1} − c_k ≥ 1 of them, one plus its share of N − 1 in
+    proportion to its travel time across, deformed thickness × max(1, √(ρ_k/μ_k)) (a soft, slow
+    layer holds shorter waves), so that every sublayer is about as fine as the single wall's N
+    (docs/theory/real_tubes.md §3). One layer: N."""
+    slowness = jnp.stack([jnp.maximum(1.0, jnp.sqrt(as_float(layer.density_ratio)
+                                                    / as_float(layer.shear_ratio)))
+                          for layer in tube.layers])
+    weight = jnp.cumsum(jax.lax.stop_gradient(jnp.diff(edges) * slowness))
+    weight = jnp.concatenate([jnp.zeros(1), weight / weight[-1]])
+    offsets = jnp.round(weight * (count - 1)) + jnp.arange(len(tube.layers) + 1)
+    return jnp.nan_to_num(offsets).astype(jnp.int32)  # invalid (NaN) walls: any split; f is NaN
+
+
+def discretize_layers(tube: Tube, n_layers) -> Wall:
+    """A layered wall (docs/theory/real_tubes.md §3): N + K − 1 equal-per-layer sublayers in all,
+    shared among the K layers by :func:`layer_shares` (N of ``n_layers``; a static total whatever the
+    fractions, which may be traced), so that no sublayer straddles an interface. Each node carries
+    its layer's moduli (μ_k times those of its material, the field in the active layer only), its
+    density ratio and whether it is active; U, V, W, T, Q, S pass the interfaces continuously, Φ and
+    D are frozen in passive layers. The state ``Out A S`` machinery then applies unchanged."""
+    count, scheme = split_layers(n_layers)
+    nodes = jnp.asarray(SCHEMES[scheme])
+    edges = interface_radii(tube)
+    integrals = layer_integrals(tube, edges)  # once for the wall: ΔP̂ and every layer's τ̂_rr
+    lz = as_float(tube.lambda_z)
+    n_total = count + len(tube.layers) - 1
+    offsets = layer_shares(tube, edges, count)
+    index = jnp.arange(n_total)
+    owner = jnp.sum(index[:, None] >= offsets[None, 1:-1], axis=1)  # the layer of each sublayer
+    first, n_own = offsets[owner], (offsets[owner + 1] - offsets[owner]).astype(jnp.float64)
+    step = (edges[owner + 1] - edges[owner]) / n_own
+    r = edges[owner][:, None] + ((index - first)[:, None] + nodes) * step[:, None]
+    if scheme == "midpoint":
+        r = r[:, 0]
+    inside = jnp.broadcast_to(owner.reshape((-1,) + (1,) * (r.ndim - 1)), r.shape)
+    coef = layered_coefficients(tube, r, inside, edges, integrals)
+    lam = stretch(tube, r)
+    laws, patterns = [], []
     for k, layer in enumerate(tube.layers):
         if layer.damping is not None:
-            mask = np.zeros(radii.shape)
-            mask[k * count:(k + 1) * count] = 1.0
             laws.append(layer.damping)
-            patterns.append(damping_pattern(layer.damping, lam, lz, jnp.asarray(mask)))
-    return Wall(edges[0], edges[-1], radii, jnp.concatenate(steps), coef,
+            patterns.append(damping_pattern(layer.damping, lam, lz, (inside == k).astype(lam.dtype)))
+    return Wall(edges[0], edges[-1], r, step, coef,
                 layered_pressure_difference(tube, edges, integrals), tuple(laws) or None,
                 tuple(patterns) or None, tube.outer)
 
@@ -1000,6 +1036,8 @@ def alpha_generators(wall: Wall, m=0, family=LONGITUDINAL, at_rest: bool = False
     node = [taylor[:, :, k] for k in range(taylor.shape[2])]  # (3, N, n, n) at each node
     minus_e = [] if at_rest else [  # −E: degree 0 in α̂
         jnp.broadcast_to(-jnp.asarray(inertia), (1, count) + node[0].shape[-2:])]
+    if coef.density is not None and not at_rest:  # a layer's ρ_k, constant in each sublayer
+        minus_e = [minus_e[0] * coef.density[None, :, 0, None, None]]
     gen = _scheme_generator(node, h, minus_e, _bivariate_add, _bivariate_scale,
                             _bivariate_commutator)
     size = max(c.shape[0] for c in gen)
