@@ -88,6 +88,75 @@ def test_long_wave_bending_of_a_layered_wall():
     np.testing.assert_allclose(_long_wave(tube, 1, (0.02, 0.04), 4), 3.24431634, rtol=2e-5)
 
 
+def _layered_compliance(edges, mu):
+    """D_w = 2u(r̂_i)/(r̂_i p_i): quasi-static compliance of a thick wall of incompressible layers
+    (shear moduli mu, radii edges) under an inner pressure p_i, zero axial force. Every layer has
+    u = A/r − er/2 (A, e common: u continuous, ε_z uniform), σ_r − σ_θ = −4μ_kA/r², so
+    p_i = 2AΣμ_k(1/r_k² − 1/r_{k+1}²); e from ∫σ_z r dr = 0, σ_z = σ_r + 3μ_ke + 2μ_kA/r².
+    One layer: (1/r_i² + 1/(3r_o²))/(1/r_i² − 1/r_o²), docs/theory/axisymmetric.md §5(v)."""
+    lo, hi, mu = edges[:-1], edges[1:], np.asarray(mu)
+    inverse = mu * (1.0 / lo**2 - 1.0 / hi**2)
+    a = 0.5 / np.sum(inverse)  # p_i = 1
+    before = np.concatenate([[0.0], np.cumsum(inverse)[:-1]])
+    logs = np.log(hi / lo)
+    radial = np.sum((-1.0 + 2.0 * a * (before + mu / lo**2)) * (hi**2 - lo**2) / 2.0
+                    - 2.0 * a * mu * logs)  # ∫σ_r r dr
+    e = -(radial + 2.0 * a * np.sum(mu * logs)) / (1.5 * np.sum(mu * (hi**2 - lo**2)))
+    return 2.0 * (a / lo[0] - e * lo[0] / 2.0) / lo[0]
+
+
+def test_korteweg_speed_of_a_thin_layered_wall_sums_the_membrane_stiffness():
+    """Issue 44, thin-wall limit with layers (docs/theory/real_tubes.md §7(f)): a filled tube with a
+    thin wall of three layers (μ_k = 3, 1, 0.5, ρ_k = 1.5, 1, 0.5, fractions 0.3, 0.4, 0.3, η = 0.98,
+    λ = 1, V̂ = 0). The layers share u ≈ u(r̂_i) and the axial strain, so their membrane (hoop)
+    stiffnesses add: S = Σ3μ_kĥ_k/r², and the Korteweg speed of the acoustic filling
+    (ρ̂_f = 1, ĉ_f = 0.5: the library's inner fluid is compressible) is
+    1/c² = 1/c_K² + 1/ĉ_f², c_K² = Σ3μ_kĥ_k/(2ρ̂_f r̂_i) (long waves: I_0/(γI_1) → 2/(γ²r̂_i)).
+    The lowest m = 0 root at α̂ = 0.02 gives (Ω/α̂)² within ĥ/r̂ (2 %) of it (thin-wall error
+    O(ĥ/r̂): measured −1.27 %; dispersion O((α̂r̂)²) = 4e-4; the wall's axial inertia ≈ 0.2 %);
+    the single wall's modulus (3ĥ in place of Σ3μ_kĥ_k) misses by 36 %.
+    The O(ĥ/r̂) part is the thick wall's: with the exact quasi-static compliance of the layers
+    (:func:`_layered_compliance`) and the axial wall inertia, D_w → D_w/F,
+    F = (1 − c²Σρ_kĥ_k/Σ3μ_kĥ_k)/(1 − c²Σρ_kĥ_k/Σ4μ_kĥ_k) (the membrane of
+    test_outer_fluid.py's Korteweg test with summed moduli), 1/c² = D_w/F + 1/ĉ_f² holds to
+    2e-5 (tolerance 5e-4); the same layers in reverse order would be off by 1.3 %."""
+    eta, speed = 0.98, 0.5
+    mu, rho = np.array([3.0, 1.0, 0.5]), np.array([1.5, 1.0, 0.5])  # layers from the inside out
+    layers = (jd.Layer(0.3, jd.NeoHookean(), shear_ratio=3.0, density_ratio=1.5),
+              jd.Layer(0.4, GENT, active=True),
+              jd.Layer(0.3, jd.NeoHookean(), shear_ratio=0.5, density_ratio=0.5))
+    tube = jd.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, eta=eta, layers=layers)
+    edges = np.asarray(bs.interface_radii(tube))
+    np.testing.assert_allclose(edges, 1.0 + (1.0 / eta - 1.0) * np.array([0.0, 0.3, 0.7, 1.0]),
+                               rtol=1e-14)  # unstretched: r̂ = R/R_i
+    thickness = np.diff(edges)
+    thin = (edges[-1] - edges[0]) / edges[0]
+    alpha = 0.02
+    roots = np.asarray(jd.frequencies(tube, alpha, fluid=jd.Fluid(1.0, speed), n_roots=2))
+    c2 = (roots[0] / alpha) ** 2
+    assert roots[1] > 5.0 * roots[0]  # the next (the wall's axial wave) is far above
+
+    def thin_wall(stiffness):
+        return 1.0 / (2.0 * edges[0] / (3.0 * stiffness) + 1.0 / speed**2)
+
+    summed = thin_wall(np.sum(mu * thickness))
+    assert abs(c2 / summed - 1.0) < thin, (c2, summed)
+    single = thin_wall(np.sum(thickness))  # μ = 1 throughout: the single wall
+    assert abs(c2 / single - 1.0) > 5.0 * thin, (c2, single)
+
+    def thick_wall(mu):
+        mass, membrane = np.sum(rho * thickness), 3.0 * np.sum(mu * thickness)
+        compliance, speed2 = _layered_compliance(edges, mu), summed
+        for _ in range(30):  # fixed point in c² of the inertia factor F
+            inertia = (1.0 - speed2 * mass / membrane) / (1.0 - speed2 * mass * 0.75 / membrane)
+            speed2 = 1.0 / (compliance / inertia + 1.0 / speed**2)
+        return speed2
+
+    assert abs(c2 / thick_wall(mu) - 1.0) < 5e-4, (c2, thick_wall(mu))
+    reversed_order = thick_wall(mu[::-1])
+    assert abs(c2 / reversed_order - 1.0) > 10 * 5e-4, (c2, reversed_order)
+
+
 def test_per_layer_damping_of_identical_layers_is_the_damped_wall():
     """Three identical layers each with KV η_v = 0.1 (at rest) give the single damped wall's
     complex frequencies, and the §7(c) values, to 1e-9."""
