@@ -251,3 +251,58 @@ def test_mode_shape_of_a_layered_wall_meets_its_state_equation():
     edges = np.asarray(bs.interface_radii(tube))
     passive = (r < edges[1]) | (r > edges[2])
     assert np.max(np.abs(y[passive, 2])) < 1e-12 * np.max(np.abs(y[:, :2]))
+
+
+def _ring_stiffness(fractions, moduli, eps):
+    """(D, R): the plane-strain bending stiffness per unit length D = Σ_k 4μ_k ∫ (y − y_n)² dy of a
+    thin layered ring (E'_k = 4μ_k incompressible; y from the inner face, wall thickness eps) about
+    its neutral surface y_n = Σ μ_k ∫ y dy / Σ μ_k h_k, and the neutral radius R = 1 + y_n."""
+    y = eps * np.concatenate([[0.0], np.cumsum(fractions)])
+    stiff = sum(mu * (y[k + 1] - y[k]) for k, mu in enumerate(moduli))
+    yn = sum(mu * (y[k + 1] ** 2 - y[k] ** 2) / 2 for k, mu in enumerate(moduli)) / stiff
+    d = sum(4 * mu * ((y[k + 1] - yn) ** 3 - (y[k] - yn) ** 3) / 3 for k, mu in enumerate(moduli))
+    return d, 1.0 + yn
+
+
+def _buckling_pressure(tube, m, alpha=1e-3):
+    """−ΔP̂ at the λ_i < 1 where Ω² = 0 first becomes a root of order m (the stretch-held tube under
+    net external pressure, λ_z = 1, V̂ = 0): a sign change of f(Ω² = 0) in λ_i refined by brentq,
+    ΔP̂ the layered wall's (base_state.layered_pressure_difference)."""
+    from scipy.optimize import brentq
+
+    from jaxdea.physics import dispersion as dp
+
+    def f(li):
+        return float(dp.characteristic_at_omega_squared(tube.replace(lambda_i=li), 0.0, alpha, m=m))
+
+    eps = 1.0 / tube.eta - 1.0
+    grid = 1.0 - np.geomspace(1e-2, 30.0, 30) * eps**2  # strains around (h/R)²
+    vals = [f(x) for x in grid]
+    k = next(k for k in range(len(grid) - 1) if vals[k] * vals[k + 1] < 0)
+    li = brentq(f, grid[k + 1], grid[k], xtol=1e-15, rtol=1e-15)
+    return -float(bs.layered_pressure_difference(tube.replace(lambda_i=li)))
+
+
+@pytest.mark.parametrize("walls", [
+    ((0.4, 0.6), (3.0, 1.0), (1.5, 1.0)),
+    ((0.6, 0.4), (1.0, 3.0), (1.0, 1.5)),
+    ((0.2, 0.6, 0.2), (3.0, 1.0, 0.5), (1.2, 1.0, 0.8)),
+], ids=["passive-inside", "active-inside", "sandwich"])
+def test_thin_ring_buckling_of_a_layered_wall(walls):
+    """Thin-wall limit: a long (α̂ = 1e-3), unstretched, layered ring under net external pressure
+    buckles in order m = 2, 3 at the hydrostatic-pressure ring load p_cr = (m² − 1)D/R³ (Lévy; D
+    the composite plane-strain bending stiffness about the neutral surface, R its radius). The
+    error is O(h/R): within 3e-3 at h/R = 0.005, and the linear extrapolation from h/R = 0.01 and
+    0.005 within 1e-4."""
+    fractions, moduli, densities = walls
+    active = moduli.index(1.0)
+    layers = tuple(jd.Layer(f, jd.NeoHookean(), shear_ratio=mu, density_ratio=rho, active=k == active)
+                   for k, (f, mu, rho) in enumerate(zip(fractions, moduli, densities, strict=True)))
+    for m in (2, 3):
+        ratios = []
+        for eps in (0.01, 0.005):
+            tube = jd.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, eta=1.0 / (1.0 + eps), layers=layers)
+            d, radius = _ring_stiffness(fractions, moduli, eps)
+            ratios.append(_buckling_pressure(tube, m) * radius**3 / ((m * m - 1) * d))
+        assert abs(ratios[1] - 1.0) < 3e-3
+        assert abs(2.0 * ratios[1] - ratios[0] - 1.0) < 1e-4
