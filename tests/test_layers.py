@@ -222,7 +222,7 @@ def test_a_curve_through_layers_of_different_density_is_the_roots_at_each_point(
     alphas = np.array([0.1, 1.0, 3.0])
     curve = jd.dispersion_curve(tube, alphas, n_roots=4)
     assert np.all(np.asarray(curve.status) == 0)
-    for a, row in zip(alphas, np.asarray(curve.omega)):
+    for a, row in zip(alphas, np.asarray(curve.omega), strict=True):
         np.testing.assert_allclose(row, np.asarray(jd.frequencies(tube, a, n_roots=4)), rtol=1e-10)
 
 
