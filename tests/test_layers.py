@@ -323,3 +323,26 @@ def test_default_accuracy_of_a_thick_layered_wall(layers):
     fine = jd.dispersion_curve(tube, alphas, n_roots=4, n_layers=Layers(96, "magnus6"))
     assert np.all(np.asarray(got.status) == 0)
     np.testing.assert_allclose(np.asarray(got.omega), np.asarray(fine.omega), rtol=1e-8)
+
+
+@pytest.mark.parametrize("which", ["encapsulation shear ratio", "Mooney-Rivlin beta"])
+def test_first_instability_derivative_in_wall_leaves(which):
+    """dV̂_first/d(a layer's shear ratio) of the paper's tube in an encapsulation (0.2 of the wall),
+    and dV̂_first/dβ of a Mooney–Rivlin tube, by jax.grad (implicit derivative of the critical
+    voltage at the first (m, n)), equal central differences to 1e-6."""
+    from tests.conftest import fd_derivative
+
+    def voltage(x):
+        if which == "Mooney-Rivlin beta":
+            tube = jd.Tube(voltage=0.0, lambda_i=0.9, lambda_z=1.2, eta=0.85,
+                           material=jd.MooneyRivlin(x))
+        else:
+            layers = (jd.Layer(0.8, GENT, active=True),
+                      jd.Layer(0.2, jd.NeoHookean(), shear_ratio=x))
+            tube = jd.Tube(voltage=0.0, lambda_i=0.9, lambda_z=1.2, eta=0.85, layers=layers)
+        return jd.first_instability(tube, n_max=1, m_max=3).voltage
+
+    x0 = 0.2 if which == "Mooney-Rivlin beta" else 2.0
+    grad = float(jax.grad(voltage)(x0))
+    assert abs(grad) > 1e-4
+    assert grad == pytest.approx(fd_derivative(voltage, x0), rel=1e-6)
