@@ -244,3 +244,20 @@ def test_unstable_alphas_are_where_the_lowest_root_is_imaginary():
     marked.wait()
     np.testing.assert_array_equal(marked.unstable, unstable_alphas(tube, marked.data.alpha, m=2))
     assert len(marked.spans) == 2 * int(marked.unstable.sum())
+
+
+def test_a_layered_wall_keeps_its_layers_and_disables_g():
+    """The explorer of a layered tube (a stiff liner inside the paper's wall) shows the curves of
+    ``dispersion_curve`` of that layered tube, after a slider move too, and its G slider, which a
+    layered wall does not use, is disabled."""
+    layers = (jd.Layer(0.2, jd.NeoHookean(), shear_ratio=3.0, density_ratio=1.2),
+              jd.Layer(0.8, jd.Gent(97.2), active=True))
+    layered = jd.explore(TUBE.replace(layers=layers), stability=False)
+    assert layered.controls["gent"].disabled and not layered.controls["voltage"].disabled
+    layered.controls["voltage"].value = 0.02
+    tube, fluid, m = layered.parameters()
+    assert tube.layers == layers and fluid is None and float(tube.voltage) == 0.02
+    curve = jd.dispersion_curve(tube, layered.data.alpha, n_roots=3)
+    np.testing.assert_allclose(layered.data.omega, curve.omega, rtol=1e-12)
+    single = jd.dispersion_curve(tube.replace(layers=None), layered.data.alpha, n_roots=3)
+    assert np.max(np.abs(np.asarray(curve.omega) / np.asarray(single.omega) - 1)) > 1e-2

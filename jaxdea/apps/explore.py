@@ -162,7 +162,8 @@ def explore(tube: Tube | None = None, fluid: Fluid | None = None, *, n_modes: in
 
     Args:
         tube: the initial :class:`~jaxdea.Tube` (default: the paper's, V̂ = 0.1); its
-            ``length_ratio`` and ``material`` are kept.
+            ``length_ratio``, ``material`` and ``layers`` are kept (the G slider acts on the
+            Gent energy only: disabled for another material or a layered wall).
         fluid: the initial :class:`~jaxdea.Fluid`, or None for an empty tube.
         n_modes: K, the number of branches (static).
         alphas: the α̂ grid (its size is fixed for the life of the app: no recompilation).
@@ -328,6 +329,9 @@ def _app_class():
                 outside=widgets.ToggleButtons(options=list(self.outside), value=next(iter(self.outside)),
                                               description="outside", style=wide),
             )
+            if tube.layers is not None or tube.material != "gent":  # G is the Gent energy's alone
+                c["gent"].disabled = True
+                c["gent"].description = "G (layers)" if tube.layers is not None else "G (material)"
             self.pick = dict(
                 alpha=widgets.FloatSlider(value=float(alphas[0]), min=float(alphas.min()),
                                           max=float(alphas.max()), step=0.01, description="α̂",
