@@ -513,7 +513,10 @@ def _finish(aux, history, status, bound, material, n_layers, scheme, mode=(0, Fa
     if outer is not None:  # the surrounding fluid, as plain floats
         outer = outer.replace(density_ratio=float(outer.density_ratio),
                               speed_ratio=float(outer.speed_ratio))
-    tube = Tube(**leaves, material=material, outer=outer)
+    layers = aux["tube"].layers
+    if layers is not None:  # the layered wall (its thickness scaled by η), as plain floats
+        layers = jax.tree_util.tree_map(float, layers)
+    tube = Tube(**leaves, material=material, outer=outer, layers=layers)
     alpha = float(aux["alpha"])
     lowest = float(frequencies(tube, alpha, n_roots=1, n_layers=n_layers, scheme=scheme,
                                **_orders(mode))[0])
