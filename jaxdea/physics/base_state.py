@@ -211,7 +211,9 @@ def _electric_integral(tube: Tube, width):
 
 def pressure_difference_unchecked(tube: Tube):
     """ΔP̂ = P̂_i − P̂_o holding the tube at (λ_i, λ_z, V̂) (docs/theory/axisymmetric.md Eq. 1.1; corrected
-    paper Eq. 15)."""
+    paper Eq. 15); a layered wall's through its layers (:func:`layered_pressure_difference`)."""
+    if tube.layers is not None:
+        return layered_pressure_difference(tube)
     geo = geometry(tube)
     return _elastic_integral(tube, geo.thickness) - _electric_integral(tube, geo.thickness)
 
@@ -220,7 +222,9 @@ def pressure_difference(tube: Tube):
     """Static pressure difference ΔP̂ = (P_i − P_o)/μ that holds the tube at (λ_i, λ_z, V̂).
 
     Equation (1.1) of docs/theory/axisymmetric.md (the paper's Eq. 15 corrected, erratum E4):
-    ΔP̂ = ∫ 2W_1(λ² − λ_r²) dr̂/r̂ − V̂²(1 − r̂_i²/r̂_o²)/(2 r̂_i² ln²(r̂_o/r̂_i)).
+    ΔP̂ = ∫ 2W_1(λ² − λ_r²) dr̂/r̂ − V̂²(1 − r̂_i²/r̂_o²)/(2 r̂_i² ln²(r̂_o/r̂_i)). A layered wall
+    (``tube.layers``): the sum of each layer's elastic integral minus the field term of the active
+    layer (docs/theory/real_tubes.md §3, :func:`layered_pressure_difference`).
 
     Examples:
         >>> float(pressure_difference(Tube(lambda_i=1.2 ** -0.5, lambda_z=1.2)))  # homogeneous
@@ -251,6 +255,9 @@ def base_state(tube: Tube, r) -> BaseState:
 
     p̂ = 2W_1λ_r² + D̂_r² − τ̂_rr, τ̂_rr(r̂) = −ΔP̂ + ∫_{r̂_i}^{r̂} [2W_1(λ² − λ_r²) − D̂_r²] dr̂/r̂.
     """
+    if tube.layers is not None:
+        raise ValueError("tube: base_state is the single wall's; a layered wall's base state is "
+                         "layered_base_state, layer by layer")
     r = jnp.asarray(r, jnp.float64)
     d = electric_displacement(tube, r)
     width = r - as_float(tube.lambda_i)
@@ -317,9 +324,24 @@ def _voltage_factor(tube: Tube):
     )
 
 
+def _layered_static_parts(tube: Tube):
+    """(ΔP̂_el, E) of a layered wall at its λ_i: ΔP̂ = ΔP̂_el − V̂²E with ΔP̂_el the sum of the layers'
+    elastic integrals and E = (1/r̂_a² − 1/r̂_b²)/(2 ln²(r̂_b/r̂_a)) over the active layer [r̂_a, r̂_b]
+    (:func:`layered_pressure_difference`, docs/theory/real_tubes.md §3)."""
+    edges = interface_radii(tube)
+    a = active_index(tube)
+    lo, hi = edges[a], edges[a + 1]
+    factor = (hi - lo) * (hi + lo) / (lo * hi) ** 2 / (2.0 * jnp.log(hi / lo) ** 2)
+    return sum(layer_integrals(tube, edges)), factor
+
+
 def squared_voltage(tube: Tube, lambda_i, delta_p):
-    """V̂²(λ_i) = (ΔP̂_el(λ_i) − ΔP̂)/E(λ_i) on the static response at fixed ΔP̂."""
+    """V̂²(λ_i) = (ΔP̂_el(λ_i) − ΔP̂)/E(λ_i) on the static response at fixed ΔP̂ (a layered wall's
+    ΔP̂_el and E through its layers, :func:`_layered_static_parts`)."""
     t = tube.replace(lambda_i=lambda_i, voltage=0.0)
+    if t.layers is not None:
+        elastic, factor = _layered_static_parts(t)
+        return (elastic - delta_p) / factor
     return (_elastic_integral(t, geometry(t).thickness) - delta_p) / _voltage_factor(t)
 
 
@@ -333,7 +355,9 @@ def inner_stretch(tube: Tube, delta_p=0.0):
     Solves ΔP̂_el(λ_i) − V̂²E(λ_i) = ΔP̂ (docs/theory/axisymmetric.md Eq. 1.1) on the branch connected to the
     unpressurised small-λ_i states: the first sign change of V̂²E + ΔP̂ − ΔP̂_el on a geometric λ_i grid
     (0.05 … 20), refined by safeguarded Newton. Beyond pull-in (no such state) the result is NaN with
-    status NO_ROOT. Derivatives with respect to ΔP̂ and every tube leaf are implicit.
+    status NO_ROOT. Derivatives with respect to ΔP̂ and every tube leaf are implicit. A layered wall
+    (``tube.layers``) is solved the same way on its own response (:func:`layered_pressure_difference`):
+    the inverse of :func:`pressure_difference` for both.
 
     Returns:
         (lambda_i, status). ``tube.lambda_i`` is ignored.
@@ -362,6 +386,9 @@ def _inner_stretch_unchecked(tube: Tube, delta_p):
 
     def residual(li):
         t = tube.replace(lambda_i=li, voltage=0.0)
+        if t.layers is not None:
+            elastic, factor = _layered_static_parts(t)
+            return v2 * factor + delta_p - elastic
         return v2 * _voltage_factor(t) + delta_p - _elastic_integral(t, geometry(t).thickness)
 
     def solve():
