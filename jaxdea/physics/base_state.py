@@ -467,7 +467,19 @@ def voltage_limit(tube: Tube):
     Newton solve of :func:`pull_in` there, that call took 7.4 s instead of 5.7 s, measured).
     """
     tube = jax.lax.stop_gradient(tube)
-    return static_limit(tube, pressure_difference_unchecked(tube.replace(voltage=0.0)))[1]
+    limit = static_limit(tube, pressure_difference_unchecked(tube.replace(voltage=0.0)))[1]
+    if tube.layers is not None:  # stiff passive layers may remove the pull-in maximum
+        return jnp.minimum(limit, LAYERED_SEARCH_END)
+    return limit
+
+
+LAYERED_SEARCH_END = 2.0
+"""The end of a layered wall's critical-voltage search where its static response has no pull-in
+maximum (stiff passive layers, e.g. a 3× encapsulation of 0.2 of the wall): V̂² then grows without
+bound up to Gent locking (V̂ ≈ 1.8e7 on the λ_i grid), a range in which the search's expansion in V̂
+loses every digit (NaN, NOT_FINITE). V̂ = 2 is an electric stress ε(V/h)² = 4(R_i/h)² μ, 130 μ at
+η = 0.85, far beyond the breakdown of any elastomer; a critical voltage above it is not searched
+(NO_ROOT)."""
 
 
 def static_limit(tube: Tube, delta_p):
