@@ -63,6 +63,9 @@ fluid = "acoustic"   optional, before the tables (leave it out for an empty tube
 [[layers]] optional, one table per layer from the inner face outwards (instead of [material]):
           fraction, material = {{kind = ..., ...}}, shear_ratio, density_ratio, active = true for
           the dielectric (μ, density, permittivity are its own); gent is no parameter
+          [free] may also name the wall's own parameters (their start is the wall's value; no
+          initial needed): material_<field> (material_beta of mooney_rivlin), layer<k>_shear_ratio,
+          layer<k>_density_ratio, layer<k>_fraction (passive layers) and layer<k>_material_<field>
 [outer_fluid] optional: the known fluid around the tube, preset = "water" | "air" | "silicone_oil"
           or fluid_density (kg/m^3) and sound_speed (m/s)
 [options] of jaxdea.fit: n_layers, scheme (default: the accurate graded magnus6 laminate; n_layers
@@ -126,7 +129,7 @@ def write_fit(result: FitResult, data, path, warnings_=()) -> Path:
     document = dict(
         status=result.status.name, iterations=int(result.iterations), names=list(result.names),
         estimate=result.estimate, interval=result.interval,
-        units={k: UNITS[k] for k in result.names}, covariance=result.covariance,
+        units={k: UNITS.get(k, "") for k in result.names}, covariance=result.covariance,
         correlation=result.correlation, parameters=result.parameters, settings=result.settings,
         unmatched=[int(i) for i in np.flatnonzero(result.assignment[:, 0] < 0)],
         chi2=result.chi2, dof=result.dof, chi2_per_dof=result.chi2_per_dof,
@@ -283,10 +286,16 @@ def parse_fit_config(data) -> FitConfig:
     elif fluid is not None and fluid not in ("acoustic", "paper"):
         raise ValueError(f"fluid: expected \"acoustic\", \"paper\" or a table, got {fluid!r}")
     known = NAMES if fluid is not None else NAMES[:-2]
+    if "material" in data and "layers" in data:
+        raise ValueError("material, layers: both set the wall's energy; with [[layers]] give each "
+                         "layer its material")
+    material = material_from_table("material", data["material"]) if "material" in data else None
+    layers = layers_from_tables(data["layers"]) if "layers" in data else None
+    walls = _wall_names(material, layers)  # the wall's parameters that [free] may name
     free, initial = {}, {}
-    for name, spec in _table("free", data["free"], NAMES).items():
+    for name, spec in _table("free", data["free"], NAMES + walls).items():
         key = f"free.{name}"
-        if name not in known:
+        if name not in known and name not in walls:
             raise ValueError(f"{key}: a fluid parameter needs fluid = \"acoustic\" or [fluid]")
         if isinstance(spec, dict):
             _table(key, spec, FREE_KEYS)
@@ -321,15 +330,23 @@ def parse_fit_config(data) -> FitConfig:
         elif isinstance(value, bool) or not isinstance(value, int):
             raise ValueError(f"options.{name}: expected an integer, got {value!r}")
     if initial and len(initial) != len(free):
-        missing = [k for k in free if k not in initial]
-        raise ValueError(f"free.{missing[0]}.initial: needed when another free parameter has one")
-    if "material" in data and "layers" in data:
-        raise ValueError("material, layers: both set the wall's energy; with [[layers]] give each "
-                         "layer its material")
-    material = material_from_table("material", data["material"]) if "material" in data else None
-    layers = layers_from_tables(data["layers"]) if "layers" in data else None
+        missing = [k for k in free if k not in initial and k not in walls]
+        if missing:
+            raise ValueError(f"free.{missing[0]}.initial: needed when another free parameter has "
+                             f"one")
     return FitConfig(free, fixed, fluid, initial or None, options, _outer_fluid(data), material,
                      layers)
+
+
+def _wall_names(material, layers) -> tuple:
+    """The names of the wall parameters that [free] may name (:func:`jaxdea.physics.leaves.wall_names`
+    of the [material] or [[layers]] wall; () for the default Gent wall)."""
+    if material is None and layers is None:
+        return ()
+    from ..params import Tube
+    from ..physics.leaves import wall_names
+
+    return wall_names(Tube(material="gent" if material is None else material, layers=layers))
 
 
 def _outer_fluid(data) -> tuple | None:
@@ -384,7 +401,7 @@ def summary(result: FitResult, data, source="data", caught=()) -> str:
         value, (low, high) = result.estimate[name], result.interval[name]
         interval = f"[{low:.6g}, {high:.6g}]"
         lines.append(f"{name:<16}{value:>14.7g}{0.5 * (high - low):>12.3g}   {interval:<30}"
-                     f"{UNITS[name]}")
+                     f"{UNITS.get(name, '')}")
     model = model_frequency(result, data)
     residual = "(f_model - f)/σ" if "sigma_Hz" in data else "f_model - f (Hz)"
     lines += ["", f"{'peak':>4} {'voltage_V':>12} {'frequency_Hz':>14} {'model_Hz':>14} "

@@ -40,7 +40,10 @@ nearly linear in 1/G, far from linear in G. Starts: ``initial`` when given, and 
 initial cost) of a grid inside the bounds (spaced in log for the scales of :data:`LOG_STARTS`), or
 of a Latin hypercube where the grid would exceed :data:`MAX_GRID` points; for unlabelled peaks each
 start is first moved to the frequency scale (μ, or else ρ_s) that best matches the peaks
-(:func:`_scaled_start`). A parameter that stops on a bound (where the sigmoid's slope vanishes) is
+(:func:`_scaled_start`); a free parameter of the wall (``material_beta``, ``layer0_shear_ratio``,
+the names of :func:`jaxdea.physics.leaves.wall_names`) is not gridded but starts at its value on
+the given wall, and its values follow the 12 of ``NAMES`` in the parameter vector. A parameter
+that stops on a bound (where the sigmoid's slope vanishes) is
 restarted from inside its bounds, and the lower cost is kept.
 
 Unlabelled peaks. Given θ, each peak is matched to a mode (m ≤ m_max, 1 ≤ n ≤ n_max, branch <
@@ -91,6 +94,7 @@ from ..materials import Gent
 from ..params import Fluid, Tube, require_x64, validate_material, validate_wall_layers
 from ..physics.base_state import inner_stretch_traced
 from ..physics.families import Face, Family
+from ..physics.leaves import get_parameter, wall_hint, wall_names, with_wall
 from ..physics.transfer import Layers, laminate, validate_scheme
 from ..solve.roots import frequencies, frequency
 from .sweeps import wall_from_settings, wall_settings
@@ -150,6 +154,13 @@ HELP = dict(
     fluid_speed="modes of higher frequency (compressibility shows as Ω/α̂ nears ĉ_f)",
 )
 """What data would pin each parameter down (the text of :class:`IdentifiabilityWarning`)."""
+WALL_HELP = ("modes that the wall parameter moves unlike μ does (several orders m and axial numbers "
+             "n, peaks at several voltages or stretches), or a measured value")
+""":data:`HELP` of a free wall parameter (``material_beta``, ``layer0_shear_ratio``, …)."""
+
+
+def _help(name):
+    return HELP.get(name, WALL_HELP)
 
 
 class FitStatus(enum.IntEnum):
@@ -229,8 +240,9 @@ class FitResult(NamedTuple):
 
 
 def dimensionless(values, voltage_V, n, coupling=None, bessel_order=None, load=None,
-                  by_pressure=False, outer=None, wall=None):
-    """(Tube, α̂_n, Fluid or None, Hz per unit Ω) of a parameter vector in ``NAMES`` order.
+                  by_pressure=False, outer=None, wall=None, wall_leaves=()):
+    """(Tube, α̂_n, Fluid or None, Hz per unit Ω) of a parameter vector in ``NAMES`` order
+    (followed by the values of ``wall_leaves``).
 
     V̂ = V sqrt(ε/μ)/R_i, length_ratio = L/R_o = Lη/R_i, α̂_n = 2nπ R_i/(λ_z L),
     ρ̂_f = ρ_f/ρ_s, ĉ_f = c_f/c_s, f = Ω c_s/(2π R_i) (docs/theory/axisymmetric.md §0).
@@ -239,7 +251,9 @@ def dimensionless(values, voltage_V, n, coupling=None, bessel_order=None, load=N
     (:func:`jaxdea.inner_stretch`, docs/theory/axisymmetric.md Eq. 1.1; implicit derivatives).
     ``outer``: None, or (ρ_o, c_o) in SI of a surrounding fluid: ρ̂_o = ρ_o/ρ_s, ĉ_o = c_o/c_s.
     ``wall``: None (the Gent wall of ``gent``), or a :class:`~jaxdea.Tube` whose material and layers
-    the model takes (:func:`fit`'s ``material``, ``layers``).
+    the model takes (:func:`fit`'s ``material``, ``layers``); ``wall_leaves``: the names of the
+    wall's free parameters (:func:`jaxdea.physics.leaves.wall_names`) whose values follow the 12 of
+    ``NAMES`` in ``values`` (:func:`jaxdea.physics.leaves.with_wall` sets them on ``wall``).
     """
     mu, rho, eps, ri, length, eta, li, lz, gent, dp, rho_f, c_f = (values[i] for i in range(12))
     if load is not None:
@@ -247,6 +261,8 @@ def dimensionless(values, voltage_V, n, coupling=None, bessel_order=None, load=N
     fields = dict(voltage=voltage_V * jnp.sqrt(eps / mu) / ri, lambda_i=li, lambda_z=lz, eta=eta,
                   gent=gent, length_ratio=length * eta / ri)
     tube = Tube(**fields) if wall is None else wall.replace(**fields)
+    if wall_leaves:
+        tube = with_wall(tube, {name: values[len(NAMES) + i] for i, name in enumerate(wall_leaves)})
     if by_pressure:
         tube = tube.replace(lambda_i=inner_stretch_traced(tube, dp / mu)[0])
     alpha = 2.0 * math.pi * n * ri / (lz * length)
@@ -274,38 +290,41 @@ def _solver_family(family, order):
 
 
 @partial(jax.jit, static_argnames=("n_roots", "n_layers", "coupling", "bessel_order", "family",
-                                   "by_pressure"))
+                                   "by_pressure", "wall_leaves"))
 def mode_roots(values, voltage_V, n, m, n_roots, n_layers, coupling, bessel_order, family,
-               by_pressure=False, load=None, outer=None, wall=None):
+               by_pressure=False, load=None, outer=None, wall=None, wall_leaves=()):
     """Ω of the ``n_roots`` lowest positive roots of order m at α̂_n, per point: (points, n_roots).
 
     ``family``: one of :data:`FAMILIES` (every m is 0 but for ``ORDER_M``, m ≥ 1, traced);
     ``load``: (points, 3) of (λ_i, λ_z, ΔP) per point, NaN where ``values`` holds it (None: all);
     ``outer``: (ρ_o, c_o) in SI of a surrounding fluid, or None; ``wall``: the material and layers
-    (:func:`dimensionless`).
+    (:func:`dimensionless`); ``wall_leaves``: the free wall parameters at the end of ``values``.
     """
     load = jnp.full((voltage_V.shape[0], 3), jnp.nan) if load is None else load
     def one(v, k, order, point):
         tube, alpha, fluid, _ = dimensionless(values, v, k, coupling, bessel_order, point,
-                                              by_pressure, outer, wall)
+                                              by_pressure, outer, wall, wall_leaves)
         m, torsional = _solver_family(family, order)
         return frequencies(tube, alpha, fluid, n_roots, n_layers=n_layers, m=m,
                            torsional=torsional)
     return jax.vmap(one)(voltage_V, n, m, load)
 
 
-@partial(jax.jit, static_argnames=("n_layers", "coupling", "bessel_order", "family", "by_pressure"))
+@partial(jax.jit, static_argnames=("n_layers", "coupling", "bessel_order", "family", "by_pressure",
+                                   "wall_leaves"))
 def model_and_jacobian(values, voltage_V, n, m, guess, n_layers, coupling, bessel_order,
-                       family, by_pressure=False, load=None, outer=None, wall=None):
+                       family, by_pressure=False, load=None, outer=None, wall=None, wall_leaves=()):
     """(Ω, f in Hz, ∂f/∂values) per point, Ω by Newton from ``guess`` (implicit derivatives);
-    ``family``, ``by_pressure``, ``load``, ``outer``, ``wall`` as in :func:`mode_roots`.
+    ``family``, ``by_pressure``, ``load``, ``outer``, ``wall``, ``wall_leaves`` as in
+    :func:`mode_roots`.
 
-    The Jacobian is ``jax.jacfwd`` with respect to all 12 values (one program whatever is free)."""
+    The Jacobian is ``jax.jacfwd`` with respect to all 12 values and the free wall parameters'
+    (one program whatever is free among the 12)."""
     load = jnp.full((voltage_V.shape[0], 3), jnp.nan) if load is None else load
     def hz(vals):
         def one(v, k, order, point, g):
             tube, alpha, fluid, scale = dimensionless(vals, v, k, coupling, bessel_order, point,
-                                                      by_pressure, outer, wall)
+                                                      by_pressure, outer, wall, wall_leaves)
             m, torsional = _solver_family(family, order)
             omega = frequency(tube, alpha, g, fluid, n_layers, m=m, torsional=torsional)
             return jnp.stack([omega * scale, omega])
@@ -358,6 +377,7 @@ class _Problem(NamedTuple):
     bounds: np.ndarray | None = None  # (p, 2) the bounds as given (lower, upper are internal)
     outer: tuple | None = None  # (ρ_o, c_o) in SI of a surrounding fluid, or None
     wall: Tube | None = None  # the material and layers of the model (None: the Gent wall of gent)
+    wall_leaves: tuple = ()  # the free wall parameters, whose values follow NAMES' in ``base``
 
 
 def _outer_si(outer) -> tuple | None:
@@ -453,7 +473,8 @@ def _roots(problem: _Problem, theta, voltage, n, m, n_roots, load, torsional=Non
     for index, found in _by_family(m, torsional, lambda p, family: mode_roots(
             values, jnp.asarray(voltage[p]), jnp.asarray(n[p], float), jnp.asarray(m[p], float),
             n_roots, problem.n_layers, problem.coupling, problem.bessel_order, family,
-            problem.by_pressure, jnp.asarray(load[p]), _outer(problem), problem.wall)):
+            problem.by_pressure, jnp.asarray(load[p]), _outer(problem), problem.wall,
+            problem.wall_leaves)):
         out[index] = np.asarray(found)[:index.size]
     return out
 
@@ -475,7 +496,7 @@ def _evaluate(problem: _Problem, theta, labels, guess):
             values, jnp.asarray(problem.voltage[where[p]]), jnp.asarray(labels[where[p], 1], float),
             jnp.asarray(m[p], float), jnp.asarray(guess[where[p]]), problem.n_layers,
             problem.coupling, problem.bessel_order, family, problem.by_pressure,
-            jnp.asarray(load[where[p]]), _outer(problem), problem.wall)):
+            jnp.asarray(load[where[p]]), _outer(problem), problem.wall, problem.wall_leaves)):
         rows = where[index]
         omega[rows] = np.asarray(w)[:index.size]
         f[rows] = np.asarray(hz)[:index.size]
@@ -856,7 +877,7 @@ def identifiability_messages(problem: _Problem, null, intervals, correlation):
         parts.append(f"estimates correlated beyond ±{CORRELATION_LIMIT}: " + ", ".join(pairs)
                      + " (the data determine a combination of them)")
     if parts:
-        parts.append("what would help: " + "; ".join(f"{name}: {HELP[name]}" for name in names
+        parts.append("what would help: " + "; ".join(f"{name}: {_help(name)}" for name in names
                                                      if name in involved))
     return parts
 
@@ -908,6 +929,31 @@ def _integer_column(data, name, low):
     return values.astype(int)
 
 
+def _fit_wall_hint(name, wall):
+    """:func:`jaxdea.physics.leaves.wall_hint` in :func:`fit`'s terms ('' for no wall name)."""
+    hint = wall_hint(name, wall)
+    if name.startswith("material_") and (wall is None or isinstance(wall.material, str)):
+        return (" (material_ names need a material object, e.g. material=jaxdea.MooneyRivlin(0.2); "
+                "the default wall's Gent constant is 'gent')")
+    return hint.replace("Tube(layers=...)", "layers=...")
+
+
+def _check_wall_bounds(wall, name, bounds, low, high):
+    """Raise ValueError unless the wall is valid with the parameter ``name`` at both bounds
+    (:func:`jaxdea.params.validate_material`, :func:`jaxdea.params.validate_wall_layers`: β of
+    Mooney–Rivlin in [0, 1], ratios > 0, fractions > 0 with the active layer's 1 − Σ f_passive > 0)."""
+    for value in (low, high):
+        try:
+            tube = with_wall(wall, {name: value})
+            validate_material(tube.material)
+            validate_wall_layers(tube)
+            for layer in tube.layers or ():
+                validate_material(layer.material)
+        except ValueError as exc:
+            raise ValueError(f"free[{name!r}] bounds must keep the wall valid, got {bounds!r}: at "
+                             f"{value!r}, {exc}") from None
+
+
 def _validate(data, free, fixed, fluid, wall=None):
     if not isinstance(data, Mapping) and not hasattr(data, "columns"):
         raise ValueError(f"data must be a mapping of columns (dict, DataFrame), got "
@@ -930,10 +976,16 @@ def _validate(data, free, fixed, fluid, wall=None):
             raise ValueError("parameter 'gent' is the Gent constant of the default wall: this "
                              "wall's energy is its material's (material=...) or its layers'")
         known = tuple(name for name in known if name != "gent")
+    walls = wall_names(wall)  # the wall's own parameters, which may be free (not fixed)
     for name in list(free) + list(fixed):
-        if name not in known:
+        if name in walls and name in fixed:
+            raise ValueError(f"fixed[{name!r}]: a wall parameter is held at its value on material= "
+                             f"or layers= (change it there), or free it")
+        if name not in known and name not in walls:
             extra = " (fluid parameters need fluid=...)" if name in FLUID_NAMES else ""
-            raise ValueError(f"unknown parameter {name!r}{extra}; known: {', '.join(known)}")
+            extra = extra or _fit_wall_hint(name, wall)
+            raise ValueError(f"unknown parameter {name!r}{extra}; known: "
+                             f"{', '.join(known + walls)}")
         if name in free and name in fixed:
             raise ValueError(f"parameter {name!r} is both free and fixed")
     columns = {name: _column(data, name, required=False) for name in LOAD_COLUMNS}
@@ -973,13 +1025,18 @@ def _validate(data, free, fixed, fluid, wall=None):
         if not (np.isfinite(low) and np.isfinite(high) and low < high):
             raise ValueError(f"free[{name!r}] bounds must be finite with lower < upper, "
                              f"got {bounds!r}")
-        if not (_admissible(name, low) and _admissible(name, high)):
+        if name in walls:
+            _check_wall_bounds(wall, name, bounds, low, high)
+        elif not (_admissible(name, low) and _admissible(name, high)):
             raise ValueError(f"free[{name!r}] bounds must lie in {_allowed(name)}, "
                              f"got {bounds!r}")
         lower.append(low)
         upper.append(high)
-    base = np.ones(len(NAMES))
+    wall_leaves = tuple(name for name in free if name in walls)
+    base = np.ones(len(NAMES) + len(wall_leaves))
     base[NAMES.index("gent")] = Tube.gent  # unused where the wall is not the Gent one
+    for i, name in enumerate(wall_leaves):  # the wall's own values: the starts of its parameters
+        base[len(NAMES) + i] = float(get_parameter(wall, None, None, name))
     for name, value in fixed.items():
         try:
             value = float(value)
@@ -1036,9 +1093,11 @@ def _validate(data, free, fixed, fluid, wall=None):
         inside = np.where(reciprocal[:, None], 1.0 / bounds[:, ::-1], bounds)  # θ's bounds
     problem = _Problem(voltage, frequency_hz, np.ones_like(voltage) if sigma is None else sigma,
                        sigma is not None, names, inside[:, 0].copy(), inside[:, 1].copy(), base,
-                       np.array([NAMES.index(k) for k in names]), 0, coupling, bessel_order,
+                       np.array([NAMES.index(k) if k in NAMES else
+                                 len(NAMES) + wall_leaves.index(k) for k in names]),
+                       0, coupling, bessel_order,
                        load=load, by_pressure=by_pressure, condition=condition.ravel(),
-                       reciprocal=reciprocal, bounds=bounds)
+                       reciprocal=reciprocal, bounds=bounds, wall=wall, wall_leaves=wall_leaves)
     return problem, labels
 
 
@@ -1081,6 +1140,13 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
             replaces the parameter of that name: joint fits over several loadings).
         free: {name: (lower, upper)} of the parameters to estimate (names in ``NAMES``; the
             tube is held by ``lambda_i`` or by ``pressure`` = P_i − P_o in Pa, one of the two).
+            With ``material`` or ``layers``, also the wall's own parameters by their sweep names
+            (:func:`jaxdea.physics.leaves.wall_names`): ``material_beta`` of a Mooney–Rivlin wall,
+            ``layer<k>_shear_ratio``, ``layer<k>_density_ratio``, ``layer<k>_fraction`` of a
+            passive layer (the active layer absorbs the change, η held) and
+            ``layer<k>_material_<field>``. Such a parameter starts at its value on the given wall
+            in every start (it is not gridded; ``initial`` may leave it out), its bounds must keep
+            the wall valid, and its Jacobian column is the implicit derivative like the others'.
         fixed: {name: value} of the others; every name must be free or fixed (the fluid names
             only with a fluid; ``gent`` may be ``inf``).
         fluid: None (empty tube), ``"acoustic"``, or a :class:`~jaxdea.Fluid` whose coupling and
@@ -1110,16 +1176,20 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
             :class:`jaxdea.units.FluidSI` such as :data:`jaxdea.units.WATER`, or
             (density kg/m³, sound speed m/s). Its ratios ρ_o/ρ_s, c_o/c_s follow the fitted μ, ρ_s.
         material: None (Gent, of the parameter ``gent``), or the wall's material object
-            (``jaxdea.MooneyRivlin(0.2)``, ``NeoHookean()``, …; fixed), as ``Tube(material=...)``.
+            (``jaxdea.MooneyRivlin(0.2)``, ``NeoHookean()``, …; fixed but for the parameters
+            named in ``free``), as ``Tube(material=...)``.
             Then ``gent`` is no parameter, and μ is the material's small-strain shear modulus.
-        layers: None, or the layered wall as ``Tube(layers=...)`` (fixed): μ, ρ_s and ε are the
-            active layer's, and ``gent`` is no parameter.
+        layers: None, or the layered wall as ``Tube(layers=...)`` (fixed but for the parameters
+            named in ``free``): μ, ρ_s and ε are the active layer's, and ``gent`` is no parameter.
 
     Returns:
-        An instance of :class:`FitResult`.
+        An instance of :class:`FitResult` (free wall parameters by their names in ``estimate``,
+        ``interval``, ``parameters``; ``settings`` holds the fitted wall).
 
     Raises:
-        ValueError: naming the parameter or column: unknown names, a name both free and fixed or
+        ValueError: naming the parameter or column: unknown names (a wall name this wall lacks:
+            why, and the valid names), a wall parameter in ``fixed``, wall bounds that make the
+            wall invalid, a name both free and fixed or
             neither, bounds not finite with lower < upper, missing or non-finite columns,
             frequencies or σ ≤ 0, no more data rows than free parameters, an ``initial`` value
             outside its bounds, bad options.
@@ -1279,7 +1349,8 @@ def _discretisation(problem, thetas, reach, n_layers, scheme):
             for voltage in voltages:
                 tube, alpha, _, _ = dimensionless(_values(problem, theta), voltage, float(n_top),
                                                   load=load, by_pressure=problem.by_pressure,
-                                                  wall=problem.wall)
+                                                  wall=problem.wall,
+                                                  wall_leaves=problem.wall_leaves)
                 if not np.isfinite(float(tube.lambda_i)):
                     continue  # no static state there (beyond pull-in): the fit reports it
                 layers = laminate(n_layers, scheme, tube, float(alpha), n_roots, m_top)
@@ -1289,7 +1360,7 @@ def _discretisation(problem, thetas, reach, n_layers, scheme):
                     chosen = layers
     if chosen is None:  # no start had a static state: the accurate default at the first one
         tube, alpha, _, _ = dimensionless(_values(problem, thetas[0]), 0.0, float(n_top),
-                                          wall=problem.wall)
+                                          wall=problem.wall, wall_leaves=problem.wall_leaves)
         chosen = laminate(n_layers, scheme, tube.replace(lambda_i=1.0), float(alpha), n_roots,
                           m_top)
     return chosen
@@ -1309,8 +1380,15 @@ def _result(problem, best, max_unmatched, max_iterations):
     known -= {name for name, given in zip(("lambda_i", "lambda_z", "pressure"),
                                           np.all(np.isfinite(load), axis=0), strict=True) if given}
     known -= {"lambda_i"} if problem.by_pressure else {"pressure"}
-    parameters = {k: float(v) for k, v in zip(NAMES, _values(problem, theta), strict=True)
+    values = _values(problem, theta)
+    parameters = {k: float(v) for k, v in zip(NAMES, values[:len(NAMES)], strict=True)
                   if k in known}
+    fitted_wall = problem.wall
+    if problem.wall_leaves:  # the wall at the estimate: its settings rebuild the fitted model
+        leaves = {name: float(values[len(NAMES) + i])
+                  for i, name in enumerate(problem.wall_leaves)}
+        parameters.update(leaves)
+        fitted_wall = with_wall(problem.wall, leaves)
     layers = problem.n_layers
     settings = dict(n_layers=int(getattr(layers, "count", layers)),
                     scheme=getattr(layers, "scheme", "midpoint"),
@@ -1318,7 +1396,7 @@ def _result(problem, best, max_unmatched, max_iterations):
                     bessel_order=problem.bessel_order,
                     loading="pressure" if problem.by_pressure else "stretch",
                     outer=None if problem.outer is None else list(problem.outer),
-                    **wall_settings(problem.wall))
+                    **wall_settings(fitted_wall))
     torsional = final_labels[:, 3] > 0
     final_labels = final_labels[:, :3]
     bounds = _bounds(problem)
@@ -1395,11 +1473,27 @@ def _as_given(problem: _Problem, theta, covariance, intervals):
     return covariance, correlation, out
 
 
+def _wall_starts(problem: _Problem):
+    """{name: start} of the free wall parameters: the value on the given wall, moved inside its
+    bounds by 1e-3 of their range where it lies on or beyond one."""
+    bounds = _bounds(problem)
+    out = {}
+    for i, name in enumerate(problem.free):
+        if name in problem.wall_leaves:
+            low, high = bounds[i]
+            value = problem.base[problem.free_index[i]]
+            out[name] = float(np.clip(value, low + 1e-3 * (high - low), high - 1e-3 * (high - low)))
+    return out
+
+
 def _starts(problem: _Problem, initial, grid_points):
     """Candidate starts (internal θ): ``initial`` (validated inside the bounds), and a grid of
     ``grid_points`` per parameter or, beyond :data:`MAX_GRID` points, a Latin hypercube of MAX_GRID
-    points, spaced evenly in log for the scales of :data:`LOG_STARTS`, evenly for the others."""
+    points, spaced evenly in log for the scales of :data:`LOG_STARTS`, evenly for the others.
+    A free wall parameter is not gridded: every start takes its value on the given wall
+    (:func:`_wall_starts`), and ``initial`` may leave it out."""
     starts = []
+    wall_start = _wall_starts(problem)
     if initial is not None:
         if not isinstance(initial, Mapping):
             raise ValueError(f"initial must be a mapping {{name: value}}, got {initial!r}")
@@ -1409,6 +1503,9 @@ def _starts(problem: _Problem, initial, grid_points):
                                  f"(free: {', '.join(problem.free)})")
         theta = []
         for i, name in enumerate(problem.free):
+            if name not in initial and name in wall_start:
+                theta.append(wall_start[name])
+                continue
             if name not in initial:
                 raise ValueError(f"initial is missing the free parameter {name!r}")
             try:
@@ -1422,18 +1519,29 @@ def _starts(problem: _Problem, initial, grid_points):
                                  f"({low!r}, {high!r})")
             theta.append(value)
         starts.append(_internal(problem, np.array(theta)))
-    p = len(problem.free)
-    if grid_points**p <= MAX_GRID:
+    gridded = np.array([name not in wall_start for name in problem.free])
+    p = int(gridded.sum())
+    if p == 0:  # only wall parameters free: the one start of their given values
+        grid = np.zeros((1, 0))
+    elif grid_points**p <= MAX_GRID:
         fractions = (np.arange(grid_points) + 0.5) / grid_points
         grid = np.stack(np.meshgrid(*[fractions] * p, indexing="ij"), axis=-1).reshape(-1, p)
     else:  # Latin hypercube: each parameter's range cut in MAX_GRID strata, one point in each
         rng = np.random.default_rng(0)
         grid = np.stack([(rng.permutation(MAX_GRID) + rng.uniform(size=MAX_GRID)) / MAX_GRID
                          for _ in range(p)], axis=1)
-    low, high = _bounds(problem).T
-    log = np.array([name in LOG_STARTS and low[i] > 0 for i, name in enumerate(problem.free)])
+    low, high = _bounds(problem)[gridded].T
+    names = [name for name, g in zip(problem.free, gridded, strict=True) if g]
+    log = np.array([name in LOG_STARTS and low[i] > 0 for i, name in enumerate(names)], dtype=bool)
     with np.errstate(divide="ignore", invalid="ignore"):
         spaced = np.where(log, low * (high / low) ** grid, low + (high - low) * grid)
+    if wall_start:  # the wall's parameters at their given values in every start
+        full = np.empty((spaced.shape[0], len(problem.free)))
+        full[:, gridded] = spaced
+        for i, name in enumerate(problem.free):
+            if name in wall_start:
+                full[:, i] = wall_start[name]
+        spaced = full
     return starts, list(_internal(problem, spaced))
 
 
