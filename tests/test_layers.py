@@ -364,3 +364,21 @@ def test_design_of_a_layered_tube_keeps_its_layers():
     assert design.omega == pytest.approx(lowest, rel=1e-12)
     single = float(jd.frequencies(made.replace(layers=None), design.alpha, n_roots=1, n_layers=16)[0])
     assert abs(single / lowest - 1) > 1e-2
+
+
+def test_critical_voltage_of_a_wall_without_pull_in():
+    """A 3× encapsulation (0.2 of the wall) removes the pull-in maximum of the paper's tube
+    (λ_i = 1.1): its static response has no end before Gent locking (V̂ ≈ 1.8e7 there), and the
+    critical-voltage search over that range lost every digit (NaN, NOT_FINITE). It searches up to
+    V̂ = 2 (base_state.LAYERED_SEARCH_END): the m = 2 critical voltage is where f(Ω → 0) changes
+    sign, and it is above the bare tube's."""
+    layers = (jd.Layer(0.8, GENT, active=True), jd.Layer(0.2, jd.NeoHookean(), shear_ratio=3.0))
+    tube = jd.Tube(voltage=0.0, lambda_i=1.1, lambda_z=1.2, eta=0.85, layers=layers)
+    assert float(bs.voltage_limit(tube)) == 2.0
+    root = jd.solve_critical_voltage(tube, 0.4, m=2, n_layers=16)
+    assert int(root.status) == 0
+    v = float(root.omega)
+    sides = [float(jd.characteristic(tube.replace(voltage=x), 1e-6, 0.4, m=2, n_layers=16))
+             for x in (v - 1e-4, v + 1e-4)]
+    assert sides[0] * sides[1] < 0
+    assert v > float(jd.critical_voltage(tube.replace(layers=None), 0.4, m=2, n_layers=16))
