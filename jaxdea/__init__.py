@@ -35,6 +35,12 @@ from .physics.base_state import (
 )
 from .physics.dispersion import characteristic
 from .solve.accuracy import Estimate, frequencies_with_error
+from .solve.complex_curves import (
+    ComplexCurve,
+    WavenumberCurve,
+    complex_dispersion_curve,
+    wavenumber_curve,
+)
 from .solve.complex_frequencies import ComplexRoots, complex_frequencies, solve_complex_frequency
 from .solve.counting import CountStatus, RootCount, count_roots
 from .solve.curves import Curve, dispersion_curve
@@ -65,6 +71,7 @@ from .studies.sweeps import SweepResult, sweep
 
 __all__ = [
     "Branch",
+    "ComplexCurve",
     "ComplexRoots",
     "BranchEnd",
     "Configuration",
@@ -96,9 +103,11 @@ __all__ = [
     "Status",
     "SweepResult",
     "Tube",
+    "WavenumberCurve",
     "Wavenumbers",
     "axial_wavenumber",
     "characteristic",
+    "complex_dispersion_curve",
     "complex_frequencies",
     "configure",
     "count_roots",
@@ -137,6 +146,7 @@ __all__ = [
     "trace_branch",
     "tunability",
     "units",
+    "wavenumber_curve",
     "wavenumbers",
     "with_thickness_ratio",
     "write_fit",

@@ -235,11 +235,7 @@ def wavenumbers(tube: Tube, omega, fluid: Fluid | None = None, n_roots: int = 4,
     m_value = as_float(float(m))
     height = max(1.0, omega)
     if alpha_max is None:
-        probe = discretize(tube, 8)
-        c_min = float(jnp.sqrt(problem.family.slowest_shear(probe.coef)))
-        if fluid is not None:
-            c_min = min(c_min, float(fluid.speed_ratio))
-        alpha_max = 2.0 * omega / c_min + 4.0 * height
+        alpha_max = default_alpha_max(problem, tube, omega, fluid)
     roots, certificate, low = [], SearchStatus.CERTIFIED, 0.0
     for _ in range(DOUBLINGS + 1):  # bands of the box, each twice as high as the last
         band, certificate = _box(problem, tube, omega, fluid, m_value, n_layers, scheme, low,
@@ -257,6 +253,15 @@ def wavenumbers(tube: Tube, omega, fluid: Fluid | None = None, n_roots: int = 4,
         certificate = SearchStatus.NOT_CERTIFIED
     return Wavenumbers(alpha, jnp.abs(jnp.imag(alpha)), status,
                        jnp.asarray(int(certificate), jnp.int32))
+
+
+def default_alpha_max(problem, tube, omega, fluid) -> float:
+    """The default α_max at Ω: 2Ω/min(c_min, ĉ_f) + 4 max(1, Ω) (module docstring)."""
+    probe = discretize(tube, 8)
+    c_min = float(jnp.sqrt(problem.family.slowest_shear(probe.coef)))
+    if fluid is not None:
+        c_min = min(c_min, float(fluid.speed_ratio))
+    return 2.0 * omega / c_min + 4.0 * max(1.0, omega)
 
 
 def _box(problem, tube, omega, fluid, m, n_layers, scheme, low, high, alpha_max):

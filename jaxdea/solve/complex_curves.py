@@ -1,0 +1,287 @@
+"""Curves of complex roots by continuation (API.md, "Real tubes"; docs/theory/real_tubes.md §5):
+complex α̂ against a real Ω grid (:func:`wavenumber_curve`: every wave's attenuation against
+frequency) and complex Ω against a real α̂ grid (:func:`complex_dispersion_curve`: a damped tube's
+resonances and quality factors against wavenumber).
+
+The roots at the grid's first point come from the certified search (:func:`jaxdea.wavenumbers`,
+:func:`jaxdea.complex_frequencies`). Each is then continued along the grid as a branch, its column
+keeping its identity, in one compiled scan. Between grid points p_a → p_b a branch x(p) (F(x; p) = 0)
+advances by sub-steps of the fraction h of the interval:
+
+* predictor: the tangent x + (dx/dp) Δp, dx/dp = −(∂ ln F/∂p)/(∂ ln F/∂x), both analytic
+  log-derivatives of one evaluation of the characteristic contract's pieces, taken a relative
+  1e-6 off the root (at the root F is rounding noise, or exactly 0);
+* corrector: Newton on F in x at the new p (at most CORRECTOR_STEPS steps);
+* acceptance: Newton converged and its correction is at most JUMP × the predicted move (a tangent
+  predictor is second-order accurate, so a larger correction means the corrector fell onto another
+  branch) plus a rounding allowance.
+
+An accepted sub-step doubles h (at most the rest of the interval), a refused one halves it; after
+MAX_HALVINGS halvings in a row the branch ends there: NaN and status MAX_ITER from that point on.
+That happens where a branch cannot be continued, e.g. at a turning point of a lossless tube, where
+two real waves meet and go on as a complex pair: :func:`jaxdea.wavenumbers` past that point gives
+the pair.
+"""
+
+from typing import NamedTuple
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..compiled import serializable
+from ..numerics.scalar import Status
+from ..params import Fluid, Tube, as_float, canonical, validate_alpha, with_outer
+from ..physics import characteristic
+from ..physics.characteristic import Unknown
+from ..physics.problem import describe
+from ..physics.transfer import discretize, laminate
+from .complex_frequencies import complex_frequencies, quality_factor
+from .wavenumbers import default_alpha_max, validate_search, wavenumbers
+
+CORRECTOR_STEPS = 30
+"""Newton steps of the corrector."""
+JUMP = 0.25
+"""Largest Newton correction, as a fraction of the predicted move, of an accepted sub-step."""
+MAX_HALVINGS = 10
+"""Halvings of a sub-step in a row before a branch ends."""
+STEP_RTOL = 1e-11
+"""Relative Newton step at which the corrector has converged."""
+OFFSET = 1e-6
+"""The predictor's slopes are taken at x + OFFSET·max(1, |x|): at a root that rounds to F = 0 exactly
+both log-derivatives are infinite and their ratio NaN (met on a hysteretic tube's curve)."""
+
+
+@serializable
+class WavenumberCurve(NamedTuple):
+    """:func:`wavenumber_curve`: ``alpha`` (K, n_roots) complex α̂ along the Ω grid, each column one
+    branch (ordered as :func:`jaxdea.wavenumbers` orders them at the first Ω), its ``attenuation``
+    |Im α̂|, a per-point ``status`` (:class:`Status`: CONVERGED; NO_ROOT for a column the first
+    search did not fill; MAX_ITER from where a branch could not be continued) and the first
+    search's ``certificate`` (:class:`jaxdea.SearchStatus`)."""
+
+    omega: jax.Array
+    alpha: jax.Array
+    attenuation: jax.Array
+    status: jax.Array
+    certificate: jax.Array
+
+
+@serializable
+class ComplexCurve(NamedTuple):
+    """:func:`complex_dispersion_curve`: ``omega`` (K, n_roots) complex Ω along the α̂ grid, each
+    column one branch (ascending in Re Ω at the first α̂), its ``quality_factor`` Re Ω/(2 Im Ω), a
+    per-point ``status`` (as :class:`WavenumberCurve`) and the first search's ``certificate``."""
+
+    alpha: jax.Array
+    omega: jax.Array
+    quality_factor: jax.Array
+    status: jax.Array
+    certificate: jax.Array
+
+
+def _pieces_of(problem, wall, fluid, m, unknown):
+    """The contract's pieces at (x, p) = point: x the continued variable (Ω, or s = α̂² for the
+    unknown α̂, module docstring), p the grid's variable."""
+    def pieces_of(point):
+        x = jnp.sqrt(point[0]) if unknown is Unknown.ALPHA else point[0]
+        return characteristic.pieces(problem.family, wall, x, point[1], fluid, problem.order, m,
+                                     unknown)
+
+    return pieces_of
+
+
+def _log_slope(pieces_of, x, p, direction):
+    """d ln F along ``direction`` of (x, p), from one evaluation of the pieces."""
+    point = jnp.stack([x, jnp.asarray(p, x.dtype)])
+    return characteristic.value_and_log_slope_along(pieces_of, point,
+                                                    jnp.asarray(direction, x.dtype))[1]
+
+
+def _corrector(pieces_of, x0, p):
+    """(x, converged): Newton on F(x; p) from x0, x ← x − 1/(∂ ln F/∂x)."""
+    def step(state):
+        k, x, _, _ = state
+        dx = 1.0 / _log_slope(pieces_of, x, p, (1.0, 0.0))
+        finite = jnp.isfinite(jnp.abs(dx))
+        x_new = jnp.where(finite, x - dx, x)
+        return k + 1, x_new, finite, finite & (jnp.abs(dx) <= STEP_RTOL * jnp.abs(x_new))
+
+    def going(state):
+        k, _, finite, small = state
+        return (k < CORRECTOR_STEPS) & finite & ~small
+
+    _, x, _, small = jax.lax.while_loop(going, step, (0, x0, jnp.asarray(True),
+                                                       jnp.asarray(False)))
+    return x, small & jnp.isfinite(jnp.abs(x))
+
+
+def _continue(pieces_of, grid, x0):
+    """One branch along the grid from its root x0 at grid[0]: (x at each grid point, status).
+    The predictor's dx/dp = −(∂ ln F/∂p)/(∂ ln F/∂x) takes both log-derivatives from the same
+    pieces: at a root F is rounding noise, and only their ratio within one evaluation is exact
+    (two evaluations gave dα̂/dΩ = −0.57 + 0.19i against 0.60 − 0.02i)."""
+    def advance(carry, p_next):
+        x, p, alive = carry
+
+        def cond(state):
+            t, _, _, halvings = state
+            return (t < 1.0) & (halvings <= MAX_HALVINGS)
+
+        def body(state):
+            t, h, x, halvings = state
+            h = jnp.minimum(h, 1.0 - t)
+            here, there = p + t * (p_next - p), p + (t + h) * (p_next - p)
+            off = x + OFFSET * jnp.maximum(1.0, jnp.abs(x))  # off the root (module docstring)
+            slope_x = _log_slope(pieces_of, off, here, (1.0, 0.0))
+            slope_p = _log_slope(pieces_of, off, here, (0.0, 1.0))
+            move = -(slope_p / slope_x) * (there - here)
+            predicted = x + move
+            corrected, converged = _corrector(pieces_of, predicted, there)
+            allowance = 1e-9 * jnp.maximum(1.0, jnp.abs(x))
+            good = (converged & jnp.isfinite(jnp.abs(move))
+                    & (jnp.abs(corrected - predicted) <= JUMP * jnp.abs(move) + allowance))
+            t = jnp.where(good, jnp.where(h >= 1.0 - t, 1.0, t + h), t)
+            x = jnp.where(good, corrected, x)
+            h = jnp.where(good, 2.0 * h, 0.5 * h)
+            halvings = jnp.where(good, 0, halvings + 1)
+            return t, h, x, halvings
+
+        start = (jnp.where(alive, 0.0, 1.0), jnp.asarray(1.0), x, jnp.asarray(0))
+        t, _, x_end, _ = jax.lax.while_loop(cond, body, start)
+        alive = alive & (t >= 1.0)
+        x_end = jnp.where(alive, x_end, jnp.nan)
+        return (x_end, p_next, alive), (x_end, alive)
+
+    alive = jnp.isfinite(jnp.abs(x0))
+    _, (xs, ok) = jax.lax.scan(advance, (x0, grid[0], alive), grid[1:])
+    xs = jnp.concatenate([x0[None], xs])
+    ok = jnp.concatenate([alive[None], ok])
+    status = jnp.where(ok, Status.CONVERGED, jnp.where(alive, Status.MAX_ITER, Status.NO_ROOT))
+    return xs, status.astype(jnp.int32)
+
+
+@functools.partial(jax.jit, static_argnames=("problem", "unknown"))
+def _curves(problem, wall, fluid, m, grid, starts, unknown):
+    """Every branch from ``starts`` along ``grid``: (x (K, n), status (K, n)). Wavenumbers are continued in s = α̂² (F is even in α̂: F(α̂) = F(−α̂), so F(√s) is analytic in
+    s) and reported as α̂ = √s, Re α̂ ≥ 0: a wave that cuts on passes through α̂ = 0, where α̂(Ω)
+    has a square-root branch point and s(Ω) does not."""
+    pieces_of = _pieces_of(problem, wall, fluid, m, unknown)
+    squared = unknown is Unknown.ALPHA
+    xs, status = jax.vmap(lambda x0: _continue(pieces_of, grid, x0))(
+        starts * starts if squared else starts)
+    return (jnp.sqrt(xs) if squared else xs).T, status.T
+
+
+def _grid(name: str, values) -> np.ndarray:
+    """A 1-D, finite, positive, strictly monotone grid (ValueError naming ``name``)."""
+    if isinstance(values, jax.core.Tracer):
+        raise ValueError(f"{name} must be concrete: the first point's search runs in Python "
+                         "(call it outside jit, grad and vmap)")
+    try:
+        grid = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a 1-D array of real numbers, got {values!r}") from exc
+    if grid.ndim != 1 or grid.size < 1:
+        raise ValueError(f"{name} must be a non-empty 1-D array, got shape {grid.shape}")
+    if not np.all(np.isfinite(grid)) or not np.all(grid > 0):
+        raise ValueError(f"{name} must be finite and > 0, got {grid!r}")
+    steps = np.diff(grid)
+    if grid.size > 1 and not (np.all(steps > 0) or np.all(steps < 0)):
+        raise ValueError(f"{name} must be strictly increasing or strictly decreasing (a curve is "
+                         "continued point to point)")
+    return grid
+
+
+def wavenumber_curve(tube: Tube, omegas, fluid: Fluid | None = None, n_roots: int = 4, m: int = 0,
+                     n_layers: int | None = None, scheme: str | None = None,
+                     torsional: bool = False, alpha_max=None,
+                     outer: Fluid | None = None) -> WavenumberCurve:
+    """Complex wavenumbers α̂ against a real frequency grid, by continuation (module docstring).
+
+    The ``n_roots`` roots of :func:`jaxdea.wavenumbers` at ``omegas[0]`` (certified), each followed
+    along ``omegas`` as a branch: a propagating wave stays real, an attenuated one keeps its
+    |Im α̂| = attenuation per unit R_i (``units.Scales.attenuation_to_db_per_m`` in SI). A damped
+    tube (``damping=``) gives every wave an attenuation.
+
+    Args:
+        tube, fluid, outer, n_roots, m, torsional, n_layers, scheme, alpha_max: as for
+            :func:`jaxdea.wavenumbers` (the discretisation is resolved once, for the grid's largest
+            Ω).
+        omegas: the real Ω grid, 1-D, > 0, strictly monotone.
+
+    Returns:
+        :class:`WavenumberCurve`.
+
+    Raises:
+        ValueError: naming the parameter, as :func:`jaxdea.wavenumbers`, and for a grid that is not
+            1-D, finite, positive and monotone.
+
+    Examples:
+        >>> damped = Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, damping=Hysteretic(0.05))
+        >>> curve = wavenumber_curve(damped, np.linspace(0.5, 2.0, 100), n_roots=2)
+        >>> curve.attenuation[:, 0]   # the first wave's |Im α̂| against Ω
+    """
+    tube = with_outer(tube, outer)
+    grid = _grid("omegas", omegas)
+    validate_search("wavenumber_curve", tube, ("omega", float(grid[0])), fluid, m, n_roots,
+                    ("alpha_max", alpha_max))
+    start = wavenumbers(tube, float(grid[0]), fluid, n_roots, m, n_layers, scheme, torsional,
+                        alpha_max)
+    problem = describe(tube, None, fluid, n_layers, scheme, m, torsional, damped=True)
+    tube, fluid = canonical(tube, fluid)
+    top = float(np.max(grid))
+    reach = default_alpha_max(problem, tube, top, fluid) if alpha_max is None else float(alpha_max)
+    finite = np.abs(np.asarray(start.alpha))[np.isfinite(np.abs(np.asarray(start.alpha)))]
+    reach = max([reach, *(finite * top / float(grid[0]))])
+    wall = discretize(tube, laminate(n_layers, scheme, tube, reach, m=int(m)))
+    alpha, status = _curves(problem, wall, fluid, as_float(float(m)), jnp.asarray(grid),
+                            jnp.asarray(start.alpha, jnp.complex128), Unknown.ALPHA)
+    return WavenumberCurve(jnp.asarray(grid), alpha, jnp.abs(jnp.imag(alpha)), status,
+                           start.certificate)
+
+
+def complex_dispersion_curve(tube: Tube, alphas, fluid: Fluid | None = None, n_roots: int = 3,
+                             m: int = 0, omega_max=None, n_layers: int | None = None,
+                             scheme: str | None = None, torsional: bool = False,
+                             outer: Fluid | None = None) -> ComplexCurve:
+    """Complex frequencies Ω against a real wavenumber grid, by continuation (module docstring):
+    the resonances of a damped tube with their quality factors along a dispersion curve.
+
+    The ``n_roots`` roots of :func:`jaxdea.complex_frequencies` at ``alphas[0]`` (certified), each
+    followed along ``alphas`` as a branch.
+
+    Args:
+        tube, fluid, outer, n_roots, m, torsional, n_layers, scheme, omega_max: as for
+            :func:`jaxdea.complex_frequencies` (the discretisation is resolved once, for the grid's
+            largest α̂).
+        alphas: the real α̂ grid, 1-D, > 0, strictly monotone.
+
+    Returns:
+        :class:`ComplexCurve`.
+
+    Raises:
+        ValueError: naming the parameter, as :func:`jaxdea.complex_frequencies`, and for a grid that
+            is not 1-D, finite, positive and monotone.
+
+    Examples:
+        >>> damped = Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, damping=KelvinVoigt(0.05))
+        >>> curve = complex_dispersion_curve(damped, np.linspace(0.2, 3.0, 100), n_roots=2)
+        >>> curve.quality_factor[:, 0]   # Q of the lowest resonance against α̂
+    """
+    tube = with_outer(tube, outer)
+    grid = _grid("alphas", alphas)
+    validate_search("complex_dispersion_curve", tube, ("alpha", float(grid[0])), fluid, m,
+                    n_roots, ("omega_max", omega_max))
+    for a in (grid[0], grid[-1]):
+        validate_alpha(float(a), tube=tube)
+    start = complex_frequencies(tube, float(grid[0]), fluid, n_roots, m, omega_max, n_layers,
+                                scheme, torsional)
+    problem = describe(tube, float(grid[0]), fluid, n_layers, scheme, m, torsional, damped=True)
+    tube, fluid = canonical(tube, fluid)
+    wall = discretize(tube, laminate(n_layers, scheme, tube, float(np.max(grid)), n_roots, int(m)))
+    omega, status = _curves(problem, wall, fluid, as_float(float(m)), jnp.asarray(grid),
+                            jnp.asarray(start.omega, jnp.complex128), Unknown.OMEGA)
+    return ComplexCurve(jnp.asarray(grid), omega, quality_factor(omega), status, start.certificate)

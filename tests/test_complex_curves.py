@@ -1,0 +1,86 @@
+"""Curves of complex roots by continuation (jaxdea.wavenumber_curve, jaxdea.complex_dispersion_curve;
+docs/theory/real_tubes.md §5): each point against an independent certified search, exact damped
+relations of the unstretched tube, and the lossless limit against jaxdea.frequencies."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxdea as jd
+
+UNSTRETCHED = jd.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0)
+
+
+def test_wavenumber_curve_equals_the_certified_search_at_every_checked_point():
+    """A hysteretic tube (ζ = 0.05): the continued branches at Ω = 1.25 and 2.0 are the roots of
+    jaxdea.wavenumbers there (an independent search of the plane), to 1e-9; at Ω = 2 the branches
+    have changed order (the first search's first wave is now the third least attenuated), which the
+    curve keeps as branch identity."""
+    tube = UNSTRETCHED.replace(damping=jd.Hysteretic(0.05))
+    grid = np.linspace(0.5, 2.0, 41)
+    curve = jd.wavenumber_curve(tube, grid, n_roots=3)
+    assert np.all(np.asarray(curve.status) == jd.Status.CONVERGED)
+    assert int(curve.certificate) == jd.SearchStatus.CERTIFIED
+    for k in (20, 40):
+        found = np.asarray(jd.wavenumbers(tube, float(grid[k]), n_roots=3).alpha)
+        for z in np.asarray(curve.alpha[k]):
+            assert np.min(np.abs(found - z)) < 1e-9 * abs(z)
+    np.testing.assert_array_equal(curve.attenuation, np.abs(np.imag(curve.alpha)))
+    assert np.all(np.imag(curve.alpha[:, 0]) < 0)  # the first wave decays along +z throughout
+
+
+def test_lossless_wavenumber_curve_inverts_frequencies():
+    """A stretched, biased lossless tube: the propagating branch stays real (|Im α̂| < 1e-12) and
+    at every point jaxdea.frequencies at that α̂ has the grid's Ω among its roots, to 1e-10."""
+    tube = jd.Tube(voltage=0.05, lambda_i=1.1, lambda_z=1.2, eta=0.8)
+    grid = np.linspace(0.4, 1.2, 17)
+    curve = jd.wavenumber_curve(tube, grid, n_roots=2)
+    real = [j for j in range(2) if abs(complex(curve.alpha[0, j]).imag) < 1e-12]
+    assert real, "no propagating wave at the first Ω"
+    j = real[0]
+    assert np.all(np.asarray(curve.status[:, j]) == jd.Status.CONVERGED)
+    assert np.max(np.abs(np.imag(curve.alpha[:, j]))) < 1e-12
+    for k in range(0, 17, 4):
+        roots = np.asarray(jd.frequencies(tube, float(np.real(curve.alpha[k, j])), n_roots=4))
+        assert np.nanmin(np.abs(roots - grid[k])) < 1e-10 * grid[k]
+
+
+def test_complex_dispersion_curve_is_the_exact_kelvin_voigt_relation():
+    """Unstretched, unbiased, empty tube with Kelvin–Voigt damping (η_v = 0.05), m = 1: every
+    modulus is μ(1 + iΩη_v), so each continued root satisfies Ω² = Ω_e²(1 + iΩη_v), i.e.
+    Ω = [iΩ_e²η_v + √(4Ω_e² − Ω_e⁴η_v²)]/2, with Ω_e the elastic dispersion_curve at the same α̂;
+    to 1e-10 along 30 α̂. The quality factor is Re Ω/(2 Im Ω)."""
+    eta_v = 0.05
+    tube = UNSTRETCHED.replace(damping=jd.KelvinVoigt(eta_v))
+    grid = np.linspace(0.3, 3.0, 30)
+    curve = jd.complex_dispersion_curve(tube, grid, n_roots=2, m=1)
+    assert np.all(np.asarray(curve.status) == jd.Status.CONVERGED)
+    elastic = np.asarray(jd.dispersion_curve(UNSTRETCHED, grid, n_roots=2, m=1).omega)
+    exact = (1j * elastic**2 * eta_v + np.sqrt(4 * elastic**2 - elastic**4 * eta_v**2)) / 2
+    np.testing.assert_allclose(curve.omega, exact, rtol=1e-10)
+    np.testing.assert_allclose(curve.quality_factor,
+                               np.real(exact) / (2 * np.imag(exact)), rtol=1e-9)
+
+
+@pytest.mark.parametrize("grid, match", [
+    ([1.0, 0.5, 2.0], "strictly increasing or strictly decreasing"),
+    ([0.5, -1.0], "finite and > 0"),
+    ([[0.5, 1.0]], "1-D"),
+    ([], "non-empty"),
+    ([0.5, np.nan], "finite and > 0"),
+])
+def test_bad_grids_name_the_parameter(grid, match):
+    tube = UNSTRETCHED.replace(damping=jd.KelvinVoigt(0.05))
+    with pytest.raises(ValueError, match="omegas must .*" + match):
+        jd.wavenumber_curve(tube, grid)
+    with pytest.raises(ValueError, match="alphas must .*" + match):
+        jd.complex_dispersion_curve(tube, grid)
+
+
+def test_traced_grids_and_the_paper_coupling_are_refused():
+    tube = UNSTRETCHED.replace(damping=jd.KelvinVoigt(0.05))
+    with pytest.raises(ValueError, match="omegas must be concrete"):
+        jax.jit(lambda g: jd.wavenumber_curve(tube, g).alpha)(jnp.linspace(0.5, 1.0, 3))
+    with pytest.raises(ValueError, match="coupling"):
+        jd.complex_dispersion_curve(tube, [0.5, 1.0], jd.Fluid(coupling="paper"))
