@@ -42,7 +42,7 @@ from jax.sharding import PartitionSpec as P
 
 from ..compiled import cached_jit
 from ..files import atomic_write
-from ..materials import KINDS, Energy
+from ..materials import DAMPING_KINDS, KINDS, Energy
 from ..numerics.scalar import Status
 from ..params import (
     MAX_ROOTS,
@@ -979,7 +979,22 @@ def wall_settings(tube: Tube | None) -> dict:
                           "shear_ratio": leaf(layer.shear_ratio),
                           "density_ratio": leaf(layer.density_ratio), "active": layer.active}
                          for layer in tube.layers]
+    if getattr(tube, "damping", None) is not None:
+        out["damping"] = damping_settings(tube.damping)
     return out
+
+
+def damping_settings(damping) -> dict:
+    """A damping law as JSON: ``{"kind": ..., parameter: value, ...}`` (:data:`DAMPING_KINDS`)."""
+    kind = next(k for k, cls in DAMPING_KINDS.items() if type(damping) is cls)
+    return {"kind": kind, **{f.name: np.asarray(getattr(damping, f.name)).tolist()
+                             for f in dataclasses.fields(damping)}}
+
+
+def damping_from_settings(value: dict):
+    """The damping law of :func:`damping_settings`."""
+    params = {k: tuple(v) if isinstance(v, list) else v for k, v in value.items() if k != "kind"}
+    return DAMPING_KINDS[value["kind"]](**params)
 
 
 def wall_from_settings(settings: dict) -> Tube | None:
@@ -999,7 +1014,9 @@ def wall_from_settings(settings: dict) -> Tube | None:
     layers = settings.get("layers")
     if layers is not None:
         layers = tuple(Layer(**{**layer, "material": material(layer["material"])}) for layer in layers)
-    return Tube(material=material(settings.get("material", "gent")), layers=layers)
+    damping = settings.get("damping")
+    return Tube(material=material(settings.get("material", "gent")), layers=layers,
+                damping=None if damping is None else damping_from_settings(damping))
 
 
 class _NoBar:
