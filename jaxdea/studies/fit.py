@@ -1841,7 +1841,8 @@ def fitted_frequencies(result: FitResult, voltage_V, m, n, branch=0, *, torsiona
     of ``result`` (``result.parameters``, ``result.settings``), per point.
 
     Ω_k is the k-th lowest positive root (k = ``branch``) of the global root scan (the definition
-    of a branch in :func:`fit`); NaN where that root does not exist. The arguments broadcast.
+    of a branch in :func:`fit`); NaN where that root does not exist. A damped fit's (``damping=``):
+    Re Ω of the complex root continued from it (:func:`_seed`). The arguments broadcast.
     ``torsional``: the torsional family (m = 0). ``lambda_i``, ``lambda_z``, ``pressure_Pa``: the
     loading of each point where the fit had them as data columns (or to evaluate the fitted tube
     at another loading); ``pressure_Pa`` only for a tube held by pressure, ``lambda_i`` only for
@@ -1905,5 +1906,14 @@ def fitted_frequencies(result: FitResult, voltage_V, m, n, branch=0, *, torsiona
             part = slice(start, start + CURVE_CHUNK)
             roots = _roots(problem, np.zeros(0), voltage[part], n[part], m[part], n_roots,
                            load[part], torsional[part])
-            out[part] = roots[np.arange(roots.shape[0]), branch[part]] * scale
+            root = roots[np.arange(roots.shape[0]), branch[part]]
+            if _damped(problem):  # Re Ω of the complex root continued from the elastic one
+                sub = problem._replace(voltage=voltage[part], load=load[part])
+                labels = np.stack([m[part], n[part], branch[part], torsional[part]], axis=1)
+                root = root.astype(complex)
+                for step in range(1, HOMOTOPY_STEPS + 1):
+                    root = _evaluate_damped(sub, np.zeros(0), labels, root,
+                                            step / HOMOTOPY_STEPS)[0]
+                root = root.real
+            out[part] = root * scale
     return out.reshape(shape)
