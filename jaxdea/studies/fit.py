@@ -26,6 +26,18 @@ the peaks of one voltage and loading share the model's modes. Torsional modes (m
 torsional family) are candidates with ``torsional=True`` and labels with a 0/1 column
 ``torsional``.
 
+Damping and peak widths. With a damping law (``damping=``, :mod:`jaxdea.materials`) the model of
+a labelled peak is the complex root Ω near it (time factor e^{iΩt}, a decaying mode has Im Ω > 0;
+:mod:`jaxdea.solve.complex_frequencies`): the elastic root of the undamped tube continued by Newton
+as η* grows from 0 to its value (:func:`_seed`), then :func:`jaxdea.solve_complex_frequency` from
+the last iterate, with the implicit derivatives of Re Ω and Im Ω for the Jacobian. Its frequency
+is f = Re Ω c_s/(2π R_i) and its half-power width (FWHM) Δf = 2 Im Ω c_s/(2π R_i): near the
+resonance the response ∝ 1/(ω − Ω) has |·|² at half its peak at Re Ω ± Im Ω; Q = f/Δf =
+Re Ω/(2 Im Ω). A ``width_Hz`` or ``quality_factor`` column adds the residuals
+(w_model − w_data)/σ_w after the frequencies' (:data:`WIDTH_COLUMNS`); the damping parameters are
+wall parameters by name (``damping_moduli_0``, ``damping_times_1``, ``damping_viscosity``,
+:func:`jaxdea.physics.leaves.damping_names`).
+
 Solver. A small Levenberg–Marquardt loop in NumPy (Marquardt's diagonal scaling; the damping is
 divided by 3 after an accepted step and multiplied by 4 after a rejected one) on the unconstrained u,
 with the exact Jacobian ∂r/∂θ from ``jax.jacfwd`` through the implicit root derivatives (never
