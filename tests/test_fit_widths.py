@@ -33,7 +33,12 @@ def _peaks(**columns):
 
 @pytest.fixture(scope="module")
 def exact():
-    """(f, Δf) in Hz of the eight peaks at the truth, and the problem (the compiled programs)."""
+    """(f, Δf) in Hz of the eight peaks at the truth, Ω, the problem and labels (one compiled
+    program for every test)."""
+    return _exact()
+
+
+def _exact():
     wall = F._wall(None, None, jd.Prony(moduli=MODULI, times=TIMES))
     problem, labels = F._validate(_peaks(frequency_Hz=np.ones(N.size), width_Hz=np.ones(N.size)),
                                   FREE, FIXED, None, wall)

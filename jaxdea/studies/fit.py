@@ -181,8 +181,14 @@ WALL_HELP = ("modes that the wall parameter moves unlike μ does (several orders
 """:data:`HELP` of a free wall parameter (``material_beta``, ``layer0_shear_ratio``, …)."""
 
 
+DAMPING_HELP = ("peak widths (width_Hz or quality_factor) of modes whose frequencies span the law's "
+                "relaxation times (a Prony branch far below or above them acts as a viscosity or a "
+                "stiffness alone), or a measured value")
+""":data:`HELP` of a free damping parameter (``damping_moduli_0``, ``damping_viscosity``, …)."""
+
+
 def _help(name):
-    return HELP.get(name, WALL_HELP)
+    return HELP.get(name, DAMPING_HELP if name.startswith("damping_") else WALL_HELP)
 
 
 class FitStatus(enum.IntEnum):
