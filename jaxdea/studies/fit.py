@@ -1242,9 +1242,9 @@ def _validate(data, free, fixed, fluid, wall=None):
     width, width_sigma, width_kind = _widths(data, frequency_hz, sigma, wall, m)
     observations = voltage.size * (1 if width is None else 2)
     if observations <= len(free):
-        raise ValueError(f"data has {observations} observations ({voltage.size} rows"
-                         f"{'' if width is None else ' of frequency and width'}): more than "
-                         f"{len(free)} (the number of free parameters) are needed")
+        widths = "" if width is None else f" of frequency and width, {observations} observations"
+        raise ValueError(f"data has {voltage.size} rows{widths}: more than {len(free)} (the "
+                         f"number of free parameters) are needed")
     labels = None
     if m is not None:
         labels = np.stack([m, n, np.zeros_like(m) if branch is None else branch,
