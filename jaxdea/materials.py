@@ -18,6 +18,7 @@ from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 
 def gent(i1, gent_constant):
@@ -72,6 +73,22 @@ class Material:
     def shear_modulus(self):
         """2(W_1 + W_2) at rest, i.e. Q_ij at λ = (1, 1, 1): 1 for a normalised material."""
         return self.derivatives(jnp.asarray(REST))[2][0, 1]
+
+    def parameter_names(self) -> tuple:
+        """The names of the scalar parameters that sweeps, traces and fits may set
+        (:meth:`with_parameters`): the dataclass fields holding one real number."""
+        return tuple(f.name for f in dataclasses.fields(self) if not f.metadata.get("static")
+                     and np.ndim(getattr(self, f.name)) == 0
+                     and np.isrealobj(getattr(self, f.name))
+                     and not isinstance(getattr(self, f.name), (str, bool, type(None))))
+
+    def parameter(self, name: str):
+        """The value of a parameter of :meth:`parameter_names`."""
+        return getattr(self, name)
+
+    def with_parameters(self, **values):
+        """A copy with parameters of :meth:`parameter_names` set."""
+        return dataclasses.replace(self, **values)
 
 
 class InvariantMaterial(Material):
@@ -151,6 +168,23 @@ class Ogden(Material):
     mu: tuple = (1.0,)
     alpha: tuple = (2.0,)
 
+    def parameter_names(self) -> tuple:
+        """The exponents ``alpha0``, ``alpha1``, …: setting α_k keeps the term's share
+        μ_kα_k/2 of the unit shear modulus (μ_k ← μ_kα_k/α_k,new), so the material stays
+        normalised (Σ μ_kα_k = 2) along a sweep, a trace or a fit."""
+        return tuple(f"alpha{k}" for k in range(len(self.alpha)))
+
+    def parameter(self, name: str):
+        return self.alpha[_term(self, name)]
+
+    def with_parameters(self, **values):
+        mu, alpha = list(self.mu), list(self.alpha)
+        for name, value in values.items():
+            k = _term(self, name)
+            mu[k] = mu[k] * alpha[k] / value
+            alpha[k] = value
+        return dataclasses.replace(self, mu=tuple(mu), alpha=tuple(alpha))
+
     def energy(self, stretches):
         total = 0.0
         for mu, alpha in zip(self.mu, self.alpha, strict=True):
@@ -169,6 +203,15 @@ class Ogden(Material):
                               jnp.expm1(alpha * t_safe) / jnp.expm1(2.0 * t_safe))
             total = total + mu * lj ** (alpha - 2.0) * ratio
         return total
+
+
+def _term(material, name: str) -> int:
+    """k of an Ogden parameter name ``alpha<k>``; ValueError otherwise."""
+    names = material.parameter_names()
+    if name not in names:
+        raise ValueError(f"{type(material).__name__} has no parameter {name!r}: allowed are "
+                         f"{', '.join(names)}")
+    return int(name.removeprefix("alpha"))
 
 
 @jax.tree_util.register_dataclass

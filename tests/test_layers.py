@@ -349,21 +349,49 @@ def test_first_instability_derivative_in_wall_leaves(which):
 
 
 def test_design_of_a_layered_tube_keeps_its_layers():
-    """``design_for_frequency`` of the paper's tube inside a stiff encapsulation verifies and
+    """``design_for_frequency`` of the paper's tube inside a stiff encapsulation converges and
     returns the layered wall: the result's tube keeps the layers (it rebuilt a single wall, and
-    its verification solved that one) and its ``omega`` is that tube's lowest root at its α̂."""
+    its verification solved that one) and its ``omega`` is that tube's lowest root at its α̂.
+    This wall's Ω(H) at s_op is not monotone (a maximum 0.92168 near η = 0.71, 0.91788 at the
+    start η = 0.85): the target 0.9985 Ω(V̂ = 0) = 0.92099 lies between."""
     layers = (jd.Layer(0.8, GENT, active=True), jd.Layer(0.2, jd.NeoHookean(), shear_ratio=3.0))
     paper = jd.Tube(lambda_i=1.1, lambda_z=1.2, eta=0.85, layers=layers)
-    target = 0.9 * float(jd.frequencies(paper, float(jd.axial_wavenumber(paper, 1)), n_layers=16)[0])
+    f0 = float(jd.frequencies(paper, float(jd.axial_wavenumber(paper, 1)), n_layers=16)[0])
+    target = 0.9985 * f0
     design = jd.design_for_frequency(paper, target, n=1, n_layers=16, m_max=2, n_max=2,
                                      max_steps=40)
     made = design.tube
     assert made.layers == layers
-    assert design.status != jd.DesignStatus.WRONG_BRANCH
+    assert design.status == jd.DesignStatus.CONVERGED
+    assert design.omega == pytest.approx(target, rel=1e-6)
+    assert 0.2 < design.thickness < 1 / 0.85 - 1 + 0.2  # moved off the start (0.176)
     lowest = float(jd.frequencies(made, design.alpha, n_roots=1, n_layers=16)[0])
     assert design.omega == pytest.approx(lowest, rel=1e-12)
     single = float(jd.frequencies(made.replace(layers=None), design.alpha, n_roots=1, n_layers=16)[0])
     assert abs(single / lowest - 1) > 1e-2
+
+
+def test_design_of_a_layered_tube_beyond_its_maximum_frequency():
+    """A target above the largest Ω(H) of that wall (1.1 Ω(V̂ = 0), 9 % above the maximum 0.92168)
+    made Newton cycle over the maximum (steps of ±2 in x_H between η = 0.85 and 0.64, slopes of
+    opposite sign) until ``max_steps`` was spent, then raise. Newton now bisects on the sign of the
+    slope, finds the maximum, gives up there, and adam's compromise ends MAX_STEPS, its Ω closer
+    to the target than the start's and no higher than the maximum Newton found."""
+    layers = (jd.Layer(0.8, GENT, active=True), jd.Layer(0.2, jd.NeoHookean(), shear_ratio=3.0))
+    paper = jd.Tube(lambda_i=1.1, lambda_z=1.2, eta=0.85, layers=layers)
+    alpha = float(jd.axial_wavenumber(paper, 1))
+    f0 = float(jd.frequencies(paper, alpha, n_layers=16)[0])
+    design = jd.design_for_frequency(paper, 1.1 * f0, n=1, n_layers=16, m_max=2, n_max=2,
+                                     max_steps=60)
+    assert design.status == jd.DesignStatus.MAX_STEPS
+    # the start: η = 0.85 at V̂ = s_op m V̂_first = 0.5 × 0.8 × V̂_first
+    first = jd.first_instability(paper, m_max=2, n_max=2, n_layers=16)
+    start = float(jd.frequencies(paper.replace(voltage=0.4 * float(first.voltage)), alpha,
+                                 n_layers=16)[0])
+    assert design.omega > start + 3e-3  # 0.91788 -> 0.92168
+    assert abs(design.voltage_fraction - 0.5) < 0.05
+    assert design.loss == pytest.approx((design.omega / (1.1 * f0) - 1) ** 2
+                                        + (design.voltage_fraction - 0.5) ** 2, rel=1e-6)
 
 
 def test_critical_voltage_of_a_wall_without_pull_in():

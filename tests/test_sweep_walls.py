@@ -100,3 +100,54 @@ def test_saved_attributes_name_each_layer():
     assert attrs["layer1_material_gent"] == 97.2 and attrs["layer1_active"] == 1
     assert attrs["layer2_shear_ratio"] == 3.0
     assert "layer2_fraction" not in attrs and "layer1_fraction" not in attrs
+
+
+OGDEN = jd.Ogden(mu=(0.6, 0.4 / 3.0), alpha=(2.0, 6.0))  # shares 0.6 and 0.4 of μ (Σ μ_kα_k = 2)
+
+
+def test_sweep_over_an_ogden_exponent_keeps_the_shear_modulus():
+    """Ogden's exponents are axes (``material_alpha<k>``; its tuples were no names): α_0 = 1.5 keeps
+    the term's share 0.6 of the unit shear modulus, μ_0 = 2·0.6/1.5, built by hand here and
+    normalised (2(W_1 + W_2) = 1 at rest, to 1e-14); each point equals jaxdea.frequencies of that
+    material to 1e-12, and dΩ/dα_0 a central difference of the hand-built family to 1e-6."""
+    tube = MOONEY.replace(material=OGDEN)
+    assert "material_alpha0" in wall_names(tube) and "material_alpha1" in wall_names(tube)
+    res = sweep(tube, alpha=0.8, material_alpha0=[1.5, 2.0], n_roots=2,
+                jacobian=["material_alpha0"], progress=False, **EQUAL)
+    assert np.all(res.status == jd.Status.CONVERGED)
+
+    def by_hand(a0):
+        return tube.replace(material=jd.Ogden(mu=(2 * 0.6 / a0, 0.4 / 3.0), alpha=(a0, 6.0)))
+
+    assert float(by_hand(1.5).material.shear_modulus()) == pytest.approx(1.0, abs=1e-14)
+    for i, a0 in enumerate((1.5, 2.0)):
+        np.testing.assert_allclose(res.omega[0, i], jd.frequencies(by_hand(a0), 0.8, n_roots=2,
+                                                                   **EQUAL), rtol=1e-12)
+    assert abs(res.omega[0, 0, 0] / res.omega[0, 1, 0] - 1) > 1e-3  # the exponent matters
+    h = 1e-5
+    up, down = (jd.frequencies(by_hand(1.5 + s * h), 0.8, n_roots=1, **EQUAL)[0] for s in (1, -1))
+    np.testing.assert_allclose(res.derivative("material_alpha0")[0, 0, 0], (up - down) / (2 * h),
+                               rtol=1e-6)
+
+
+def test_trace_along_wall_names():
+    """trace_branch follows a branch along a passive layer's shear ratio and along a layer's Ogden
+    exponent (both were refused: unknown parameter); traced points equal jaxdea.frequencies of the
+    walls built by hand to 1e-11."""
+    tube = _with_layer(SANDWICH, 2, material=OGDEN)
+    omega = float(jd.frequencies(tube, 0.8, n_roots=1, **EQUAL)[0])
+    branch = jd.trace_branch(tube, 0.8, omega, along="layer2_shear_ratio", stop=8.0, **EQUAL)
+    k = int(branch.n_points)
+    assert branch.status == jd.BranchEnd.REACHED_STOP and k >= 3
+    for j in (k // 2, k - 1):
+        s = float(branch.parameter[j])
+        built = _with_layer(tube, 2, shear_ratio=s)
+        np.testing.assert_allclose(branch.omega[j], jd.frequencies(built, 0.8, n_roots=1, **EQUAL)[0],
+                                   rtol=1e-11)
+    branch = jd.trace_branch(tube, 0.8, omega, along="layer2_material_alpha1", stop=3.0, **EQUAL)
+    k = int(branch.n_points)
+    assert branch.status == jd.BranchEnd.REACHED_STOP
+    a1 = float(branch.parameter[k - 1])
+    built = _with_layer(tube, 2, material=jd.Ogden(mu=(0.6, 0.4 * 2 / a1), alpha=(2.0, a1)))
+    np.testing.assert_allclose(branch.omega[k - 1], jd.frequencies(built, 0.8, n_roots=1, **EQUAL)[0],
+                               rtol=1e-11)

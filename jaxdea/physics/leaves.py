@@ -8,7 +8,9 @@ surrounding fluid ``tube.outer`` (``outer_density_ratio``, ``outer_speed_ratio``
 (deformed h/R_i at the tube's λ_i, λ_z, set through :func:`jaxdea.with_thickness_ratio`, i.e. by η).
 
 Names of the wall (:func:`wall_names`, for a tube that has them): ``material_<field>``, a scalar
-parameter of the tube's material object (``material_beta`` of ``MooneyRivlin``); and per layer k
+parameter of the tube's material object (``material_beta`` of ``MooneyRivlin``; ``material_alpha0``,
+the first exponent of an ``Ogden``, whose μ_0 follows so that the term keeps its share μ_0α_0/2 of
+the unit shear modulus); and per layer k
 (0 the innermost, as ``tube.layers[k]``) ``layer<k>_fraction``, ``layer<k>_shear_ratio``,
 ``layer<k>_density_ratio`` (passive layers only: the active layer sets the units) and
 ``layer<k>_material_<field>``; and of the tube's damping law (``tube.damping``, :func:`damping_names`)
@@ -41,14 +43,12 @@ _LAYER_NAME = re.compile(r"layer(\d+)_(.+)")
 
 
 def material_fields(material) -> tuple:
-    """The scalar parameters of a material object (its dataclass fields holding one real number:
-    Ogden's tuples and a user's ``Energy`` params pytree are not names); () for a static name."""
-    if isinstance(material, str) or not dataclasses.is_dataclass(material):
+    """The scalar parameters of a material object that are names (its ``parameter_names``: the
+    fields holding one real number, and Ogden's exponents ``alpha<k>``, set at a fixed share
+    μ_kα_k/2 of the shear modulus; a user's ``Energy`` params pytree is not); () for a static name."""
+    if isinstance(material, str) or not hasattr(material, "parameter_names"):
         return ()
-    return tuple(f.name for f in dataclasses.fields(material) if not f.metadata.get("static")
-                 and np.ndim(getattr(material, f.name)) == 0
-                 and np.isrealobj(getattr(material, f.name))
-                 and not isinstance(getattr(material, f.name), (str, bool, type(None))))
+    return material.parameter_names()
 
 
 def damping_fields(damping) -> dict:
@@ -161,7 +161,7 @@ def get_parameter(tube: Tube, alpha, fluid: Fluid | None, name: str):
     if name == "thickness_ratio":
         return geometry(tube).thickness
     if name.startswith("material_"):
-        return as_float(getattr(tube.material, name.removeprefix("material_")))
+        return as_float(tube.material.parameter(name.removeprefix("material_")))
     if name.startswith("damping_"):
         field, index = damping_fields(tube.damping)[name]
         value = getattr(tube.damping, field)
@@ -170,7 +170,7 @@ def get_parameter(tube: Tube, alpha, fluid: Fluid | None, name: str):
     if match is not None:
         layer, field = tube.layers[int(match.group(1))], match.group(2)
         if field.startswith("material_"):
-            return as_float(getattr(layer.material, field.removeprefix("material_")))
+            return as_float(layer.material.parameter(field.removeprefix("material_")))
         return as_float(getattr(layer, field))
     if name == "alpha":
         return as_float(alpha)
@@ -209,7 +209,7 @@ def with_wall(tube: Tube, values: dict) -> Tube:
     material = {k.removeprefix("material_"): v for k, v in values.items()
                 if k.startswith("material_")}
     if material:
-        tube = tube.replace(material=dataclasses.replace(tube.material, **material))
+        tube = tube.replace(material=tube.material.with_parameters(**material))
     per_layer = {}
     for name, value in values.items():
         match = _LAYER_NAME.fullmatch(name)
@@ -223,7 +223,7 @@ def with_wall(tube: Tube, values: dict) -> Tube:
                     if f.startswith("material_")}
         fields = {f: v for f, v in changes.items() if not f.startswith("material_")}
         if material:
-            fields["material"] = dataclasses.replace(layers[k].material, **material)
+            fields["material"] = layers[k].material.with_parameters(**material)
         layers[k] = dataclasses.replace(layers[k], **fields)
     if any("fraction" in changes for changes in per_layer.values()):
         active = next(k for k, layer in enumerate(layers) if layer.active)

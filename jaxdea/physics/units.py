@@ -49,14 +49,19 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..materials import FractionalKelvinVoigt, Gent, Hysteretic, KelvinVoigt, Prony
 from ..params import (
     TINY,
     Fluid,
+    Layer,
     Tube,
     require_x64,
     validate_broadcast,
+    validate_damping,
     validate_fluid,
+    validate_material,
     validate_tube,
+    validate_wall_layers,
 )
 from .base_state import inner_stretch_traced
 
@@ -328,6 +333,29 @@ class FluidSI(NamedTuple):
     sound_speed: jax.Array
 
 
+class LayerSI(NamedTuple):
+    """One layer of a wall in SI units (:func:`layers_from_si`), from the inner face outwards.
+
+    Attributes:
+        thickness: its undeformed thickness in m (> 0).
+        shear_modulus: its small-strain shear modulus μ_k in Pa, or None for the scales' μ (the
+            active layer's, which sets the units).
+        density: its mass density ρ_k in kg/m³, or None for the scales' ρ_s.
+        material: its energy, a material object normalised to unit shear modulus
+            (:mod:`jaxdea.materials`; dimensionless, passed through).
+        active: True for the one dielectric layer with electrodes on its faces.
+        damping: None or a damping law of :mod:`jaxdea.materials` with SI values
+            (:func:`damping_from_si`).
+    """
+
+    thickness: jax.Array
+    shear_modulus: jax.Array | None = None
+    density: jax.Array | None = None
+    material: object = Gent()
+    active: bool = False
+    damping: object = None
+
+
 WATER = FluidSI(fluid_density=998.2, sound_speed=1482.0)
 """Water at 20 °C (ρ = 998.2 kg/m³, c = 1482 m/s): ``fluid_from_si(scales, WATER)``."""
 AIR = FluidSI(fluid_density=1.204, sound_speed=343.2)
@@ -337,8 +365,9 @@ SILICONE_OIL = FluidSI(fluid_density=960.0, sound_speed=985.0)
 per cent), the usual bath of DEA tests."""
 
 
-def tube_from_si(scales: Scales, outer_radius, length, voltage=0.0, lambda_i=None, lambda_z=1.0,
-                 gent=97.2, material: str = "gent", pressure=None) -> Tube:
+def tube_from_si(scales: Scales, outer_radius=None, length=None, voltage=0.0, lambda_i=None,
+                 lambda_z=1.0, gent=97.2, material="gent", pressure=None, layers=None,
+                 damping=None) -> Tube:
     """The dimensionless :class:`~jaxdea.Tube` of a tube given in SI units (docs/theory/axisymmetric.md §0).
 
     η = R_i/R_o, length_ratio = L/R_o, V̂ = sqrt(ε/μ) V/R_i; the stretches and G are dimensionless
@@ -350,17 +379,26 @@ def tube_from_si(scales: Scales, outer_radius, length, voltage=0.0, lambda_i=Non
     positive and finite, the material, and the Gent locking limit of the resulting wall (the
     message states the largest I_1 - 3 against G).
 
+    A layered wall is given by ``layers``, a sequence of :class:`LayerSI` from the inner face
+    outwards (:func:`layers_from_si`): R_o = R_i + Σ thickness_k, and the scales are the active
+    layer's (μ, ρ_s, ε).
+
     Args:
         scales: the :class:`Scales` (R_i is ``scales.inner_radius``).
-        outer_radius: undeformed outer radius R_o > R_i in m.
+        outer_radius: undeformed outer radius R_o > R_i in m; with ``layers`` it may be left out
+            (None), and if given it must equal R_i + Σ thickness_k.
         length: undeformed length L > 0 in m (enters only :func:`jaxdea.axial_wavenumber`).
         voltage: V in V (any finite value; only V² matters).
         lambda_i: inner circumferential stretch r_i/R_i > 0 (default 1; not with ``pressure``).
         lambda_z: axial stretch l/L > 0.
         gent: Gent constant G > 0 (``inf`` for neo-Hookean).
-        material: static energy name, as in :class:`~jaxdea.Tube`.
+        material: the energy, as in :class:`~jaxdea.Tube`: a static name or a material object
+            (dimensionless; not with ``layers``).
         pressure: None (held by its stretch ``lambda_i``) or the pressure difference ΔP in Pa
             (finite) that holds the tube; differentiable, and NaN past pull-in when traced.
+        layers: None (one active wall) or a sequence of :class:`LayerSI`.
+        damping: None or a damping law of :mod:`jaxdea.materials` with SI values (Pa, s:
+            :func:`damping_from_si`); not with ``layers`` (give each :class:`LayerSI` its own).
 
     Returns:
         An instance of :class:`~jaxdea.Tube`.
@@ -376,9 +414,31 @@ def tube_from_si(scales: Scales, outer_radius, length, voltage=0.0, lambda_i=Non
         >>> float(held.lambda_i)  # ≈ 0.9: the pressure of the worked example at 5 kV
     """
     _check_scales(scales)
-    if not isinstance(material, str):
-        raise ValueError(f"material must be a str, got {material!r}")
     _, _, _, ri = scales._values()
+    if layers is not None:
+        if not (isinstance(material, str) and material == "gent") or damping is not None:
+            raise ValueError("material and damping belong to each LayerSI when layers are given: "
+                             "leave the tube's at their defaults")
+        wall = _thicknesses(layers)
+        inner_to_outer = ri + sum(wall)
+        if outer_radius is not None:
+            r_o = _positive("outer_radius", outer_radius, "m")
+            if not any(isinstance(x, jax.core.Tracer) for x in (r_o, inner_to_outer)) and not \
+                    np.allclose(r_o, inner_to_outer, rtol=1e-9, atol=0.0):
+                raise ValueError(f"outer_radius = {outer_radius!r} m must equal inner_radius + the "
+                                 f"layers' thicknesses = {float(np.ravel(inner_to_outer)[0])!r} m "
+                                 "(or be left out)")
+        outer_radius = inner_to_outer
+        layers = layers_from_si(scales, layers)
+    elif outer_radius is None:
+        raise ValueError("outer_radius: the undeformed outer radius R_o in m is required (or "
+                         "layers, whose thicknesses give it)")
+    if length is None:
+        raise ValueError("length: the undeformed length L in m is required")
+    if not isinstance(material, str):
+        validate_material(material)
+    if damping is not None:
+        damping = damping_from_si(scales, damping)
     r_o = _positive("outer_radius", outer_radius, "m")
     length = _positive("length", length, "m")
     v = _checked("voltage", voltage, "a real number (V)", lambda x: np.isreal(x))
@@ -406,7 +466,7 @@ def tube_from_si(scales: Scales, outer_radius, length, voltage=0.0, lambda_i=Non
              lambda x: np.isfinite(x) & (x > 0))
     _derived("voltage", v_hat, "voltage and the scales", "finite", np.isfinite)
     tube = Tube(voltage=v_hat, lambda_i=lambda_i, lambda_z=lambda_z, eta=eta, gent=gent,
-                length_ratio=length_ratio, material=material)
+                length_ratio=length_ratio, material=material, layers=layers, damping=damping)
     validate_tube(tube, scalar=False)  # the material, and Gent locking of the wall
     if pressure is None:
         return tube
@@ -425,8 +485,8 @@ def tube_from_si(scales: Scales, outer_radius, length, voltage=0.0, lambda_i=Non
 def _held_stretch(tube: Tube, delta_p):
     """λ_i held by ΔP̂ (:func:`jaxdea.physics.base_state.inner_stretch`), elementwise over array leaves."""
     def one(voltage, lambda_z, eta, gent, length_ratio, dp):
-        t = Tube(voltage=voltage, lambda_i=1.0, lambda_z=lambda_z, eta=eta, gent=gent,
-                 length_ratio=length_ratio, material=tube.material)
+        t = tube.replace(voltage=voltage, lambda_i=1.0, lambda_z=lambda_z, eta=eta, gent=gent,
+                         length_ratio=length_ratio)
         return inner_stretch_traced(t, dp)[0]
 
     leaves = [jnp.asarray(getattr(tube, k), jnp.float64)
@@ -505,3 +565,122 @@ def fluid_to_si(scales: Scales, fluid: Fluid) -> FluidSI:
     _, rho_s, _, _ = scales._values()
     return FluidSI(fluid_density=_number("density_ratio", fluid.density_ratio) * rho_s,
                    sound_speed=scales.speed_to_si(fluid.speed_ratio))
+
+
+def _thicknesses(layers) -> list:
+    """The layers' thicknesses in m, validated (a non-empty sequence of :class:`LayerSI`)."""
+    if isinstance(layers, LayerSI) or not isinstance(layers, (list, tuple)) or not layers or \
+            not all(isinstance(x, LayerSI) for x in layers):
+        raise ValueError("layers must be a non-empty sequence of jaxdea.units.LayerSI, from the "
+                         f"inner face outwards, got {layers!r}")
+    return [_positive(f"layers[{k}].thickness", x.thickness, "m") for k, x in enumerate(layers)]
+
+
+def layers_from_si(scales: Scales, layers) -> tuple:
+    """The :class:`~jaxdea.Layer` tuple of a wall given in SI (docs/theory/real_tubes.md §3):
+    fraction_k = t_k/Σt, shear_ratio = μ_k/μ, density_ratio = ρ_k/ρ_s, damping by
+    :func:`damping_from_si`.
+
+    The scales (μ, ρ_s) are the active layer's, since it sets the units: its ``shear_modulus`` and
+    ``density`` are None or equal to the scales' (to 1e-9).
+
+    Args:
+        scales: the :class:`Scales`.
+        layers: a sequence of :class:`LayerSI` from the inner face outwards, exactly one active.
+
+    Raises:
+        ValueError: naming the layer and field (``layers[2].shear_modulus``), for values that are not
+            positive and finite, an active layer whose modulus or density is not the scales', or a
+            wall that is not valid (:class:`~jaxdea.Layer`: exactly one active layer).
+
+    Examples:
+        >>> vhb = Scales(20e3, 960.0, 4.7 * VACUUM_PERMITTIVITY, 5e-3)
+        >>> wall = layers_from_si(vhb, [LayerSI(0.8e-3, active=True),
+        ...                             LayerSI(0.2e-3, shear_modulus=60e3, density=1100.0,
+        ...                                     material=jd.NeoHookean())])
+        >>> wall[1].shear_ratio, wall[1].fraction   # 3.0, 0.2
+    """
+    _check_scales(scales)
+    thickness = _thicknesses(layers)
+    mu, rho_s, _, _ = scales._values()
+    total = sum(thickness)
+    out = []
+    for k, (layer, t) in enumerate(zip(layers, thickness, strict=True)):
+        name = f"layers[{k}]"
+        if not isinstance(layer.active, bool):
+            raise ValueError(f"{name}.active must be True or False, got {layer.active!r}")
+        ratios = []
+        for field, unit, scale in (("shear_modulus", "Pa", mu), ("density", "kg/m^3", rho_s)):
+            value = getattr(layer, field)
+            if value is None:
+                ratios.append(jnp.ones_like(scale))
+                continue
+            value = _positive(f"{name}.{field}", value, unit)
+            ratio = value / scale
+            if layer.active and not any(isinstance(x, jax.core.Tracer) for x in (ratio,)) and \
+                    not np.allclose(ratio, 1.0, rtol=1e-9, atol=0.0):
+                raise ValueError(f"{name}.{field} = {float(np.ravel(value)[0])!r} {unit} must be "
+                                 f"the scales' {field} ({float(np.ravel(scale)[0])!r} {unit}) or "
+                                 "None: the active layer sets the units")
+            ratios.append(jnp.ones_like(ratio) if layer.active else ratio)
+        damping = None if layer.damping is None else damping_from_si(scales, layer.damping,
+                                                                      name=f"{name}.damping")
+        out.append(Layer(fraction=t / total, material=layer.material, shear_ratio=ratios[0],
+                         density_ratio=ratios[1], active=layer.active, damping=damping))
+    out = tuple(out)
+    validate_wall_layers(Tube(layers=out))
+    return out
+
+
+def damping_from_si(scales: Scales, law, name: str = "damping"):
+    """A damping law with SI values made dimensionless (docs/theory/real_tubes.md §4): moduli over
+    μ (Pa), times over R_i/c_s (s), a Kelvin–Voigt viscosity over μR_i/c_s (Pa s); a fractional
+    order, a stretch coupling and a hysteretic loss are dimensionless and pass through. So
+    η*(ω) in Pa over μ is the dimensionless η*(Ω) at Ω = ωR_i/c_s.
+
+    Args:
+        scales: the :class:`Scales`.
+        law: :class:`~jaxdea.Prony` (``moduli`` in Pa, ``times`` in s),
+            :class:`~jaxdea.FractionalKelvinVoigt` (``modulus`` in Pa, ``time`` in s),
+            :class:`~jaxdea.KelvinVoigt` (``viscosity`` in Pa s) or :class:`~jaxdea.Hysteretic`.
+
+    Raises:
+        ValueError: naming the parameter (``damping.times``), for a law of another type or values
+            out of range (:func:`jaxdea.params.validate_damping`).
+
+    Examples:
+        >>> vhb_branches = damping_from_si(vhb, jd.Prony(moduli=(26e3, 27e3, 11e3),
+        ...                                              times=(0.01, 0.1, 1.0)))
+    """
+    _check_scales(scales)
+    mu, _, _, _ = scales._values()
+    t = scales.time_scale
+    modulus = lambda field, x: _positive(f"{name}.{field}", x, "Pa") / mu  # noqa: E731
+    time = lambda field, x: _positive(f"{name}.{field}", x, "s") / t  # noqa: E731
+    if isinstance(law, Prony):
+        for field in ("moduli", "times"):
+            if not isinstance(getattr(law, field), (tuple, list)):
+                raise ValueError(f"{name}.{field} must be a tuple, got {getattr(law, field)!r}")
+        if len(law.moduli) != len(law.times):
+            raise ValueError(f"{name}.moduli and {name}.times must have the same length, got "
+                             f"{len(law.moduli)} and {len(law.times)}")
+        out = Prony(moduli=tuple(modulus(f"moduli[{k}]", g) for k, g in enumerate(law.moduli)),
+                    times=tuple(time(f"times[{k}]", x) for k, x in enumerate(law.times)))
+    elif isinstance(law, FractionalKelvinVoigt):
+        out = FractionalKelvinVoigt(modulus=modulus("modulus", law.modulus),
+                                    time=time("time", law.time), order=law.order,
+                                    stretch_coupling=law.stretch_coupling)
+    elif isinstance(law, KelvinVoigt):
+        out = KelvinVoigt(viscosity=_positive(f"{name}.viscosity", law.viscosity, "Pa s")
+                          / (mu * t))
+    elif isinstance(law, Hysteretic):
+        out = law
+    else:
+        raise ValueError(f"{name} must be a damping law of jaxdea.materials (Prony, "
+                         "FractionalKelvinVoigt, KelvinVoigt, Hysteretic), got "
+                         f"{type(law).__name__}")
+    try:
+        validate_damping(out)
+    except ValueError as exc:
+        raise ValueError(f"{name}: {exc}") from exc
+    return out

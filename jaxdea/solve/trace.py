@@ -496,7 +496,7 @@ def trace_branch(tube: Tube, alpha, omega, fluid: Fluid | None = None, *, along:
     if not isinstance(along, str):
         raise ValueError(f"along must be a parameter name (str), got {along!r}")
     try:
-        check_names([along], fluid, allow_n=False)
+        check_names([along], fluid, allow_n=False, tube=tube)
     except ValueError as exc:
         raise ValueError(f"along = {along!r}: {exc}") from exc
     validate_positive("omega", omega, "> 0 (a root of the branch to follow)")

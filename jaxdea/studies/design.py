@@ -96,6 +96,7 @@ FLOOR = 1e-9  # the rate never falls below FLOOR x its initial value
 NEWTON_MAX_STEP = 2.0  # frequency design: the longest Newton step in the thickness variable x_H
 NEWTON_EDGE = 25.0  # |x_H| beyond which the thickness sits on a bound (σ(25) = 1 − 1.4e-11)
 NEWTON_REFRESH = 0.25  # a Newton step longer than this (in x_H) refreshes the candidate modes
+NEWTON_TURN = 1e-3  # frequency design: the width in x_H at which an extremum of g counts as found
 NEWTON_STEPS = 40  # at most this many Newton steps before adam takes over
 PLATEAU = 10  # steps over which maximise_tunability's loss must have settled
 CANDIDATE_BAND = 0.05  # (m, n) with V̂_cr <= (1 + band) V̂_first are solved at every step
@@ -458,19 +459,25 @@ def _newton(x_h, guess, bound, setting, n_layers, scheme, history, rtol, max_ste
     derivatives of Ω and of V̂_first (the forward-mode gradient of the loss L = g² there is
     2 g dg/dx_H). Each step is a Newton step −g/g', at most ``NEWTON_MAX_STEP`` in x_H; once two
     iterates have residuals of opposite sign they bracket the root and a Newton step that leaves the
-    bracket is replaced by bisection (convergence guaranteed, quadratic near the root). The candidate
+    bracket is replaced by bisection (convergence guaranteed, quadratic near the root). Ω(H) need
+    not be monotone (a layered wall's is not): where two unbracketed iterates have slopes of
+    opposite sign, g has an extremum between them, and Newton would cycle over it. The step is then
+    a bisection on the sign of g' instead; it brackets the root if g reaches zero there, and gives
+    up (out of reach) once the extremum is within ``NEWTON_TURN`` without a zero. The candidate
     modes of the bound are refreshed from the full (m, n) grid after every step longer than
     ``NEWTON_REFRESH`` and confirmed at convergence. (The earlier design finished adam's iterate
     by Newton only once adam had come within 1e-3 of the target; adam's geometrically decaying
     step froze first on a silicone tube in SI: 0.31 % off after 500 steps, issue 43.)
 
     Returns (aux, status, x) of a converged solve (status CONVERGED), or None where the root is not
-    reached: the thickness runs onto a bound (target unreachable at s_op), a solve fails, or the
+    reached: the thickness runs onto a bound or onto an extremum of Ω(H) (target unreachable at
+    s_op), a solve fails, or the
     step limit is used.
     """
     s_op = float(setting["s_op"])
     x = jnp.asarray([x_h, _sigmoid_inverse(s_op, 0.0, 1.0)], jnp.float64)
     bracket = {}  # sign of g -> (x_H, g) of the latest iterate on that side
+    turn = {}  # sign of dg/dx_H -> x_H of the latest iterate on that side, while unbracketed
     last = None
     for _ in range(max_steps):
         out = _evaluate(x, guess, setting, "frequency", n_layers, scheme, bound.candidates, mode)
@@ -492,10 +499,16 @@ def _newton(x_h, guess, bound, setting, n_layers, scheme, history, rtol, max_ste
         step = -miss / slope if slope != 0.0 and math.isfinite(slope) else math.inf
         step = max(-NEWTON_MAX_STEP, min(NEWTON_MAX_STEP, step))
         new = xh + step
+        turn[slope > 0] = xh
         if len(bracket) == 2:
             a, b = sorted((bracket[True][0], bracket[False][0]))
             if not a < new < b:
                 new = 0.5 * (a + b)
+        elif len(turn) == 2:  # g' changed sign on one side of the target: g has an extremum between
+            a, b = sorted((turn[True], turn[False]))
+            if b - a < NEWTON_TURN:  # the extremum found, and g has no zero there: out of reach
+                return None
+            new = 0.5 * (a + b)  # bisection towards the extremum: g = 0 there brackets the root
         elif abs(new) > NEWTON_EDGE:  # the thickness runs onto a bound: Ω_t out of reach at s_op
             return None
         last = (xh, miss)
@@ -657,7 +670,7 @@ def design_for_frequency(tube: Tube, target, n: int = 1, *, operating_fraction=0
     solved by safeguarded Newton in x_H with the exact derivative dg/dx_H (implicit derivatives of
     Ω and of V̂_first; bisection once a sign change brackets the root): quadratic convergence, a
     handful of steps. Where Ω_t is out of reach at s_op within the thickness bounds (Newton runs
-    onto a bound), adam minimises the compromise loss::
+    onto a bound or onto an extremum of Ω(H)), adam minimises the compromise loss::
 
         L = (Ω(H, V̂)/Ω_t − 1)² + (s − s_op)²
 
