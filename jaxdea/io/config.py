@@ -539,8 +539,8 @@ def damping_from_table(key: str, table, units: dict | None = None) -> object:
         values = v if many else [v]
         if (many and (not isinstance(v, list) or not v)) or not all(
                 _is_number(x) and math.isfinite(x) for x in values):
-            _wrong(f"'{key}.{k}' must be {'a non-empty list of finite numbers' if many else 'a finite number'}, "
-                   f"got {v!r}")
+            wanted = "a non-empty list of finite numbers" if many else "a finite number"
+            _wrong(f"'{key}.{k}' must be {wanted}, got {v!r}")
         values = [float(x) for x in values]
         if k in si:  # SI -> units of μ, R_i/c_s
             factor = {"Pa": units["shear_modulus"], "s": time,

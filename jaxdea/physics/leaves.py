@@ -13,9 +13,10 @@ the first exponent of an ``Ogden``, whose μ_0 follows so that the term keeps it
 the unit shear modulus); and per layer k
 (0 the innermost, as ``tube.layers[k]``) ``layer<k>_fraction``, ``layer<k>_shear_ratio``,
 ``layer<k>_density_ratio`` (passive layers only: the active layer sets the units) and
-``layer<k>_material_<field>``; and of the tube's damping law (``tube.damping``, :func:`damping_names`)
-``damping_<field>`` (``damping_viscosity``, ``damping_loss``) and ``damping_<field>_<i>`` for the
-i-th entry of a tuple field (``damping_moduli_0``, ``damping_times_1`` of ``Prony``). The fractions keep summing to 1: the active layer absorbs every
+``layer<k>_material_<field>``; and of the tube's damping law (``tube.damping``,
+:func:`damping_names`) ``damping_<field>`` (``damping_viscosity``, ``damping_loss``) and
+``damping_<field>_<i>`` for the i-th entry of a tuple field (``damping_moduli_0``,
+``damping_times_1`` of ``Prony``). The fractions keep summing to 1: the active layer absorbs every
 change, f_active = 1 − Σ f_passive, so its own fraction is not a name (a wall held at η: a thicker
 encapsulation makes the dielectric thinner).
 

@@ -813,7 +813,9 @@ def levenberg_marquardt(problem: _Problem, theta0, labels, max_iterations=100, x
             trial = _evaluate(problem, trial_theta, labels, omega)
             r_trial = residual(trial[1])
             cost_trial = 0.5 * r_trial @ r_trial
-            if np.all(np.isfinite(r_trial)) and cost_trial <= cost:
+            finite = np.all(np.isfinite(r_trial)) and np.all(np.isfinite(
+                _scaled_jacobian(problem, trial[2], active)))  # the next step needs J too
+            if finite and cost_trial <= cost:
                 accepted = True
                 break
             damping *= 4.0
