@@ -110,3 +110,32 @@ def test_damped_sweep_equals_complex_frequencies(tmp_path):
     assert {"omega_1", "omega_imag_1", "quality_factor_2"} <= set(header)
     back = jd.SweepResult.from_npz(result.to_npz(tmp_path / "damped") or tmp_path / "damped.npz")
     np.testing.assert_array_equal(back.quality_factor, result.quality_factor)
+
+
+def test_jaxdea_sweep_with_damping_in_si_writes_the_complex_columns(tmp_path, capsys):
+    """``jaxdea sweep`` of a [damping] config in SI units: the CSV holds omega_k (Re Ω),
+    omega_imag_k, quality_factor_k and frequency_Hz_k = Re Ω c_s/(2π R_i), equal to
+    complex_frequencies of the converted law."""
+    from jaxdea.apps import cli
+
+    time = UNITS["inner_radius"] / math.sqrt(UNITS["shear_modulus"] / UNITS["density"])
+    config = tmp_path / "damped.toml"
+    config.write_text(
+        "[tube]\nlambda_i = 1.0\nlambda_z = 1.0\nvoltage = 0.0\nlength_ratio = 20.0\n"
+        "[damping]\nkind = \"kelvin_voigt\"\n"
+        f"viscosity_Pa_s = {0.05 * UNITS['shear_modulus'] * time!r}\n"
+        "[units]\n" + "".join(f"{k} = {v!r}\n" for k, v in UNITS.items())
+        + "[axes]\nalpha = 1.0\n[solver]\nn_roots = 2\n[output]\nformats = [\"csv\"]\nplot = false\n")
+    assert cli.main(["sweep", str(config), "--out", str(tmp_path), "--quiet"]) == 0
+    lines = (tmp_path / "damped.csv").read_text().splitlines()
+    row = dict(zip(lines[0].split(","), (float(x) for x in lines[1].split(",")), strict=True))
+    direct = jd.complex_frequencies(jd.Tube(lambda_i=1.0, lambda_z=1.0, voltage=0.0,
+                                            length_ratio=20.0, damping=jd.KelvinVoigt(0.05)),
+                                    1.0, n_roots=2)
+    for j in range(2):
+        assert row[f"omega_{j + 1}"] == pytest.approx(float(np.real(direct.omega[j])), rel=1e-8)
+        assert row[f"omega_imag_{j + 1}"] == pytest.approx(float(np.imag(direct.omega[j])), rel=1e-7)
+        assert row[f"quality_factor_{j + 1}"] == pytest.approx(float(direct.quality_factor[j]),
+                                                               rel=1e-7)
+        assert row[f"frequency_Hz_{j + 1}"] == pytest.approx(
+            row[f"omega_{j + 1}"] / (2 * math.pi * time), rel=1e-12)
