@@ -192,3 +192,25 @@ def test_peak_table_carries_widths(tmp_path):
     (tmp_path / "bad.csv").write_text("voltage_V,frequency_Hz,quality_factor\n0,10,-2\n")
     with pytest.raises(ValueError, match="quality_factor.*must be > 0"):
         read_peaks(tmp_path / "bad.csv")
+
+
+def test_jaxdea_fit_with_a_damping_table_and_width_columns(exact, tmp_path):
+    """``jaxdea fit`` of a peak table with width columns and a fit TOML with [damping] and the
+    damping names in [free]: the noise-free truth back, both files written."""
+    from jaxdea.io.fit_io import run_fit
+
+    f, width, *_ = exact
+    peaks = write_peaks(tmp_path / "peaks.csv", _peaks(frequency_Hz=f, width_Hz=width))
+    config = tmp_path / "fit.toml"
+    config.write_text(
+        "[damping]\nkind = \"prony\"\n"
+        f"moduli = {list(START.moduli)!r}\ntimes = {list(START.times)!r}\n"
+        "[free]\n" + "".join(f"{k} = {list(v)!r}\n" for k, v in FREE.items())
+        + "[fixed]\n" + "".join(f"{k} = {v!r}\n" for k, v in FIXED.items()))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result, report, paths = run_fit(peaks, config, tmp_path)
+    for name, value in TRUTH.items():
+        assert result.estimate[name] == pytest.approx(value, rel=1e-8), name
+    assert all(path.exists() for path in paths)
+    assert "damping_times_2" in report

@@ -85,8 +85,9 @@ FORMAT = f"""\
 [damping] optional, the wall's damping law (the tube's resonances are then complex: the outputs
           hold omega_k = Re Ω, omega_imag_k = Im Ω (time factor e^{{iΩt}}, Im Ω > 0 decays) and
           quality_factor_k = Re Ω/(2 Im Ω), from jaxdea.complex_frequencies; no jacobian, n_growth,
-          delta_p): kind = {' | '.join(f'"{k}"' for k in DAMPING_KINDS)}; prony: moduli = [g_k...]
-          (units of μ, >= 0) and times = [τ_k...] (units of R_i/c_s, > 0), one length;
+          delta_p): kind = {' | '.join(f'"{k}"' for k in DAMPING_KINDS)};
+          prony: moduli = [g_k...] (units of μ, >= 0) and times = [τ_k...] (units of R_i/c_s,
+          > 0), one length;
           fractional_kelvin_voigt: modulus, time, order (in (0, 1]), stretch_coupling;
           kelvin_voigt: viscosity (units of μR_i/c_s); hysteretic: loss. With [units] also in SI:
           moduli_Pa, times_s, modulus_Pa, time_s, viscosity_Pa_s. Not with [[layers]]
