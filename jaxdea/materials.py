@@ -300,3 +300,6 @@ class Hysteretic(Damping):
 
 DAMPING_TYPES = (Prony, FractionalKelvinVoigt, KelvinVoigt, Hysteretic)
 """The damping laws of the public API."""
+DAMPING_KINDS = {"prony": Prony, "fractional_kelvin_voigt": FractionalKelvinVoigt,
+                 "kelvin_voigt": KelvinVoigt, "hysteretic": Hysteretic}
+"""The damping laws by the ``kind`` that configuration files (``[damping]``) and settings name them."""

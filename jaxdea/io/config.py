@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..files import load_document
-from ..materials import KINDS
+from ..materials import DAMPING_KINDS, KINDS
 from ..params import (
     COUPLINGS,
     MATERIALS,
@@ -46,7 +46,7 @@ from ..physics.units import VACUUM_PERMITTIVITY, Scales
 from ..studies.sweeps import MAX_POINTS, SENSITIVITY, SI_QUANTITIES, check_size
 
 TOP_KEYS = ("tube", "fluid", "axes", "solver", "output", "units", "outer_fluid", "material",
-            "layers")
+            "layers", "damping")
 LAYER_KEYS = ("fraction", "material", "shear_ratio", "density_ratio", "active")
 """The keys of a ``[[layers]]`` table (:class:`jaxdea.Layer`)."""
 TUBE_KEYS = (*TUBE_LEAVES, "thickness_ratio", "material", "delta_p")
@@ -82,6 +82,15 @@ FORMAT = f"""\
           [material]): fraction (share of the undeformed wall, the fractions sum to 1), material =
           {{kind = ..., ...}} (as [material]; default gent, G = 97.2), shear_ratio μ_k/μ and
           density_ratio ρ_k/ρ_s (default 1), active = true for exactly one layer (the dielectric)
+[damping] optional, the wall's damping law (the tube's resonances are then complex: the outputs
+          hold omega_k = Re Ω, omega_imag_k = Im Ω (time factor e^{{iΩt}}, Im Ω > 0 decays) and
+          quality_factor_k = Re Ω/(2 Im Ω), from jaxdea.complex_frequencies; no jacobian, n_growth,
+          delta_p): kind = {' | '.join(f'"{k}"' for k in DAMPING_KINDS)};
+          prony: moduli = [g_k...] (units of μ, >= 0) and times = [τ_k...] (units of R_i/c_s,
+          > 0), one length;
+          fractional_kelvin_voigt: modulus, time, order (in (0, 1]), stretch_coupling;
+          kelvin_voigt: viscosity (units of μR_i/c_s); hysteretic: loss. With [units] also in SI:
+          moduli_Pa, times_s, modulus_Pa, time_s, viscosity_Pa_s. Not with [[layers]]
 [fluid]   optional (leave it out for an empty tube): density_ratio ρ̂_f, speed_ratio ĉ_f (numbers),
           coupling = {' | '.join(f'"{c}"' for c in COUPLINGS)}, bessel_order = ν (integer >= 0; paper only,
           default ν = n)
@@ -94,7 +103,8 @@ FORMAT = f"""\
           integers >= 0), the wall's material_<parameter> (material_beta) and, with [[layers]],
           layer<k>_fraction, layer<k>_shear_ratio, layer<k>_density_ratio of a passive layer k
           (from 0, the innermost; the active layer's fraction follows: 1 − Σ the others) and
-          layer<k>_material_<parameter>;
+          layer<k>_material_<parameter>; with [damping], damping_<parameter> (damping_viscosity,
+          damping_loss) and damping_moduli_<k>, damping_times_<k> (prony branch k, from 0);
           exactly one of alpha (α̂) and n (axial mode numbers, integers >= 1); a parameter is fixed
           in [tube]/[fluid]/[solver] or swept here, not both; the plot's x axis is the first axis
           with more than one value
@@ -472,6 +482,85 @@ def layers_from_tables(data) -> tuple:
     return tuple(layers)
 
 
+DAMPING_KEYS = {"prony": ("moduli", "times"),
+                "fractional_kelvin_voigt": ("modulus", "time", "order", "stretch_coupling"),
+                "kelvin_voigt": ("viscosity",), "hysteretic": ("loss",)}
+"""The parameters of each ``[damping]`` kind (dimensionless: units of μ and R_i/c_s)."""
+DAMPING_SI = {"moduli": ("moduli_Pa", "Pa"), "times": ("times_s", "s"),
+              "modulus": ("modulus_Pa", "Pa"), "time": ("time_s", "s"),
+              "viscosity": ("viscosity_Pa_s", "Pa s")}
+"""The SI key of a ``[damping]`` parameter (with ``[units]``) and its unit."""
+DAMPING_RANGES = {"moduli": ("numbers >= 0", lambda v: v >= 0),
+                  "times": ("numbers > 0", lambda v: v > 0),
+                  "modulus": ("a number >= 0", lambda v: v >= 0),
+                  "time": ("a number > 0", lambda v: v > 0),
+                  "order": ("a number in (0, 1]", lambda v: 0 < v <= 1),
+                  "stretch_coupling": ("a finite number", lambda v: True),
+                  "viscosity": ("a number >= 0", lambda v: v >= 0),
+                  "loss": ("a number >= 0", lambda v: v >= 0)}
+
+
+def damping_from_table(key: str, table, units: dict | None = None) -> object:
+    """A damping law of :data:`jaxdea.materials.DAMPING_KINDS` from a table ``{kind = ...,
+    parameter = value, ...}`` (missing parameters: the class defaults; Prony's moduli and times
+    both). Parameters in units of μ (moduli), R_i/c_s (times) and μR_i/c_s (viscosity), or with
+    ``units`` (the SI scales of ``[units]``) in SI under :data:`DAMPING_SI`'s keys: g = G/μ,
+    τ = t c_s/R_i, η_v = η c_s/(μ R_i), c_s = sqrt(μ/ρ_s).
+
+    Raises:
+        ValueError: naming ``key.<parameter>`` (``damping.times``) and what is allowed: an unknown
+            kind or key, a value out of range, Prony's moduli and times of different lengths, an
+            SI key without ``[units]``.
+    """
+    kinds = ", ".join(f'"{k}"' for k in DAMPING_KINDS)
+    if not isinstance(table, dict):
+        _wrong(f"{key!r} must be a table {{kind = {kinds}, parameters...}}, got {table!r}")
+    if "kind" not in table:
+        _wrong(f"'{key}.kind' is missing: one of {kinds}")
+    kind = table["kind"]
+    if kind not in DAMPING_KINDS:
+        _wrong(f"'{key}.kind' must be one of {kinds}, got {kind!r}")
+    fields = DAMPING_KEYS[kind]
+    si = {DAMPING_SI[f][0]: f for f in fields if f in DAMPING_SI}
+    _known_keys(table, key, ("kind", *fields, *si))
+    time = None if units is None else units["inner_radius"] * math.sqrt(
+        units["density"] / units["shear_modulus"])  # R_i/c_s in s
+    params = {}
+    for k, v in table.items():
+        if k == "kind":
+            continue
+        field = si.get(k, k)
+        if field in params:
+            _wrong(f"'{key}.{k}' and '{key}.{DAMPING_SI[field][0] if k == field else field}' set "
+                   f"the same parameter; give one")
+        if k in si and units is None:
+            _wrong(f"'{key}.{k}' is in SI units ({DAMPING_SI[field][1]}): add a [units] table or "
+                   f"give '{key}.{field}' (dimensionless)")
+        many = field in ("moduli", "times")
+        values = v if many else [v]
+        if (many and (not isinstance(v, list) or not v)) or not all(
+                _is_number(x) and math.isfinite(x) for x in values):
+            wanted = "a non-empty list of finite numbers" if many else "a finite number"
+            _wrong(f"'{key}.{k}' must be {wanted}, got {v!r}")
+        values = [float(x) for x in values]
+        if k in si:  # SI -> units of μ, R_i/c_s
+            factor = {"Pa": units["shear_modulus"], "s": time,
+                      "Pa s": units["shear_modulus"] * time}[DAMPING_SI[field][1]]
+            values = [x / factor for x in values]
+        allowed, ok = DAMPING_RANGES[field]
+        if not all(ok(x) for x in values):
+            _wrong(f"'{key}.{k}' must be {allowed}, got {v!r}")
+        params[field] = tuple(values) if many else values[0]
+    if kind == "prony":
+        for field in fields:
+            if field not in params:
+                _wrong(f"'{key}.{field}' is missing (prony needs moduli and times, one length)")
+        if len(params["moduli"]) != len(params["times"]):
+            _wrong(f"'{key}.times' must have as many entries as '{key}.moduli' "
+                   f"({len(params['times'])} and {len(params['moduli'])})")
+    return DAMPING_KINDS[kind](**params)
+
+
 def _parse_wall(data, tube: dict) -> None:
     """``[material]`` or ``[[layers]]`` into ``tube`` (its ``material`` or ``layers``)."""
     energy = [f"'tube.{k}'" for k in ("material", "gent") if k in tube]
@@ -650,14 +739,30 @@ def parse_config(data, default_name: str = "sweep") -> SweepConfig:
     _table(data, "", TOP_KEYS)
     units = _parse_units(data)
     tube = _parse_tube(data.get("tube", {}), units)
+    if "damping" in data and "layers" in data:
+        _fail("'damping' with [[layers]]: a layered wall's damping is its layers', which the "
+              "sweep config does not take yet; give [damping] with a one-material wall")
     _parse_wall(data, tube)
+    if "damping" in data:
+        try:
+            tube["damping"] = damping_from_table("damping", data["damping"], units)
+        except ValueError as exc:
+            _fail(str(exc))
     delta_p = tube.pop("delta_p", None)
     fixed = set(tube)  # before a fixed thickness_ratio moves to the axes
     fluid = _parse_fluid(data["fluid"], units) if "fluid" in data else None
     outer = _parse_outer(data["outer_fluid"], units) if "outer_fluid" in data else None
-    wall = Tube(material=tube.get("material", "gent"), layers=tube.get("layers"))
+    wall = Tube(material=tube.get("material", "gent"), layers=tube.get("layers"),
+                damping=tube.get("damping"))
     axes = _parse_axes(data, tube, fluid, units, outer, wall)
     solver = _parse_solver(data, fluid, outer, wall_names(wall))
+    if "damping" in tube:
+        for name, given in (("solver.jacobian", solver.get("jacobian")),
+                            ("solver.n_growth", solver.get("n_growth")),
+                            ("tube.delta_p", delta_p is not None)):
+            if given:
+                _fail(f"'{name}' with [damping] is not supported (a damped tube's sweep gives its "
+                      "complex roots alone): remove one of them")
     if delta_p is not None:
         held = "'tube.delta_p'" if "delta_p" in data.get("tube", {}) else f"'tube.{PRESSURE_SI_KEY}'"
         for where, keys in (("tube", fixed), ("axes", set(axes) - fixed)):

@@ -35,9 +35,9 @@ from ..studies.fit import (
     fitted_frequencies,
 )
 from ..studies.peaks import read_peaks
-from .config import layers_from_tables, material_from_table
+from .config import damping_from_table, layers_from_tables, material_from_table
 
-TOP_KEYS = ("free", "fixed", "fluid", "options", "outer_fluid", "material", "layers")
+TOP_KEYS = ("free", "fixed", "fluid", "options", "outer_fluid", "material", "layers", "damping")
 OUTER_KEYS = ("preset", "fluid_density", "sound_speed")
 OUTER_PRESETS = ("water", "air", "silicone_oil")
 FREE_KEYS = ("lower", "upper", "initial")
@@ -66,6 +66,15 @@ fluid = "acoustic"   optional, before the tables (leave it out for an empty tube
           [free] may also name the wall's own parameters (their start is the wall's value; no
           initial needed): material_<field> (material_beta of mooney_rivlin), layer<k>_shear_ratio,
           layer<k>_density_ratio, layer<k>_fraction (passive layers) and layer<k>_material_<field>
+[damping] optional, the wall's damping law (not with [[layers]]), in units of μ and R_i/c_s:
+          kind = "prony" (moduli = [...], times = [...]) | "fractional_kelvin_voigt" (modulus,
+          time, order, stretch_coupling) | "kelvin_voigt" (viscosity) | "hysteretic" (loss), as
+          [damping] of jaxdea sweep's config. Each peak is then the complex root near it: the
+          peaks may carry width_Hz (half-power width) or quality_factor columns, with
+          sigma_width_Hz or sigma_quality_factor when sigma_Hz is given; [free] may name
+          damping_moduli_<k>, damping_times_<k> (prony branch k, from 0), damping_viscosity,
+          damping_loss, damping_modulus, damping_time, damping_order (bounds > 0; the start is
+          the table's value)
 [outer_fluid] optional: the known fluid around the tube, preset = "water" | "air" | "silicone_oil"
           or fluid_density (kg/m^3) and sound_speed (m/s)
 [options] of jaxdea.fit: n_layers, scheme (default: the accurate graded magnus6 laminate; n_layers
@@ -105,7 +114,8 @@ def write_fit(result: FitResult, data, path, warnings_=()) -> Path:
     correlation (in ``names`` order), every parameter value, the model settings, χ², dof, χ²/dof,
     the unmatched fraction, the parameters stopped on a bound and one record per
     peak (voltage_V, frequency_Hz, sigma_Hz, model_Hz, residual, m, n, branch, torsional, and the
-    peak's pressure_Pa, lambda_i, lambda_z where the data has them; m = n = branch = −1
+    peak's pressure_Pa, lambda_i, lambda_z where the data has them, width_residual with peak
+    widths (:attr:`jaxdea.FitResult.width_residuals`); m = n = branch = −1
     for an unmatched peak, whose model_Hz and residual are null). NaN and ±inf are written as null.
 
     Examples:
@@ -125,7 +135,9 @@ def write_fit(result: FitResult, data, path, warnings_=()) -> Path:
         points.append(dict(voltage_V=voltage[i], frequency_Hz=float(data["frequency_Hz"][i]),
                            sigma_Hz=None if sigma is None else sigma[i], model_Hz=model[i],
                            residual=result.residuals[i], m=m, n=n, branch=branch,
-                           torsional=bool(torsional[i]), **{k: v[i] for k, v in loads.items()}))
+                           torsional=bool(torsional[i]), **{k: v[i] for k, v in loads.items()},
+                           **({} if result.width_residuals is None else
+                              dict(width_residual=result.width_residuals[i]))))
     document = dict(
         status=result.status.name, iterations=int(result.iterations), names=list(result.names),
         estimate=result.estimate, interval=result.interval,
@@ -240,6 +252,7 @@ class FitConfig:
     outer: tuple | None = None
     material: object = None
     layers: tuple | None = None
+    damping: object = None
 
 
 def _number(key, x, allow_inf=False):
@@ -291,7 +304,11 @@ def parse_fit_config(data) -> FitConfig:
                          "layer its material")
     material = material_from_table("material", data["material"]) if "material" in data else None
     layers = layers_from_tables(data["layers"]) if "layers" in data else None
-    walls = _wall_names(material, layers)  # the wall's parameters that [free] may name
+    damping = damping_from_table("damping", data["damping"]) if "damping" in data else None
+    if damping is not None and layers is not None:
+        raise ValueError("damping, layers: a layered wall's damping is its layers', which fit does "
+                         "not take yet; give [damping] with a one-material wall")
+    walls = _wall_names(material, layers, damping)  # the wall's parameters that [free] may name
     free, initial = {}, {}
     for name, spec in _table("free", data["free"], NAMES + walls).items():
         key = f"free.{name}"
@@ -335,18 +352,19 @@ def parse_fit_config(data) -> FitConfig:
             raise ValueError(f"free.{missing[0]}.initial: needed when another free parameter has "
                              f"one")
     return FitConfig(free, fixed, fluid, initial or None, options, _outer_fluid(data), material,
-                     layers)
+                     layers, damping)
 
 
-def _wall_names(material, layers) -> tuple:
+def _wall_names(material, layers, damping=None) -> tuple:
     """The names of the wall parameters that [free] may name (:func:`jaxdea.physics.leaves.wall_names`
-    of the [material] or [[layers]] wall; () for the default Gent wall)."""
-    if material is None and layers is None:
+    of the [material] or [[layers]] wall and the [damping] law; () for the default Gent wall)."""
+    if material is None and layers is None and damping is None:
         return ()
     from ..params import Tube
     from ..physics.leaves import wall_names
 
-    return wall_names(Tube(material="gent" if material is None else material, layers=layers))
+    return wall_names(Tube(material="gent" if material is None else material, layers=layers,
+                           damping=damping))
 
 
 def _outer_fluid(data) -> tuple | None:
@@ -443,7 +461,7 @@ def run_fit(data_path, config_path, out=None):
         warnings.simplefilter("always", FitQualityWarning)
         result = fit(data, config.free, config.fixed, config.fluid, initial=config.initial,
                      outer=config.outer, material=config.material, layers=config.layers,
-                     **config.options)
+                     damping=config.damping, **config.options)
     messages = [str(w.message) for w in caught
                 if issubclass(w.category, (IdentifiabilityWarning, FitQualityWarning))]
     try:  # both or neither

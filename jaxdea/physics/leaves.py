@@ -13,7 +13,10 @@ the first exponent of an ``Ogden``, whose μ_0 follows so that the term keeps it
 the unit shear modulus); and per layer k
 (0 the innermost, as ``tube.layers[k]``) ``layer<k>_fraction``, ``layer<k>_shear_ratio``,
 ``layer<k>_density_ratio`` (passive layers only: the active layer sets the units) and
-``layer<k>_material_<field>``. The fractions keep summing to 1: the active layer absorbs every
+``layer<k>_material_<field>``; and of the tube's damping law (``tube.damping``,
+:func:`damping_names`) ``damping_<field>`` (``damping_viscosity``, ``damping_loss``) and
+``damping_<field>_<i>`` for the i-th entry of a tuple field (``damping_moduli_0``,
+``damping_times_1`` of ``Prony``). The fractions keep summing to 1: the active layer absorbs every
 change, f_active = 1 − Σ f_passive, so its own fraction is not a name (a wall held at η: a thicker
 encapsulation makes the dielectric thinner).
 
@@ -49,9 +52,48 @@ def material_fields(material) -> tuple:
     return material.parameter_names()
 
 
+def damping_fields(damping) -> dict:
+    """{name: (field, index or None)} of a damping law's parameters (module docstring):
+    ``damping_<field>`` of a scalar field, ``damping_<field>_<i>`` of entry i of a tuple field;
+    {} for None."""
+    if damping is None:
+        return {}
+    out = {}
+    for f in dataclasses.fields(damping):
+        value = getattr(damping, f.name)
+        if isinstance(value, (tuple, list)):
+            out.update({f"damping_{f.name}_{i}": (f.name, i) for i in range(len(value))})
+        else:
+            out[f"damping_{f.name}"] = (f.name, None)
+    return out
+
+
+def damping_names(damping) -> tuple:
+    """The names of a damping law's parameters (:func:`damping_fields`), () for None."""
+    return tuple(damping_fields(damping))
+
+
+def with_damping(tube: Tube, values: dict) -> Tube:
+    """The tube with the named damping parameters of ``values`` set (other names ignored)."""
+    fields = damping_fields(tube.damping)
+    changes = {}
+    for name, value in values.items():
+        if name in fields:
+            field, index = fields[name]
+            if index is None:
+                changes[field] = value
+            else:
+                entries = list(changes.get(field, getattr(tube.damping, field)))
+                entries[index] = value
+                changes[field] = tuple(entries)
+    if not changes:
+        return tube
+    return tube.replace(damping=dataclasses.replace(tube.damping, **changes))
+
+
 def wall_names(tube: Tube | None) -> tuple:
     """The names of the wall's own parameters for this tube (module docstring): the tube's material
-    object's, then each passive layer's and each layer's material's."""
+    object's, then each passive layer's and each layer's material's, then the damping law's."""
     if tube is None:
         return ()
     names = [f"material_{f}" for f in material_fields(tube.material)]
@@ -59,12 +101,17 @@ def wall_names(tube: Tube | None) -> tuple:
         if not layer.active:
             names += [f"layer{k}_{f}" for f in LAYER_LEAVES]
         names += [f"layer{k}_material_{f}" for f in material_fields(layer.material)]
-    return tuple(names)
+    return tuple(names) + damping_names(getattr(tube, "damping", None))
 
 
 def wall_hint(name, tube) -> str:
     """Why ``name`` is no parameter of this tube's wall, in words ('' when it is not a wall name)."""
     match = _LAYER_NAME.fullmatch(name)
+    if name.startswith("damping_"):
+        if tube is None or tube.damping is None:
+            return " (damping_ names need a damping law, e.g. damping=jaxdea.Prony(...))"
+        return (f" (the tube's {type(tube.damping).__name__} has the parameters "
+                f"{', '.join(damping_names(tube.damping))})")
     if name.startswith("material_"):
         if tube is None or isinstance(tube.material, str):
             return " (material_ names need a material object on the tube, e.g. MooneyRivlin)"
@@ -116,6 +163,10 @@ def get_parameter(tube: Tube, alpha, fluid: Fluid | None, name: str):
         return geometry(tube).thickness
     if name.startswith("material_"):
         return as_float(tube.material.parameter(name.removeprefix("material_")))
+    if name.startswith("damping_"):
+        field, index = damping_fields(tube.damping)[name]
+        value = getattr(tube.damping, field)
+        return as_float(value if index is None else value[index])
     match = _LAYER_NAME.fullmatch(name)
     if match is not None:
         layer, field = tube.layers[int(match.group(1))], match.group(2)
@@ -155,6 +206,7 @@ def with_wall(tube: Tube, values: dict) -> Tube:
     """The tube with the wall's named parameters of ``values`` set (:func:`wall_names`; other names
     ignored). A passive layer's new fraction is taken from the active layer: f_active = 1 − Σ
     f_passive."""
+    tube = with_damping(tube, values)
     material = {k.removeprefix("material_"): v for k, v in values.items()
                 if k.startswith("material_")}
     if material:

@@ -26,6 +26,18 @@ the peaks of one voltage and loading share the model's modes. Torsional modes (m
 torsional family) are candidates with ``torsional=True`` and labels with a 0/1 column
 ``torsional``.
 
+Damping and peak widths. With a damping law (``damping=``, :mod:`jaxdea.materials`) the model of
+a labelled peak is the complex root Ω near it (time factor e^{iΩt}, a decaying mode has Im Ω > 0;
+:mod:`jaxdea.solve.complex_frequencies`): the elastic root of the undamped tube continued by Newton
+as η* grows from 0 to its value (:func:`_seed`), then :func:`jaxdea.solve_complex_frequency` from
+the last iterate, with the implicit derivatives of Re Ω and Im Ω for the Jacobian. Its frequency
+is f = Re Ω c_s/(2π R_i) and its half-power width (FWHM) Δf = 2 Im Ω c_s/(2π R_i): near the
+resonance the response ∝ 1/(ω − Ω) has |·|² at half its peak at Re Ω ± Im Ω; Q = f/Δf =
+Re Ω/(2 Im Ω). A ``width_Hz`` or ``quality_factor`` column adds the residuals
+(w_model − w_data)/σ_w after the frequencies' (:data:`WIDTH_COLUMNS`); the damping parameters are
+wall parameters by name (``damping_moduli_0``, ``damping_times_1``, ``damping_viscosity``,
+:func:`jaxdea.physics.leaves.damping_names`).
+
 Solver. A small Levenberg–Marquardt loop in NumPy (Marquardt's diagonal scaling; the damping is
 divided by 3 after an accepted step and multiplied by 4 after a rejected one) on the unconstrained u,
 with the exact Jacobian ∂r/∂θ from ``jax.jacfwd`` through the implicit root derivatives (never
@@ -78,6 +90,7 @@ Quality. The result reports χ²/dof and the unmatched fraction; a fit that leav
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import math
 import os
@@ -91,11 +104,20 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..materials import Gent
-from ..params import Fluid, Tube, require_x64, validate_material, validate_wall_layers
+from ..numerics.scalar import Status
+from ..params import (
+    Fluid,
+    Tube,
+    require_x64,
+    validate_damping,
+    validate_material,
+    validate_wall_layers,
+)
 from ..physics.base_state import inner_stretch_traced
 from ..physics.families import Face, Family
 from ..physics.leaves import get_parameter, wall_hint, wall_names, with_wall
 from ..physics.transfer import Layers, laminate, validate_scheme
+from ..solve.complex_frequencies import solve_complex_frequency
 from ..solve.roots import frequencies, frequency
 from .sweeps import wall_from_settings, wall_settings
 
@@ -159,8 +181,14 @@ WALL_HELP = ("modes that the wall parameter moves unlike μ does (several orders
 """:data:`HELP` of a free wall parameter (``material_beta``, ``layer0_shear_ratio``, …)."""
 
 
+DAMPING_HELP = ("peak widths (width_Hz or quality_factor) of modes whose frequencies span the law's "
+                "relaxation times (a Prony branch far below or above them acts as a viscosity or a "
+                "stiffness alone), or a measured value")
+""":data:`HELP` of a free damping parameter (``damping_moduli_0``, ``damping_viscosity``, …)."""
+
+
 def _help(name):
-    return HELP.get(name, WALL_HELP)
+    return HELP.get(name, DAMPING_HELP if name.startswith("damping_") else WALL_HELP)
 
 
 class FitStatus(enum.IntEnum):
@@ -214,6 +242,9 @@ class FitResult(NamedTuple):
         at_bound: {name: "lower" or "upper"} of the parameters stopped on a bound.
         torsional: (N,) bool, True where the peak is assigned to a torsional mode (m = 0 of the
             torsional family; its ``assignment`` row is (0, n, branch)).
+        width_residuals: with a ``width_Hz`` or ``quality_factor`` column, (w_model − w_data)/σ_w
+            per data point (w the width in Hz or Q as given; without σ in Hz, a Q column compared
+            as the width f/Q); else None.
     """
 
     estimate: dict
@@ -233,6 +264,7 @@ class FitResult(NamedTuple):
     unmatched_fraction: float = math.nan
     at_bound: dict | None = None
     torsional: np.ndarray | None = None
+    width_residuals: np.ndarray | None = None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -305,8 +337,8 @@ def mode_roots(values, voltage_V, n, m, n_roots, n_layers, coupling, bessel_orde
         tube, alpha, fluid, _ = dimensionless(values, v, k, coupling, bessel_order, point,
                                               by_pressure, outer, wall, wall_leaves)
         m, torsional = _solver_family(family, order)
-        return frequencies(tube, alpha, fluid, n_roots, n_layers=n_layers, m=m,
-                           torsional=torsional)
+        return frequencies(tube.replace(damping=None), alpha, fluid, n_roots, n_layers=n_layers,
+                           m=m, torsional=torsional)
     return jax.vmap(one)(voltage_V, n, m, load)
 
 
@@ -330,6 +362,47 @@ def model_and_jacobian(values, voltage_V, n, m, guess, n_layers, coupling, besse
             return jnp.stack([omega * scale, omega])
         out = jax.vmap(one)(voltage_V, n, m, load, guess)
         return out[:, 0], (out[:, 0], out[:, 1])
+
+    jac, (f, omega) = jax.jacfwd(hz, has_aux=True)(values)
+    return omega, f, jac
+
+
+def _scaled_damping(damping, scale):
+    """The damping law with η*(Ω) multiplied by ``scale`` (its moduli, viscosity or loss): the
+    homotopy from the elastic tube (0) to the damped one (1) of :func:`_seed`."""
+    field = {"Prony": "moduli", "FractionalKelvinVoigt": "modulus", "KelvinVoigt": "viscosity",
+             "Hysteretic": "loss"}[type(damping).__name__]
+    value = getattr(damping, field)
+    value = tuple(scale * g for g in value) if isinstance(value, tuple) else scale * value
+    return dataclasses.replace(damping, **{field: value})
+
+
+@partial(jax.jit, static_argnames=("n_layers", "coupling", "bessel_order", "family", "by_pressure",
+                                   "wall_leaves"))
+def damped_model_and_jacobian(values, voltage_V, n, m, guess, homotopy, n_layers, coupling,
+                              bessel_order, family, by_pressure=False, load=None, outer=None,
+                              wall=None, wall_leaves=()):
+    """(Ω complex, (f, Δf) in Hz, ∂(f, Δf)/∂values) per point of a damped wall: Ω the complex
+    root by Newton from ``guess`` (:func:`jaxdea.solve_complex_frequency`, implicit derivatives;
+    NaN unless it converged), f = Re Ω c_s/(2π R_i) and the half-power width (FWHM)
+    Δf = 2 Im Ω c_s/(2π R_i) (time factor e^{iΩt}, a decaying mode has Im Ω > 0; the resonance
+    |1/(Ω − Ω_r)|² falls to half at Re Ω ± Im Ω; Q = f/Δf = Re Ω/(2 Im Ω),
+    :func:`jaxdea.solve.complex_frequencies.quality_factor`). ``homotopy``: η* scaled by it
+    (:func:`_scaled_damping`; 1 the model). Shapes (P,), (P, 2), (P, 2, len(values))."""
+    load = jnp.full((voltage_V.shape[0], 3), jnp.nan) if load is None else load
+
+    def hz(vals):
+        def one(v, k, order, point, g):
+            tube, alpha, fluid, scale = dimensionless(vals, v, k, coupling, bessel_order, point,
+                                                      by_pressure, outer, wall, wall_leaves)
+            tube = tube.replace(damping=_scaled_damping(tube.damping, homotopy))
+            m, torsional = _solver_family(family, order)
+            omega, status = solve_complex_frequency(tube, alpha, g, fluid, m=m,
+                                                    n_layers=n_layers, torsional=torsional)
+            omega = jnp.where(status == Status.CONVERGED, omega, jnp.nan)
+            return jnp.stack([omega.real * scale, 2.0 * omega.imag * scale]), omega
+        out, omega = jax.vmap(one)(voltage_V, n, m, load, guess)
+        return out, (out, omega)
 
     jac, (f, omega) = jax.jacfwd(hz, has_aux=True)(values)
     return omega, f, jac
@@ -378,6 +451,14 @@ class _Problem(NamedTuple):
     outer: tuple | None = None  # (ρ_o, c_o) in SI of a surrounding fluid, or None
     wall: Tube | None = None  # the material and layers of the model (None: the Gent wall of gent)
     wall_leaves: tuple = ()  # the free wall parameters, whose values follow NAMES' in ``base``
+    width: np.ndarray | None = None  # (N,) measured widths (Hz) or quality factors, or None
+    width_sigma: np.ndarray | None = None  # (N,) their σ (1 without σ)
+    width_kind: str | None = None  # "width" (FWHM in Hz) or "quality" (Q), None without widths
+
+
+def _damped(problem: _Problem) -> bool:
+    """Whether the model's wall carries a damping law (its roots are complex)."""
+    return problem.wall is not None and problem.wall.damping is not None
 
 
 def _outer_si(outer) -> tuple | None:
@@ -399,7 +480,7 @@ def _outer_si(outer) -> tuple | None:
     return density, speed
 
 
-def _wall(material, layers) -> Tube | None:
+def _wall(material, layers, damping=None) -> Tube | None:
     """The wall of ``fit``'s ``material`` and ``layers`` (a :class:`~jaxdea.Tube` that carries them),
     validated; None for neither (the Gent wall of the parameter ``gent``).
 
@@ -408,12 +489,18 @@ def _wall(material, layers) -> Tube | None:
             :func:`jaxdea.params.validate_wall_layers`); ``material=Gent(G)``, whose G is the
             parameter ``gent``.
     """
-    if material is None and layers is None:
+    if material is None and layers is None and damping is None:
         return None
+    if damping is not None:
+        validate_damping(damping)
+        if layers is not None:
+            raise ValueError("damping with layers: a layered wall's damping is its layers' "
+                             "(Layer(damping=...)), which fit does not take yet; give damping= "
+                             "with a one-material wall")
     if isinstance(material, Gent):
         raise ValueError("material=Gent(G): leave material out and give the Gent constant as the "
                          "parameter 'gent' (free or fixed)")
-    wall = Tube(material="gent" if material is None else material, layers=layers)
+    wall = Tube(material="gent" if material is None else material, layers=layers, damping=damping)
     validate_material(wall.material)
     validate_wall_layers(wall)
     return wall
@@ -479,10 +566,14 @@ def _roots(problem: _Problem, theta, voltage, n, m, n_roots, load, torsional=Non
     return out
 
 
-def _evaluate(problem: _Problem, theta, labels, guess):
+def _evaluate(problem: _Problem, theta, labels, guess, homotopy=1.0):
     """(Ω, f_model in Hz, ∂f/∂θ free columns) at the labelled points (rows with m < 0 are NaN).
 
-    ``labels``: (N, 4) rows (m, n, branch, torsional)."""
+    ``labels``: (N, 4) rows (m, n, branch, torsional). A damped wall (:func:`_damped`): Ω complex,
+    the model (N, 2) of (f, the width Δf in Hz or Q = f/Δf as ``problem.width_kind``; Δf where no
+    widths are given) and ∂/∂θ (N, 2, p) (:func:`damped_model_and_jacobian`)."""
+    if _damped(problem):
+        return _evaluate_damped(problem, theta, labels, guess, homotopy)
     omega = np.full(labels.shape[0], np.nan)
     f = np.full(labels.shape[0], np.nan)
     jac = np.full((labels.shape[0], len(problem.free)), np.nan)
@@ -504,8 +595,56 @@ def _evaluate(problem: _Problem, theta, labels, guess):
     return omega, f, jac * _chain(problem, theta)[None, :]
 
 
+def _evaluate_damped(problem: _Problem, theta, labels, guess, homotopy):
+    """:func:`_evaluate` of a damped wall."""
+    size = labels.shape[0]
+    omega = np.full(size, complex(np.nan, np.nan))
+    out = np.full((size, 2), np.nan)
+    jac = np.full((size, 2, len(problem.free)), np.nan)
+    active = labels[:, 0] >= 0
+    values = jnp.asarray(_values(problem, theta))
+    where = np.flatnonzero(active)
+    m = labels[where, 0]
+    load = _load(problem)
+    guess = np.asarray(guess, complex)
+    for index, (w, obs, j) in _by_family(m, labels[where, 3] > 0, lambda p, family:
+                                         damped_model_and_jacobian(
+            values, jnp.asarray(problem.voltage[where[p]]), jnp.asarray(labels[where[p], 1], float),
+            jnp.asarray(m[p], float), jnp.asarray(guess[where[p]]), float(homotopy),
+            problem.n_layers, problem.coupling, problem.bessel_order, family, problem.by_pressure,
+            jnp.asarray(load[where[p]]), _outer(problem), problem.wall, problem.wall_leaves)):
+        rows = where[index]
+        omega[rows] = np.asarray(w)[:index.size]
+        out[rows] = np.asarray(obs)[:index.size]
+        jac[rows] = np.asarray(j)[:index.size][:, :, problem.free_index]
+    jac = jac * _chain(problem, theta)[None, None, :]
+    if problem.width_kind == "quality":  # Q = f/Δf, dQ = (df Δf − f dΔf)/Δf²
+        f, width = out[:, 0], out[:, 1]
+        jac[:, 1] = (jac[:, 0] * width[:, None] - f[:, None] * jac[:, 1]) / width[:, None] ** 2
+        out[:, 1] = f / width
+    return omega, out, jac
+
+
+HOMOTOPY_STEPS = 4
+"""Steps of the continuation from the elastic root to the damped one (:func:`_seed`)."""
+
+
 def _seed(problem: _Problem, theta, labels):
-    """Ω of each labelled branch from the global root scan (NaN for unmatched rows)."""
+    """Ω of each labelled branch from the global root scan (NaN for unmatched rows). A damped wall:
+    that elastic root continued to the complex root by Newton as η* grows from 0 to its value in
+    :data:`HOMOTOPY_STEPS` equal steps (:func:`_scaled_damping`): the branch of a damped mode is
+    the elastic branch it comes from."""
+    seed = _elastic_seed(problem, theta, labels)
+    if not _damped(problem):
+        return seed
+    seed = seed.astype(complex)
+    for step in range(1, HOMOTOPY_STEPS + 1):
+        seed = _evaluate_damped(problem, theta, labels, seed, step / HOMOTOPY_STEPS)[0]
+    return seed
+
+
+def _elastic_seed(problem: _Problem, theta, labels):
+    """Ω of each labelled branch of the elastic (undamped) tube from the global root scan."""
     seed = np.full(labels.shape[0], np.nan)
     active = np.flatnonzero(labels[:, 0] >= 0)
     if active.size:
@@ -645,21 +784,21 @@ def levenberg_marquardt(problem: _Problem, theta0, labels, max_iterations=100, x
     theta, dtheta = _to_free(problem, u)
     omega, f, jac = _evaluate(problem, theta, labels, _seed(problem, theta, labels))
     active = labels[:, 0] >= 0
-    sigma = problem.sigma
 
     def residual(f):
-        return ((f - problem.frequency) / sigma)[active]
+        return _residual(problem, f, active)
 
     r = residual(f)
-    if not np.all(np.isfinite(r)) or not np.all(np.isfinite(jac[active])):
-        return theta, omega, r, jac[active] / sigma[active, None], 0, FitStatus.NOT_FINITE
+    scaled = _scaled_jacobian(problem, jac, active)
+    if not np.all(np.isfinite(r)) or not np.all(np.isfinite(scaled)):
+        return theta, omega, r, scaled, 0, FitStatus.NOT_FINITE
     if theta.size == 0:  # every parameter held (a profile of a one-parameter fit)
-        return theta, omega, r, jac[active] / sigma[active, None], 0, FitStatus.CONVERGED
+        return theta, omega, r, scaled, 0, FitStatus.CONVERGED
     cost, damping, iterations = 0.5 * r @ r, 1e-3, 0
     status = FitStatus.MAX_ITERATIONS
     while iterations < max_iterations:
         iterations += 1
-        ju = jac[active] / sigma[active, None] * dtheta[None, :]
+        ju = _scaled_jacobian(problem, jac, active) * dtheta[None, :]
         a, g = ju.T @ ju, ju.T @ r
         diag = np.maximum(np.diag(a), 1e-30 * max(np.max(np.diag(a)), 1e-300))
         accepted = False
@@ -674,7 +813,9 @@ def levenberg_marquardt(problem: _Problem, theta0, labels, max_iterations=100, x
             trial = _evaluate(problem, trial_theta, labels, omega)
             r_trial = residual(trial[1])
             cost_trial = 0.5 * r_trial @ r_trial
-            if np.all(np.isfinite(r_trial)) and cost_trial <= cost:
+            finite = np.all(np.isfinite(r_trial)) and np.all(np.isfinite(
+                _scaled_jacobian(problem, trial[2], active)))  # the next step needs J too
+            if finite and cost_trial <= cost:
                 accepted = True
                 break
             damping *= 4.0
@@ -688,7 +829,28 @@ def levenberg_marquardt(problem: _Problem, theta0, labels, max_iterations=100, x
         if small or cost == 0.0:
             status = FitStatus.CONVERGED
             break
-    return theta, omega, r, jac[active] / sigma[active, None], iterations, status
+    return theta, omega, r, _scaled_jacobian(problem, jac, active), iterations, status
+
+
+def _residual(problem: _Problem, model, active):
+    """r of the matched peaks: (f_model − f_data)/σ, then with widths (w_model − w_data)/σ_w (w the
+    width Δf in Hz or Q, ``problem.width_kind``). ``model``: (N,) f, or (N, 2) (f, w)."""
+    if model.ndim == 1:
+        return ((model - problem.frequency) / problem.sigma)[active]
+    r = ((model[:, 0] - problem.frequency) / problem.sigma)[active]
+    if problem.width is None:
+        return r
+    return np.concatenate([r, ((model[:, 1] - problem.width) / problem.width_sigma)[active]])
+
+
+def _scaled_jacobian(problem: _Problem, jac, active):
+    """∂r/∂θ of :func:`_residual` from ∂model/∂θ ((N, p), or (N, 2, p))."""
+    if jac.ndim == 2:
+        return jac[active] / problem.sigma[active, None]
+    top = jac[active, 0] / problem.sigma[active, None]
+    if problem.width is None:
+        return top
+    return np.concatenate([top, jac[active, 1] / problem.width_sigma[active, None]])
 
 
 def _fit_labelled(problem, theta0, labels, max_iterations, max_outer=5):
@@ -909,7 +1071,8 @@ def _column(data, name, required=True):
         if required:
             raise ValueError(f"data is missing the column {name!r} (needs voltage_V, "
                              f"frequency_Hz; optional sigma_Hz, m, n, branch, torsional, "
-                             f"lambda_i, lambda_z, pressure_Pa)")
+                             f"lambda_i, lambda_z, pressure_Pa, width_Hz or quality_factor "
+                             f"with sigma_width_Hz or sigma_quality_factor)")
         return None
     try:
         values = np.asarray(data[name], dtype=np.float64).ravel()
@@ -949,6 +1112,9 @@ def _check_wall_bounds(wall, name, bounds, low, high):
             validate_wall_layers(tube)
             for layer in tube.layers or ():
                 validate_material(layer.material)
+            validate_damping(tube.damping)
+            if name.startswith("damping_") and not name.endswith("stretch_coupling") and value <= 0:
+                raise ValueError("a damping parameter's bounds must be > 0")
         except ValueError as exc:
             raise ValueError(f"free[{name!r}] bounds must keep the wall valid, got {bounds!r}: at "
                              f"{value!r}, {exc}") from None
@@ -1075,9 +1241,12 @@ def _validate(data, free, fixed, fluid, wall=None):
             raise ValueError(f"data column {name!r} needs the labels 'm' and 'n'")
     if torsional is not None and np.any((torsional == 1) & (m != 0)):
         raise ValueError("data column 'torsional' is 1 where m != 0: torsional modes are m = 0")
-    if voltage.size <= len(free):
-        raise ValueError(f"data has {voltage.size} rows: more than {len(free)} (the number of "
-                         f"free parameters) are needed")
+    width, width_sigma, width_kind = _widths(data, frequency_hz, sigma, wall, m)
+    observations = voltage.size * (1 if width is None else 2)
+    if observations <= len(free):
+        widths = "" if width is None else f" of frequency and width, {observations} observations"
+        raise ValueError(f"data has {voltage.size} rows{widths}: more than {len(free)} (the "
+                         f"number of free parameters) are needed")
     labels = None
     if m is not None:
         labels = np.stack([m, n, np.zeros_like(m) if branch is None else branch,
@@ -1097,8 +1266,63 @@ def _validate(data, free, fixed, fluid, wall=None):
                                  len(NAMES) + wall_leaves.index(k) for k in names]),
                        0, coupling, bessel_order,
                        load=load, by_pressure=by_pressure, condition=condition.ravel(),
-                       reciprocal=reciprocal, bounds=bounds, wall=wall, wall_leaves=wall_leaves)
+                       reciprocal=reciprocal, bounds=bounds, wall=wall, wall_leaves=wall_leaves,
+                       width=width, width_sigma=width_sigma, width_kind=width_kind)
     return problem, labels
+
+
+WIDTH_COLUMNS = ("width_Hz", "quality_factor", "sigma_width_Hz", "sigma_quality_factor")
+"""Optional peak-width columns of :func:`fit`: the half-power width Δf (FWHM, Hz) or the quality
+factor Q = f/Δf of each peak, and their standard deviations."""
+
+
+def _widths(data, frequency_hz, sigma, wall, labels):
+    """(w, σ_w, kind) of the width columns (:data:`WIDTH_COLUMNS`), or (None, None, None).
+
+    kind "width": w = Δf in Hz; "quality": w = Q (with ``sigma_quality_factor``; without σ a Q
+    column is compared as the width f/Q in Hz, in the units of the frequency residuals).
+
+    Raises:
+        ValueError: naming the column: both widths and Q, a σ column without its column or σ given
+            for the frequencies and not the widths (or the reverse), values ≤ 0, widths without a
+            damping law or without the labels m, n.
+    """
+    columns = {name: _column(data, name, required=False) for name in WIDTH_COLUMNS}
+    width, quality, sigma_width, sigma_quality = (columns[k] for k in WIDTH_COLUMNS)
+    if width is not None and quality is not None:
+        raise ValueError("data columns 'width_Hz' and 'quality_factor' both given: give the peak "
+                         "widths one way")
+    for column, owner in (("sigma_width_Hz", "width_Hz"), ("sigma_quality_factor",
+                                                           "quality_factor")):
+        if columns[column] is not None and columns[owner] is None:
+            raise ValueError(f"data column {column!r} needs the column {owner!r}")
+    for name, values in columns.items():
+        if values is not None and np.any(values <= 0):
+            raise ValueError(f"data column {name!r} must be > 0")
+        if values is not None and values.size != frequency_hz.size:
+            raise ValueError(f"data column {name!r} has {values.size} rows, voltage_V "
+                             f"{frequency_hz.size}")
+    if width is None and quality is None:
+        return None, None, None
+    given = "width_Hz" if width is not None else "quality_factor"
+    if wall is None or wall.damping is None:
+        raise ValueError(f"data column {given!r}: peak widths need a damping law (damping="
+                         f"jaxdea.Prony(...), KelvinVoigt, Hysteretic or FractionalKelvinVoigt; "
+                         f"[damping] in a fit TOML): the undamped tube's resonances have no width")
+    if labels is None:
+        raise ValueError(f"data column {given!r} needs the labels 'm' and 'n' (peak widths are "
+                         f"fitted to labelled modes)")
+    own_sigma = sigma_width if width is not None else sigma_quality
+    if (sigma is None) != (own_sigma is None):
+        missing = ("sigma_width_Hz" if width is not None else "sigma_quality_factor") \
+            if own_sigma is None else "sigma_Hz"
+        raise ValueError(f"data column {missing!r} is needed: σ is given for "
+                         f"{'the frequencies' if own_sigma is None else 'the widths'} only")
+    if width is not None:
+        return width, np.ones_like(width) if sigma_width is None else sigma_width, "width"
+    if sigma_quality is not None:
+        return quality, sigma_quality, "quality"
+    return frequency_hz / quality, np.ones_like(quality), "width"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1122,7 +1346,7 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
         n_branches: int = 2, torsional: bool = False, threshold: float = 0.1, outlier_sigma: float = 5.0,
         max_unmatched: float = 0.25, n_starts: int = 3, grid_points: int = 3,
         max_iterations: int = 100, max_reassignments: int = 10, outer=None, material=None,
-        layers=None) -> FitResult:
+        layers=None, damping=None) -> FitResult:
     """Material and geometry parameters from measured resonance frequencies (SI units).
 
     Minimises Σ ((f_model − f_data)/σ)² with f_model = Ω c_s/(2π R_i) of the labelled (or assigned)
@@ -1138,6 +1362,11 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
             Optional ``torsional`` (0/1, with the labels: a torsional mode, m = 0) and the
             loading of each peak, ``pressure_Pa`` (Pa), ``lambda_i`` or ``lambda_z`` (each
             replaces the parameter of that name: joint fits over several loadings).
+            Optional peak widths (with ``damping`` and the labels ``m``, ``n``): ``width_Hz``
+            (the half-power width, FWHM, Δf = 2 Im Ω c_s/(2π R_i)) or ``quality_factor``
+            (Q = f/Δf = Re Ω/(2 Im Ω)), with ``sigma_width_Hz`` or ``sigma_quality_factor``
+            exactly when ``sigma_Hz`` is given; each width adds the residual
+            (w_model − w_data)/σ_w (without σ: in Hz, a Q column compared as the width f/Q).
         free: {name: (lower, upper)} of the parameters to estimate (names in ``NAMES``; the
             tube is held by ``lambda_i`` or by ``pressure`` = P_i − P_o in Pa, one of the two).
             With ``material`` or ``layers``, also the wall's own parameters by their sweep names
@@ -1181,6 +1410,16 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
             Then ``gent`` is no parameter, and μ is the material's small-strain shear modulus.
         layers: None, or the layered wall as ``Tube(layers=...)`` (fixed but for the parameters
             named in ``free``): μ, ρ_s and ε are the active layer's, and ``gent`` is no parameter.
+        damping: None (elastic), or the wall's damping law as ``Tube(damping=...)``
+            (:class:`jaxdea.Prony`, ``FractionalKelvinVoigt``, ``KelvinVoigt``, ``Hysteretic``;
+            parameters in units of μ and R_i/c_s; fixed but for those named in ``free``:
+            ``damping_moduli_<i>``, ``damping_times_<i>`` (Prony branch i),
+            ``damping_viscosity``, ``damping_loss``, ``damping_modulus``, ``damping_time``,
+            ``damping_order``, ``damping_stretch_coupling``, with bounds > 0 but the last).
+            The model of a peak is then the complex root Ω near it (e^{iΩt}, Im Ω > 0 decays),
+            continued from the elastic root of the undamped tube (:func:`_seed`) and refined by
+            :func:`jaxdea.solve_complex_frequency` (implicit derivatives): f = Re Ω c_s/(2πR_i),
+            width Δf = 2 Im Ω c_s/(2πR_i) (FWHM), Q = f/Δf. Not with ``layers``.
 
     Returns:
         An instance of :class:`FitResult` (free wall parameters by their names in ``estimate``,
@@ -1192,7 +1431,9 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
             wall invalid, a name both free and fixed or
             neither, bounds not finite with lower < upper, missing or non-finite columns,
             frequencies or σ ≤ 0, no more data rows than free parameters, an ``initial`` value
-            outside its bounds, bad options.
+            outside its bounds, bad options; a width column without a damping law (the undamped
+            tube's peaks have no width), without the labels, or with σ for frequencies or widths
+            only.
 
     Warns:
         IdentifiabilityWarning: naming a rank-deficient combination, a parameter whose interval
@@ -1214,7 +1455,7 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
         from .peaks import read_peaks
 
         data = read_peaks(data)
-    wall = _wall(material, layers)
+    wall = _wall(material, layers, damping)
     problem, labels = _validate(data, free, fixed, fluid, wall)
     if n_layers is not None and (not isinstance(n_layers, (int, np.integer))
                                  or isinstance(n_layers, bool) or n_layers < 1):
@@ -1353,7 +1594,8 @@ def _discretisation(problem, thetas, reach, n_layers, scheme):
                                                   wall_leaves=problem.wall_leaves)
                 if not np.isfinite(float(tube.lambda_i)):
                     continue  # no static state there (beyond pull-in): the fit reports it
-                layers = laminate(n_layers, scheme, tube, float(alpha), n_roots, m_top)
+                layers = laminate(n_layers, scheme, tube.replace(damping=None), float(alpha),
+                                  n_roots, m_top)
                 if not isinstance(layers, Layers):
                     return layers  # an explicit midpoint N
                 if chosen is None or layers.count > chosen.count:
@@ -1361,7 +1603,8 @@ def _discretisation(problem, thetas, reach, n_layers, scheme):
     if chosen is None:  # no start had a static state: the accurate default at the first one
         tube, alpha, _, _ = dimensionless(_values(problem, thetas[0]), 0.0, float(n_top),
                                           wall=problem.wall, wall_leaves=problem.wall_leaves)
-        chosen = laminate(n_layers, scheme, tube.replace(lambda_i=1.0), float(alpha), n_roots,
+        chosen = laminate(n_layers, scheme, tube.replace(lambda_i=1.0, damping=None), float(alpha),
+                          n_roots,
                           m_top)
     return chosen
 
@@ -1372,7 +1615,12 @@ def _result(problem, best, max_unmatched, max_iterations):
     theta, r, jac, iterations, status, final_labels, _ = best
     active = final_labels[:, 0] >= 0
     residuals = np.full(problem.voltage.size, np.nan)
-    residuals[active] = r if r.size == active.sum() else np.nan
+    matched = int(active.sum())
+    residuals[active] = r[:matched] if r.size >= matched else np.nan
+    width_residuals = None
+    if problem.width is not None:
+        width_residuals = np.full(problem.voltage.size, np.nan)
+        width_residuals[active] = r[matched:] if r.size == 2 * matched else np.nan
     p = theta.size
     known = set(NAMES if problem.coupling is not None else NAMES[:-2])
     known -= set() if _uses_gent(problem.wall) else {"gent"}
@@ -1403,7 +1651,7 @@ def _result(problem, best, max_unmatched, max_iterations):
     value = np.clip(_physical(problem, theta), bounds[:, 0], bounds[:, 1])
     estimate = dict(zip(problem.free, value.tolist(), strict=True))
     unmatched = float(np.mean(~active))
-    dof = int(active.sum()) - p
+    dof = int(active.sum()) * (1 if problem.width is None else 2) - p
     chi2 = float(r @ r) if r.size and np.all(np.isfinite(r)) else np.nan
     chi2_per_dof = chi2 / dof if dof > 0 else np.nan
     flip = dict(lower="upper", upper="lower")
@@ -1414,7 +1662,7 @@ def _result(problem, best, max_unmatched, max_iterations):
         return FitResult(estimate, {k: (np.nan, np.nan) for k in problem.free}, nan, nan,
                          residuals, final_labels, FitStatus.NOT_FINITE, iterations, problem.free,
                          parameters, settings, chi2, dof, chi2_per_dof, unmatched, at_bound,
-                         torsional)
+                         torsional, width_residuals)
     covariance, correlation, intervals, null, quantile, variance = uncertainty(problem, theta, r,
                                                                                 jac)
     intervals = readable_intervals(problem, theta, best.labels, intervals, quantile, variance,
@@ -1450,7 +1698,7 @@ def _result(problem, best, max_unmatched, max_iterations):
         warnings.warn("; ".join(quality), FitQualityWarning, stacklevel=3)
     return FitResult(estimate, intervals, covariance, correlation, residuals, final_labels,
                      status, iterations, problem.free, parameters, settings, chi2, dof,
-                     chi2_per_dof, unmatched, at_bound, torsional)
+                     chi2_per_dof, unmatched, at_bound, torsional, width_residuals)
 
 
 def _as_given(problem: _Problem, theta, covariance, intervals):
@@ -1592,6 +1840,10 @@ def _best_starts(problem, starts, labels, n_starts, modes):
         if labels is None:
             starts[i], cost = _scaled_start(problem, theta, modes)
             costs.append(cost)
+        elif _damped(problem):
+            seed = _seed(problem, theta, labels)
+            r = _residual(problem, _evaluate(problem, theta, labels, seed)[1], labels[:, 0] >= 0)
+            costs.append(float(r @ r) if np.all(np.isfinite(r)) else np.inf)
         else:
             seed = _seed(problem, theta, labels)
             scale = float(hz_per_omega(_values(problem, theta)))
@@ -1609,7 +1861,8 @@ def fitted_frequencies(result: FitResult, voltage_V, m, n, branch=0, *, torsiona
     of ``result`` (``result.parameters``, ``result.settings``), per point.
 
     Ω_k is the k-th lowest positive root (k = ``branch``) of the global root scan (the definition
-    of a branch in :func:`fit`); NaN where that root does not exist. The arguments broadcast.
+    of a branch in :func:`fit`); NaN where that root does not exist. A damped fit's (``damping=``):
+    Re Ω of the complex root continued from it (:func:`_seed`). The arguments broadcast.
     ``torsional``: the torsional family (m = 0). ``lambda_i``, ``lambda_z``, ``pressure_Pa``: the
     loading of each point where the fit had them as data columns (or to evaluate the fitted tube
     at another loading); ``pressure_Pa`` only for a tube held by pressure, ``lambda_i`` only for
@@ -1673,5 +1926,14 @@ def fitted_frequencies(result: FitResult, voltage_V, m, n, branch=0, *, torsiona
             part = slice(start, start + CURVE_CHUNK)
             roots = _roots(problem, np.zeros(0), voltage[part], n[part], m[part], n_roots,
                            load[part], torsional[part])
-            out[part] = roots[np.arange(roots.shape[0]), branch[part]] * scale
+            root = roots[np.arange(roots.shape[0]), branch[part]]
+            if _damped(problem):  # Re Ω of the complex root continued from the elastic one
+                sub = problem._replace(voltage=voltage[part], load=load[part])
+                labels = np.stack([m[part], n[part], branch[part], torsional[part]], axis=1)
+                root = root.astype(complex)
+                for step in range(1, HOMOTOPY_STEPS + 1):
+                    root = _evaluate_damped(sub, np.zeros(0), labels, root,
+                                            step / HOMOTOPY_STEPS)[0]
+                root = root.real
+            out[part] = root * scale
     return out.reshape(shape)

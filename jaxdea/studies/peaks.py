@@ -14,9 +14,15 @@ import numpy as np
 from ..files import atomic_write, read_text
 
 COLUMNS = ("voltage_V", "frequency_Hz", "sigma_Hz", "m", "n", "branch", "torsional",
-           "pressure_Pa", "lambda_i", "lambda_z")
+           "pressure_Pa", "lambda_i", "lambda_z", "width_Hz", "sigma_width_Hz", "quality_factor",
+           "sigma_quality_factor")
 """The columns of a peak table, in the order :func:`write_peaks` writes them: the labels, then the
-loading of each peak (:data:`jaxdea.studies.fit.LOAD_COLUMNS`; joint fits over several loadings)."""
+loading of each peak (:data:`jaxdea.studies.fit.LOAD_COLUMNS`; joint fits over several loadings),
+then the peak widths (:data:`jaxdea.studies.fit.WIDTH_COLUMNS`: the half-power width in Hz or the
+quality factor, and their σ; fits of a damped tube)."""
+POSITIVE = ("frequency_Hz", "sigma_Hz", "width_Hz", "sigma_width_Hz", "quality_factor",
+            "sigma_quality_factor")
+"""Columns whose values must be > 0."""
 LABELS = ("m", "n", "branch", "torsional")
 LABEL_LOW = dict(m=0, n=1, branch=0, torsional=0)
 LABEL_MAX = 2**31 - 1
@@ -32,7 +38,9 @@ def read_peaks(path) -> dict:
 
     Columns (header row, any order): ``voltage_V``, ``frequency_Hz`` (> 0), optional ``sigma_Hz``
     (> 0), the optional labels ``m`` (≥ 0), ``n`` (≥ 1), ``branch`` (≥ 0), ``torsional`` (0 or 1)
-    and the optional loading of each peak ``pressure_Pa``, ``lambda_i``, ``lambda_z``; lines
+    and the optional loading of each peak ``pressure_Pa``, ``lambda_i``, ``lambda_z``, the
+    optional peak width ``width_Hz`` (half-power, FWHM) or ``quality_factor`` with
+    ``sigma_width_Hz`` or ``sigma_quality_factor`` (> 0; a damped tube's fit); lines
     starting with ``#`` and blank lines are skipped; a UTF-8 byte-order mark (Excel's "CSV UTF-8") is accepted.
     Labels are integer arrays, the rest float64.
 
@@ -94,8 +102,8 @@ def _cell(path, number, name, cell):
     value = float(cell)
     if not math.isfinite(value):
         raise ValueError(f"{where}: {cell!r} is not a finite number")
-    if name in ("frequency_Hz", "sigma_Hz") and value <= 0:
-        raise ValueError(f"{where}: {cell} Hz, must be > 0")
+    if name in POSITIVE and value <= 0:
+        raise ValueError(f"{where}: {cell}{' Hz' if name.endswith('Hz') else ''}, must be > 0")
     if name in ("lambda_i", "lambda_z") and value <= 0:
         raise ValueError(f"{where}: {cell}, must be > 0")
     if name in LABELS:

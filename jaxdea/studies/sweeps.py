@@ -42,7 +42,7 @@ from jax.sharding import PartitionSpec as P
 
 from ..compiled import cached_jit
 from ..files import atomic_write
-from ..materials import KINDS, Energy
+from ..materials import DAMPING_KINDS, KINDS, Energy
 from ..numerics.scalar import Status
 from ..params import (
     MAX_ROOTS,
@@ -113,6 +113,10 @@ class SweepResult:
         settings: the fixed parameters and solver settings (JSON-serialisable dict).
         lambda_i: with ``delta_p`` (a pressure-held tube) the inner stretch λ_i solved at every
             point from ΔP̂ (:func:`jaxdea.inner_stretch`), shape grid_shape; else None.
+        omega_imag: a damped tube's (``tube.damping``) Im Ω per root (time factor e^{iΩt}: a
+            decaying mode has Im Ω > 0; ``omega`` is then Re Ω, ascending), shape of ``omega``;
+            else None.
+        quality_factor: a damped tube's Q = Re Ω/(2 Im Ω) per root; else None.
     """
 
     axes: dict
@@ -125,6 +129,8 @@ class SweepResult:
     growth_rate: np.ndarray | None = None
     settings: dict = dataclasses.field(default_factory=dict)
     lambda_i: np.ndarray | None = None
+    omega_imag: np.ndarray | None = None
+    quality_factor: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple:
@@ -170,6 +176,11 @@ class SweepResult:
         flat = lambda a: a.reshape(-1, k)  # noqa: E731
         for j in range(k):
             cols[f"omega_{j + 1}"] = flat(self.omega)[:, j]
+        if self.omega_imag is not None:  # a damped tube: omega_j is Re Ω
+            for j in range(k):
+                cols[f"omega_imag_{j + 1}"] = flat(self.omega_imag)[:, j]
+            for j in range(k):
+                cols[f"quality_factor_{j + 1}"] = flat(self.quality_factor)[:, j]
         if self.scales is not None:
             for j in range(k):
                 cols[f"frequency_Hz_{j + 1}"] = flat(self.frequency_hz)[:, j]
@@ -268,6 +279,8 @@ class SweepResult:
             arrays.update(growth_rate=self.growth_rate)
         if self.lambda_i is not None:
             arrays.update(lambda_i=self.lambda_i)
+        if self.omega_imag is not None:
+            arrays.update(omega_imag=self.omega_imag, quality_factor=self.quality_factor)
         if self.scales is not None:  # SI values beside (recomputed by from_npz's result)
             arrays.update(frequency_Hz=self.frequency_hz, wavelength_m=self.wavelength_m)
             arrays.update({si_name: values for si_name, values, _ in self._si_axes().values()})
@@ -313,6 +326,12 @@ class SweepResult:
                 "flag_meanings": " ".join(s.name.lower() for s in Status)}),
             "alpha_hat": (dims, self.alpha, {"long_name": "axial wavenumber alpha R_i", **dimensionless}),
         }
+        if self.omega_imag is not None:
+            data["omega_imag"] = (roots, self.omega_imag, {
+                "long_name": "Im Omega of a damped tube (time factor exp(i Omega t); omega is "
+                             "Re Omega)", **dimensionless})
+            data["quality_factor"] = (roots, self.quality_factor, {
+                "long_name": "quality factor Q = Re Omega/(2 Im Omega)", **dimensionless})
         if self.lambda_i is not None:
             data["lambda_i"] = (dims, self.lambda_i, {
                 "long_name": "inner stretch held by the pressure difference delta_p", **dimensionless})
@@ -391,6 +410,8 @@ class SweepResult:
                 growth_rate=data["growth_rate"] if "growth_rate" in data else None,
                 settings=json.loads(str(data["settings"])),
                 lambda_i=data["lambda_i"] if "lambda_i" in data else None,
+                omega_imag=data["omega_imag"] if "omega_imag" in data else None,
+                quality_factor=data["quality_factor"] if "quality_factor" in data else None,
             )
 
     def __repr__(self) -> str:
@@ -726,6 +747,10 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
         validate_positive("omega_max", omega_max, "a finite number > 0")
         omega_max = float(omega_max)
     order = _order(fluid, axes)
+    if tube.damping is not None:
+        return _complex_sweep(tube, fluid, axes, n_roots, omega_max, n_layers, scheme, m_axis, m,
+                              torsional, progress, jacobian=jac_names, n_growth=n_growth,
+                              delta_p=delta_p, client=client)
 
     if client is not None:
         if devices is not None:
@@ -817,6 +842,66 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
     if interrupted:
         raise SweepInterrupted(result, int(solved.sum()), total)
     return result
+
+
+def _complex_sweep(tube, fluid, axes, n_roots, omega_max, n_layers, scheme, m_axis, m, torsional,
+                   progress, **unsupported):
+    """:func:`sweep` of a damped tube (``tube.damping``): at every point the ``n_roots`` complex
+    roots of :func:`jaxdea.complex_frequencies` (lowest Re Ω, certified), ``omega`` = Re Ω,
+    ``omega_imag`` = Im Ω (e^{iΩt}: Im Ω > 0 decays) and ``quality_factor`` Q = Re Ω/(2 Im Ω)
+    (docs/theory/real_tubes.md §4–§5). A Python loop (the search is not traceable); one
+    discretisation for the grid (:func:`_grid_layers` of the undamped tube). A point whose search
+    raises (an invalid value) is NaN, status INVALID.
+
+    Raises:
+        ValueError: naming ``tube.damping`` and the option, for ``jacobian``, ``n_growth``,
+            ``delta_p`` or ``client`` (not with complex roots); an invalid damping law.
+    """
+    from ..params import validate_damping
+    from ..solve.complex_frequencies import complex_frequencies
+
+    validate_damping(tube.damping)
+    for name, value in unsupported.items():
+        if value:
+            raise ValueError(f"tube.damping: a damped tube's sweep (complex roots) does not take "
+                             f"{name}; remove it or sweep the undamped tube")
+    shape = tuple(len(v) for v in axes.values())
+    total = math.prod(shape)
+    check_size(shape, n_roots)
+    grids = dict(zip(axes, (g.ravel() for g in np.meshgrid(*axes.values(), indexing="ij")),
+                     strict=True))
+    named = {k: v for k, v in grids.items() if k != "m"}
+    layers = _grid_layers(n_layers, scheme, tube.replace(damping=None), fluid, named, n_roots, m)
+    omega = np.full((total, n_roots), complex(np.nan, np.nan))
+    status = np.full((total, n_roots), int(Status.INVALID), np.int32)
+    alpha = np.full(total, np.nan)
+    bar = _progress_bar(total, progress)
+    try:
+        for i in range(total):
+            point, a, fl = apply_parameters(tube, None, fluid,
+                                            {k: float(v[i]) for k, v in named.items()})
+            order = int(grids["m"][i]) if "m" in grids else int(m)
+            try:
+                alpha[i] = float(a)
+                roots = complex_frequencies(point, alpha[i], fl, n_roots, m=order,
+                                            omega_max=omega_max, n_layers=layers,
+                                            torsional=torsional)
+            except ValueError:
+                bar.update(1)
+                continue
+            omega[i] = np.asarray(roots.omega)
+            status[i] = np.asarray(roots.status)
+            bar.update(1)
+    finally:
+        bar.close()
+    settings = _settings(tube, fluid, n_roots, omega_max, layers, m_axis, m, torsional)
+    settings.update(wall_settings(tube))  # the damping law (and the material) as JSON
+    reshape = lambda a: a.reshape(*shape, *a.shape[1:])  # noqa: E731
+    with np.errstate(divide="ignore", invalid="ignore"):
+        quality = np.where(omega.imag == 0, np.inf, omega.real / (2.0 * omega.imag))
+    return SweepResult(axes=axes, omega=reshape(omega.real), status=reshape(status),
+                       alpha=reshape(alpha), settings=settings, omega_imag=reshape(omega.imag),
+                       quality_factor=reshape(quality))
 
 
 def _check_pressure(delta_p, axes, jac_names):
@@ -979,7 +1064,22 @@ def wall_settings(tube: Tube | None) -> dict:
                           "shear_ratio": leaf(layer.shear_ratio),
                           "density_ratio": leaf(layer.density_ratio), "active": layer.active}
                          for layer in tube.layers]
+    if getattr(tube, "damping", None) is not None:
+        out["damping"] = damping_settings(tube.damping)
     return out
+
+
+def damping_settings(damping) -> dict:
+    """A damping law as JSON: ``{"kind": ..., parameter: value, ...}`` (:data:`DAMPING_KINDS`)."""
+    kind = next(k for k, cls in DAMPING_KINDS.items() if type(damping) is cls)
+    return {"kind": kind, **{f.name: np.asarray(getattr(damping, f.name)).tolist()
+                             for f in dataclasses.fields(damping)}}
+
+
+def damping_from_settings(value: dict):
+    """The damping law of :func:`damping_settings`."""
+    params = {k: tuple(v) if isinstance(v, list) else v for k, v in value.items() if k != "kind"}
+    return DAMPING_KINDS[value["kind"]](**params)
 
 
 def wall_from_settings(settings: dict) -> Tube | None:
@@ -999,7 +1099,9 @@ def wall_from_settings(settings: dict) -> Tube | None:
     layers = settings.get("layers")
     if layers is not None:
         layers = tuple(Layer(**{**layer, "material": material(layer["material"])}) for layer in layers)
-    return Tube(material=material(settings.get("material", "gent")), layers=layers)
+    damping = settings.get("damping")
+    return Tube(material=material(settings.get("material", "gent")), layers=layers,
+                damping=None if damping is None else damping_from_settings(damping))
 
 
 class _NoBar:
