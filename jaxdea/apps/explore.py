@@ -803,7 +803,7 @@ def _app_class():
                 ks = np.tile(np.arange(self.n_modes), len(d.axial_alpha))
                 self.damped_markers.set_data(d.axial_alpha[rows], self.damped.omega.real[rows, ks])
                 low = self.damped.quality_factor[:, 0]
-                self.damped_markers.set_label(r"damped: Re $\Omega$ at the modes $n$ (branch 1: $Q$ = "
+                self.damped_markers.set_label(r"damped Re $\Omega$ (branch 1 $Q$: "
                                               + ", ".join("–" if not np.isfinite(q) else f"{q:.3g}"
                                                           for q in low) + ")")
                 handles.append(self.damped_markers)

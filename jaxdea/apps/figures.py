@@ -29,6 +29,9 @@ past it by one rule, V̂ ≥ V̂_first (:func:`jaxdea.apps.plotstyle.past_first_
 figure, shaded on those against V̂ (Figs. 2, 5), and ``past_first_instability`` in every CSV. Three
 figures of order m follow: the stability map (V̂_cr of m = 0 … 4 against λ_i and n),
 the cross-sections of the lowest m = 1, 2, 3 modes, and the dispersion curves Ω(α̂) of m = 0, 1, 2.
+The figure ``damping`` gives the quality factor Q = Re Ω/(2 Im Ω) of n = 1 against V̂ and the
+attenuation |Im α̂| against frequency of the tube with a VHB-like and a silicone-like wall
+(:func:`damping_sets`, :func:`damped_curves`).
 
 Data layout of every CSV: one row per point and coupling, long format (``figure``, the swept
 parameters, ``coupling``, ``alpha_hat``, ``omega``, ``phase_velocity`` = Ω/α̂, ``v_critical``,
