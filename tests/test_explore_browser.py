@@ -1,6 +1,7 @@
 """The explorer as a user meets it: served by voila, driven in headless Chromium. Moving the V̂ slider
 redraws the plot; a click on the lowest curve at the tube's first axial mode shows that root's mode
-shape (the plot changes and the mode line names it). Screenshots are saved (JAXDEA_SCREENSHOTS, else
+shape (the plot changes and the mode line names it); the hysteretic damping button lists the quality
+factors of the damped roots. Screenshots are saved (JAXDEA_SCREENSHOTS, else
 the test's folder). Slow: a kernel starts, imports JAX and compiles the curve and mode-shape programs."""
 
 import json
@@ -136,5 +137,15 @@ def test_slider_and_click_in_the_browser(voila, tmp_path):
         wait_for(lambda: canvas.screenshot_as_png != after_slider, timeout=60)  # the mode panel drawn
         time.sleep(1.0)
         browser.save_screenshot(str(shots / "explorer_mode.png"))
+
+        after_mode = canvas.screenshot_as_png  # the damping control: the damped roots and their Q
+        browser.find_element(By.XPATH, "//button[normalize-space()='hysteretic ζ']").click()
+        listed = wait_for(lambda: [e.text for e in browser.find_elements(  # the innermost last
+            By.XPATH, "//*[contains(., 'branch 1:') and contains(., 'Q = Re')]")][-1:], timeout=300)
+        quality = [float(q) for q in listed[-1].split("branch 1:")[1].split("\n")[0].split(",")]
+        assert len(quality) == 5 and all(10.0 < q < 60.0 for q in quality)  # ζ = 0.05: Q·ζ ≈ 1 to 2
+        wait_for(lambda: canvas.screenshot_as_png != after_mode, timeout=60)  # the marks drawn
+        time.sleep(1.0)
+        browser.save_screenshot(str(shots / "explorer_damping.png"))
     finally:
         browser.quit()

@@ -9,6 +9,10 @@ Jupyter Notebook and voila), else a PNG image. The user's matplotlib backend is 
 Every slider value is a traced leaf of the compiled solvers, so moving a slider never recompiles;
 the empty tube, the filled one, each coupling and m = 0 against m ≥ 1 are separate programs, each
 compiled on first use (the app says "compiling (once)…" meanwhile).
+
+A damping control (none, Kelvin–Voigt η_v, hysteretic ζ, with a slider for its size) adds the
+complex roots of the damped tube at the axial modes n (:func:`damped_roots`): a few points only,
+each Newton (:func:`jaxdea.solve_complex_frequency`) continued from the elastic root in the size.
 """
 
 from __future__ import annotations
@@ -22,6 +26,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..compiled import jit
+from ..materials import Hysteretic, KelvinVoigt
 from ..params import Fluid, Tube, axial_wavenumber
 from ..solve.curves import dispersion_curve
 from ..solve.modes import mode_shape
@@ -54,6 +60,80 @@ class ExplorerData(NamedTuple):
     axial_n: np.ndarray
     axial_alpha: np.ndarray
     axial_index: np.ndarray
+
+
+DAMPING_LAWS = {"none": None, "Kelvin–Voigt η_v": KelvinVoigt, "hysteretic ζ": Hysteretic}
+"""The explorer's damping choices: the law, whose one parameter the size slider sets (η*(Ω) = iΩη_v
+or iζ, :mod:`jaxdea.materials`)."""
+DAMPING_STEPS = 4
+"""Newton solves per damped root: the size reached in this many equal steps from the elastic root."""
+
+
+class DampedRoots(NamedTuple):
+    """The complex roots of the damped tube at the axial modes (:func:`damped_roots`).
+
+    Attributes:
+        omega: Ω of each axial mode n (rows) and branch (columns), (n_axial, K), complex (NaN where
+            the elastic root is missing or Newton failed); decaying modes have Im Ω > 0.
+        quality_factor: Q = Re Ω/(2 Im Ω), (n_axial, K).
+        status: :class:`~jaxdea.Status` of the last Newton solve, (n_axial, K).
+    """
+
+    omega: np.ndarray
+    quality_factor: np.ndarray
+    status: np.ndarray
+
+
+@functools.partial(jit, static_argnames=("kind", "m", "n_layers"))
+def _damped(tube, alphas, guesses, size, fluid, kind, m, n_layers):
+    """Ω (N, K) and the last status: :func:`jaxdea.solve_complex_frequency` at each (α̂_n, branch)
+    from the elastic root, the law's size raised in :data:`DAMPING_STEPS` steps (each Newton from
+    the last root)."""
+    import jax
+    import jax.numpy as jnp
+
+    from ..solve.complex_frequencies import solve_complex_frequency
+
+    law = DAMPING_LAWS[kind]
+
+    def one(alpha, guess):
+        def step(omega, fraction):
+            root, status = solve_complex_frequency(tube.replace(damping=law(size * fraction)), alpha,
+                                                   omega, fluid, m=m, n_layers=n_layers)
+            return root, status
+
+        fractions = jnp.arange(1, DAMPING_STEPS + 1, dtype=jnp.float64) / DAMPING_STEPS
+        root, statuses = jax.lax.scan(step, guess.astype(jnp.complex128), fractions)
+        return root, statuses[-1]
+
+    return jax.vmap(jax.vmap(one, (None, 0)), (0, 0))(alphas, guesses)
+
+
+def damped_roots(tube: Tube, data: ExplorerData, kind: str, size: float, fluid: Fluid | None = None,
+                 m: int = 0, n_layers: int | None = None) -> DampedRoots | None:
+    """The complex roots Ω of the tube with the damping ``kind`` (a key of :data:`DAMPING_LAWS`) of
+    ``size`` (η_v or ζ) at the axial modes of ``data``: Newton from each elastic root Ω(α̂_n) with
+    the size raised in :data:`DAMPING_STEPS` steps; the quality factor Q = Re Ω/(2 Im Ω) (light
+    damping: Q ≈ 1/ζ for the hysteretic law at V̂ = 0). None for ``"none"``.
+
+    Raises:
+        ValueError: for the paper's coupling (complex roots are solved with the acoustic one) and
+            invalid inputs (as :func:`jaxdea.solve_complex_frequency`).
+    """
+    if DAMPING_LAWS[kind] is None:
+        return None
+    if fluid is not None and fluid.coupling != "acoustic":
+        raise ValueError("damping: complex roots need the acoustic coupling (or an empty tube)")
+    from ..numerics.scalar import Status
+
+    alphas = np.asarray(data.axial_alpha, np.float64)
+    guesses = np.asarray(data.omega[data.axial_index], np.complex128)
+    omega, status = _damped(tube, alphas, guesses, float(size), fluid, kind, int(m), n_layers)
+    omega, status = np.asarray(omega), np.asarray(status)
+    omega = np.where(status == Status.CONVERGED, omega, complex(np.nan, np.nan))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        quality = np.where(omega.imag != 0, omega.real / (2.0 * omega.imag), np.inf)
+    return DampedRoots(omega, np.where(np.isnan(omega.real), np.nan, quality), status)
 
 
 class StabilityStatus(NamedTuple):
@@ -158,7 +238,9 @@ def explore(tube: Tube | None = None, fluid: Fluid | None = None, *, n_modes: in
     blocks until then), so no update waits for them. A click on a curve (the ipympl canvas), the
     α̂ and branch controls, or ``app.select(alpha, branch)`` shows that root's mode shape in the
     side panel. The fluid controls are disabled for the empty tube. Invalid combinations (e.g. a
-    wall past Gent locking) show the error message instead of raising.
+    wall past Gent locking) show the error message instead of raising. The damping control (none,
+    Kelvin–Voigt η_v, hysteretic ζ) and its size slider add the damped roots at the axial modes
+    (:func:`damped_roots`): their Re Ω marked on the curves, their quality factors listed beside.
 
     Args:
         tube: the initial :class:`~jaxdea.Tube` (default: the paper's, V̂ = 0.1); its
@@ -177,7 +259,8 @@ def explore(tube: Tube | None = None, fluid: Fluid | None = None, *, n_modes: in
         (several controls, one redraw), ``select``, ``on_click`` and ``png`` (the figure as PNG
         bytes); ``data`` (:class:`ExplorerData`), ``status`` (:class:`StabilityStatus`, None while
         its solve runs: ``wait``), ``unstable`` (the α̂ flags of :func:`unstable_alphas`),
-        ``mode`` ((α̂, Ω, r, fields)) and ``error`` (the message, or None) hold what is shown.
+        ``mode`` ((α̂, Ω, r, fields)), ``damped`` (:class:`DampedRoots` or None) and ``error``
+        (the message, or None) hold what is shown.
 
     Raises:
         ImportError: without ipywidgets (``pip install jaxdea[explore]``).
@@ -297,6 +380,7 @@ def _app_class():
             self.n_axial, self.n_layers, self.n_max, self.m_max = n_axial, n_layers, n_max, m_max
             self.stability = stability
             self.data = self.status = self.mode = self.error = None
+            self.damped = None  # :class:`DampedRoots` at the axial modes, or None (no damping)
             self.unstable = None  # where the lowest root is imaginary (:func:`unstable_alphas`), or None
             self.selection = None  # (α̂, branch) of the mode shown
             self._first = {}  # (V̂_first, m, n) of the last wall
@@ -328,6 +412,9 @@ def _app_class():
                                                     description="ν (paper)"),
                 outside=widgets.ToggleButtons(options=list(self.outside), value=next(iter(self.outside)),
                                               description="outside", style=wide),
+                damping=widgets.ToggleButtons(options=list(DAMPING_LAWS), value="none",
+                                              description="damping", style=wide),
+                damping_size=_slider(widgets, "η_v or ζ", 0.05, 0.0, 0.5, 0.005),
             )
             if tube.layers is not None or tube.material != "gent":  # G is the Gent energy's alone
                 c["gent"].disabled = True
@@ -344,6 +431,7 @@ def _app_class():
             self.status_label = widgets.HTML()
             self.busy = widgets.HTML()  # "compiling (once)…" while a new kind of problem compiles
             self.mode_label = widgets.HTML("mode shape: click a curve, or pick α̂ and branch")
+            self.damping_label = widgets.HTML()  # Q of the damped roots at the axial modes
             with style():
                 self.figure = Figure(figsize=(12.0, 3.8), layout="constrained")
                 *self.axes, self.mode_axes = self.figure.subplots(1, 3, width_ratios=[1.0, 1.0, 0.8])
@@ -361,7 +449,8 @@ def _app_class():
             super().__init__([
                 widgets.HBox([widgets.VBox(list(c.values())),
                               widgets.VBox([self.status_label, self.busy, self.message, self.mode_label,
-                                            widgets.HBox(list(self.pick.values()))])]),
+                                            widgets.HBox(list(self.pick.values())),
+                                            self.damping_label])]),
                 self.plot,
             ])
             for control in c.values():
@@ -417,6 +506,7 @@ def _app_class():
             for key in FLUID_CONTROLS:
                 c[key].disabled = empty
             c["bessel_order"].disabled = empty or c["coupling"].value != "paper"
+            c["damping_size"].disabled = DAMPING_LAWS[c["damping"].value] is None
 
         def _stability(self, tube):
             """:func:`stability_status` when the first instability of this wall is known (it does
@@ -553,7 +643,43 @@ def _app_class():
                 else:
                     slider.min, slider.max = low, high
                 self.mode = self._mode(*self.selection) if self.selection is not None else None
+                self.damped = self._damped(tube, fluid, m)
+            if self.data is None:
+                self.damped = None
+            self._show_damping()
             self._draw()
+
+        def _damped(self, tube, fluid, m):
+            """:func:`damped_roots` for the damping controls, or None (no damping, or its error
+            shown beside the elastic curves)."""
+            kind = self.controls["damping"].value
+            if DAMPING_LAWS[kind] is None:
+                return None
+            what = f"damped roots ({kind})"
+            try:
+                self._compiling(what, self._kind(fluid, m))
+                damped = damped_roots(tube, self.data, kind, float(self.controls["damping_size"].value),
+                                      fluid, m, self.n_layers)
+            except ValueError as exc:
+                self.busy.value = ""
+                self._show_error(str(exc))
+                return None
+            self._compiled_now(what, self._kind(fluid, m))
+            return damped
+
+        def _show_damping(self):
+            """The quality factors of the damped roots at the axial modes, one line per branch."""
+            if self.damped is None:
+                self.damping_label.value = ""
+                return
+            rows = []
+            for k in range(self.n_modes):
+                values = ", ".join("–" if not np.isfinite(q) else f"{q:.3g}"
+                                   for q in self.damped.quality_factor[:, k])
+                rows.append(f"branch {k + 1}: {values}")
+            n = self.data.axial_n
+            self.damping_label.value = (f"<b>damped: Q = Re Ω/(2 Im Ω)</b> at n = {n[0]}…{n[-1]}<br>"
+                                        + "<br>".join(rows))
 
         def _mode(self, alpha, branch):
             """:func:`explorer_mode` for the controls' values, or None (the error shown)."""
@@ -608,6 +734,8 @@ def _app_class():
                 self.markers = ax.plot([], [], "o", ms=4, color="k", label="axial modes $n$")[0]
                 self.speed_markers = axv.plot([], [], "o", ms=4, color="k")[0]
                 self.picked = ax.plot([], [], "*", ms=12, color="crimson", label="mode shown")[0]
+                self.damped_markers = ax.plot([], [], "D", ms=5, mfc="none", mec="tab:purple", mew=1.2,
+                                              label=r"damped: Re $\Omega$ at the modes $n$")[0]
                 self.mode_lines = [self.mode_axes.plot([], [], label=name)[0]
                                    for name in (r"$\bar u$ (radial)", r"$\bar v$ (hoop)", r"$\bar w$ (axial)")]
                 self.labels, self.spans = [], []
@@ -641,7 +769,8 @@ def _app_class():
             for axis in self.axes:
                 axis.set_facecolor(UNSTABLE_FACE if unstable else "white")
             if d is None:
-                for line in self.lines + self.speed_lines + [self.markers, self.speed_markers]:
+                for line in self.lines + self.speed_lines + [self.markers, self.speed_markers,
+                                                             self.damped_markers]:
                     line.set_data([], [])
                 ax.set_title("invalid parameters (see the message)")
                 axv.set_title("")
@@ -669,6 +798,17 @@ def _app_class():
                 handles.append(self.unstable_patch)
             if self.mode is not None:
                 handles.append(self.picked)
+            if self.damped is not None:
+                rows = np.repeat(np.arange(len(d.axial_alpha)), self.n_modes)
+                ks = np.tile(np.arange(self.n_modes), len(d.axial_alpha))
+                self.damped_markers.set_data(d.axial_alpha[rows], self.damped.omega.real[rows, ks])
+                low = self.damped.quality_factor[:, 0]
+                self.damped_markers.set_label(r"damped Re $\Omega$ (branch 1 $Q$: "
+                                              + ", ".join("–" if not np.isfinite(q) else f"{q:.3g}"
+                                                          for q in low) + ")")
+                handles.append(self.damped_markers)
+            else:
+                self.damped_markers.set_data([], [])
             ax.legend(handles=handles, loc="upper left", fontsize=7)
             tube, fluid, m = self.parameters()
             filled = "empty" if fluid is None else f"filled ({fluid.coupling})"

@@ -29,6 +29,9 @@ past it by one rule, V̂ ≥ V̂_first (:func:`jaxdea.apps.plotstyle.past_first_
 figure, shaded on those against V̂ (Figs. 2, 5), and ``past_first_instability`` in every CSV. Three
 figures of order m follow: the stability map (V̂_cr of m = 0 … 4 against λ_i and n),
 the cross-sections of the lowest m = 1, 2, 3 modes, and the dispersion curves Ω(α̂) of m = 0, 1, 2.
+The figure ``damping`` gives the quality factor Q = Re Ω/(2 Im Ω) of n = 1 against V̂ and the
+attenuation |Im α̂| against frequency of the tube with a VHB-like and a silicone-like wall
+(:func:`damping_sets`, :func:`damped_curves`).
 
 Data layout of every CSV: one row per point and coupling, long format (``figure``, the swept
 parameters, ``coupling``, ``alpha_hat``, ``omega``, ``phase_velocity`` = Ω/α̂, ``v_critical``,
@@ -101,14 +104,18 @@ class Resolution:
     curve_steps: int  # α̂ steps of the order-m dispersion curves per mode spacing α̂_1
     outline_points: int  # angles θ of the cross-section outlines
     encapsulation_shares: int  # encapsulation shares of the wall in [0, 0.5]
+    damping_points: int  # voltages of the damped roots (continuation from V̂ = 0)
+    attenuation_points: int  # frequencies of the damped wavenumbers (continuation from the lowest)
 
     @classmethod
     def pick(cls, quick: bool) -> Resolution:
         if quick:
             return cls(voltages=8, max_mode=4, mode_steps=2, fluid_points=6, static_points=60,
-                       map_stretches=5, curve_steps=2, outline_points=73, encapsulation_shares=2)
+                       map_stretches=5, curve_steps=2, outline_points=73, encapsulation_shares=2,
+                       damping_points=4, attenuation_points=4)
         return cls(voltages=64, max_mode=15, mode_steps=5, fluid_points=40, static_points=240,
-                   map_stretches=44, curve_steps=16, outline_points=361, encapsulation_shares=6)
+                   map_stretches=44, curve_steps=16, outline_points=361, encapsulation_shares=6,
+                   damping_points=14, attenuation_points=16)
 
     def modes(self) -> np.ndarray:
         """The axial mode numbers n of the curves against n: ``mode_steps`` points per unit from 1
@@ -1489,6 +1496,210 @@ def figure_surrounding_fluid(ctx: Context):
     return fig, (left, right)
 
 
+# ----------------------------------------------------------------------------- damping
+
+
+DAMPING_STRETCH = 1.1
+"""λ_i of the damping figure: the paper's overcritical tube (as the surrounding-fluid study)."""
+DAMPING_RADIUS = 5e-3
+"""R_i in m of the damping figure's two walls (the size of :func:`surrounding_cases`)."""
+VHB_PRONY_KPA = ((26.0, 27.0, 11.0), 15.0)
+"""VHB 4910's three Maxwell branches and its equilibrium shear modulus in kPa (Hossain, Vu and
+Steinmann, Comput. Mater. Sci. 59 (2012) 65–74: 26.06, 26.53, 10.83 against 15.36 kPa)."""
+VHB_TIMES_S = (0.6, 6.0, 60.0)
+"""The branches' relaxation times in s: assumed, a decade apart, of the order published for VHB 4910
+(0.1–100 s, quasi-static relaxation tests)."""
+ECOFLEX_FRACTIONAL = dict(time_s=330e-6, order=0.32, modulus=1.0)
+"""Ecoflex 00-30 as a fractional Kelvin–Voigt solid, μ*(ω) = μ(1 + (iωτ)^n): τ = 330 µs and n = 0.32
+(issue 45); the springpot's modulus g = 1 (equal to μ at ωτ = 1) is our choice."""
+DAMPING_SI = {"VHB 4910 (Prony)": (15e3, 960.0, 4.7), "Ecoflex 00-30 (fractional KV)": (23e3, 1070.0, 2.8)}
+"""(μ in Pa, ρ_s in kg/m³, relative permittivity) of the two walls: VHB's equilibrium modulus, Ecoflex's
+small-strain shear modulus (assumed)."""
+DAMPING_COLORS = ("tab:red", "tab:blue")
+
+
+def damping_sets() -> dict:
+    """{label: (Scales, damping law)} of the damping figure: a VHB-like wall (:class:`jaxdea.Prony`
+    of :data:`VHB_PRONY_KPA`, :data:`VHB_TIMES_S`) and a silicone-like one
+    (:class:`jaxdea.FractionalKelvinVoigt` of :data:`ECOFLEX_FRACTIONAL`), times in units of R_i/c_s
+    of each wall's :class:`jaxdea.units.Scales` (R_i = :data:`DAMPING_RADIUS`)."""
+    from ..materials import FractionalKelvinVoigt, Prony
+    from ..physics.units import VACUUM_PERMITTIVITY, Scales
+
+    out = {}
+    for label, (mu, rho, eps) in DAMPING_SI.items():
+        scales = Scales(mu, rho, eps * VACUUM_PERMITTIVITY, DAMPING_RADIUS)
+        unit = float(scales.time_scale)
+        if label.startswith("VHB"):
+            branches, equilibrium = VHB_PRONY_KPA
+            law = Prony(moduli=tuple(g / equilibrium for g in branches),
+                        times=tuple(t / unit for t in VHB_TIMES_S))
+        else:
+            law = FractionalKelvinVoigt(modulus=ECOFLEX_FRACTIONAL["modulus"],
+                                        time=ECOFLEX_FRACTIONAL["time_s"] / unit,
+                                        order=ECOFLEX_FRACTIONAL["order"])
+        out[label] = (scales, law)
+    return out
+
+
+@functools.partial(jit, static_argnames=("n_layers",))
+def _damped_root(tube: Tube, alpha, guess, n_layers: int):
+    """(Ω, status): :func:`jaxdea.solve_complex_frequency` from ``guess``, compiled once per law."""
+    from ..solve.complex_frequencies import solve_complex_frequency
+
+    return solve_complex_frequency(tube, alpha, guess, n_layers=n_layers)
+
+
+@functools.partial(jit, static_argnames=("problem", "n_layers"))
+def _damped_wavenumber(problem, tube: Tube, omega, guess, n_layers: int):
+    """(α̂, converged): complex Newton on F(α̂; Ω) from ``guess`` (the Newton of
+    :func:`jaxdea.wavenumbers`, :func:`jaxdea.solve.wavenumbers.complex_newton`)."""
+    from ..physics.characteristic import Unknown
+    from ..physics.transfer import discretize
+    from ..solve.wavenumbers import complex_newton
+
+    return complex_newton(problem, discretize(tube, n_layers), omega, None, jnp.asarray(0.0), guess,
+                          Unknown.ALPHA)
+
+
+def _continued(solve, first, xs):
+    """The roots along ``xs`` from the root ``first`` at xs[0]: Newton (``solve(x, guess)`` →
+    (root, ok)) from the linear extrapolation of the last two roots (the last root at the second
+    point); (roots, ok)."""
+    roots, ok = [complex(first)], [True]
+    for k in range(1, len(xs)):
+        guess = roots[-1] if k == 1 else roots[-1] + (roots[-1] - roots[-2]) * (
+            (xs[k] - xs[k - 1]) / (xs[k - 1] - xs[k - 2]))
+        root, good = solve(float(xs[k]), complex(guess))
+        roots.append(complex(root))
+        ok.append(bool(good))
+    return np.array(roots), np.array(ok)
+
+
+def damped_curves(ctx: Context) -> dict:
+    """{label: dict(voltages, omega, elastic, ok, frequencies, alpha, alpha_ok, v_cr)} of the damping
+    figure, solved once: the lowest complex root Ω of n = 1 against V̂ in [0, 0.9 V̂_cr(n = 1)]
+    (:func:`jaxdea.complex_frequencies` at V̂ = 0, then :func:`jaxdea.solve_complex_frequency`
+    continued in V̂) and the least attenuated wavenumber α̂ of the lowest branch at V̂ = 0 against
+    real Ω from 0.25 to 4 × Re Ω(n = 1) (:func:`jaxdea.wavenumbers` at the lowest Ω, then Newton in
+    α̂ continued in Ω)."""
+    from ..physics.problem import describe
+    from ..solve.complex_frequencies import complex_frequencies
+    from ..solve.wavenumbers import wavenumbers
+
+    def solve():
+        base = PAPER_TUBE.replace(lambda_i=DAMPING_STRETCH)
+        alpha = float(axial_wavenumber(base, 1))
+        v_cr = float(critical_voltage(base, alpha, n_layers=ctx.n_layers))
+        voltages = np.linspace(0.0, 0.9 * v_cr, ctx.res.damping_points)
+        elastic = np.array([float(frequencies(base.replace(voltage=float(v)), alpha, n_roots=1,
+                                              n_layers=ctx.n_layers)[0]) for v in voltages])
+        out = {}
+        for label, (_, law) in damping_sets().items():
+            tube = base.replace(damping=law)
+            first = complex(complex_frequencies(tube, alpha, n_roots=1, n_layers=ctx.n_layers).omega[0])
+
+            def at_voltage(v, guess, tube=tube):
+                root, status = _damped_root(tube.replace(voltage=v), alpha, guess, ctx.n_layers)
+                return root, int(status) == Status.CONVERGED
+
+            omega, ok = _continued(at_voltage, first, voltages)
+            freqs = first.real * np.geomspace(0.25, 4.0, ctx.res.attenuation_points)
+            problem = describe(tube, None, None, ctx.n_layers, damped=True)
+            start = complex(wavenumbers(tube, float(freqs[0]), n_roots=1, n_layers=ctx.n_layers).alpha[0])
+
+            def at_frequency(w, guess, tube=tube, problem=problem):
+                root, good = _damped_wavenumber(problem, tube, w, guess, ctx.n_layers)
+                return root, bool(good)
+
+            alphas, alpha_ok = _continued(at_frequency, start, freqs)
+            out[label] = dict(voltages=voltages, omega=omega, elastic=elastic, ok=ok, frequencies=freqs,
+                              alpha=alphas, alpha_ok=alpha_ok, v_cr=v_cr, alpha_1=alpha)
+        return out
+
+    return ctx.once("damping", solve)
+
+
+@_styled
+def figure_damping(ctx: Context):
+    """The quality factor Q = Re Ω/(2 Im Ω) of the lowest root of n = 1 against V̂, and the attenuation
+    |Im α̂| (dB/m) of the lowest branch against frequency, of the paper's tube (λ_i = 1.1) with a
+    VHB-like and a silicone-like wall (:func:`damping_sets`, :func:`damped_curves`). Returns (figure,
+    axes)."""
+    name = "damping"
+    ctx.log(f"[{name}] quality factor and attenuation of a VHB-like and a silicone-like wall")
+    curves = damped_curves(ctx)
+    sets = damping_sets()
+    first = _first_columns(ctx.stability(), DAMPING_STRETCH)
+    fig, (left, right) = new_figure(2, title=r"Damping of the paper's tube ($\lambda_i = 1.1$, "
+                                    r"$\lambda_z = 1.2$, $\eta = 0.85$, $R_i = 5$ mm)")
+    table = Table(name)
+    summary = {}
+    for c, (label, d) in enumerate(curves.items()):
+        scales, _ = sets[label]
+        color = DAMPING_COLORS[c]
+        q = np.real(d["omega"]) / (2.0 * np.imag(d["omega"]))
+        past = past_first_instability(d["voltages"], first["v_first"])
+        for v, w, we, qk, ok, p in zip(d["voltages"], d["omega"], d["elastic"], q, d["ok"], past,
+                                       strict=True):
+            table.add(panel="quality_factor", material=label, voltage=v, n=1, alpha_hat=d["alpha_1"],
+                      omega_real=w.real, omega_imag=w.imag, quality_factor=qk, omega_elastic=we,
+                      frequency_hz=float(scales.omega_to_hz(w.real)), attenuation=math.nan,
+                      attenuation_db_per_m=math.nan, v_critical=d["v_cr"], **first,
+                      past_first_instability=bool(p), status="converged" if ok else "max_iter")
+        hz = np.asarray(scales.omega_to_hz(d["frequencies"]))
+        attenuation = np.abs(np.imag(d["alpha"]))
+        db = np.asarray(scales.attenuation_to_db_per_m(attenuation))
+        for w, f, a, att, dbm, ok in zip(d["frequencies"], hz, d["alpha"], attenuation, db, d["alpha_ok"],
+                                         strict=True):
+            table.add(panel="attenuation", material=label, voltage=0.0, n=math.nan, alpha_real=a.real,
+                      alpha_imag=a.imag, omega_real=w, omega_imag=0.0, frequency_hz=f,
+                      attenuation=att, attenuation_db_per_m=dbm, **first, past_first_instability=False,
+                      status="converged" if ok else "max_iter")
+        summary[label] = (q[0], d["omega"][0], float(scales.omega_to_hz(d["omega"][0].real)))
+        plotstyle.plot_marked(left, d["voltages"], q, past, color=color, marker="o", ms=3)
+        right.plot(hz, db, "o-", color=color, ms=3)
+    left.axvline(first["v_first"], color="gray", ls=":", lw=1)
+    for ax in (left, right):
+        ax.set_yscale("log")
+    right.set_xscale("log")
+    radius = DAMPING_RADIUS
+    right.secondary_yaxis("right", functions=(lambda y: y / (20 * math.log10(math.e)) * radius,
+                                              lambda y: y * (20 * math.log10(math.e)) / radius)
+                          ).set_ylabel(r"$|\mathrm{Im}\,\hat\alpha|$ (per $R_i$)")
+    left.set_title(r"(a) quality factor $Q$ of the lowest root of $n = 1$")
+    right.set_title(r"(b) attenuation of the lowest branch ($\hat V = 0$, $m = 0$)")
+    _axes_labels(left, SHORT_LABELS["voltage"], r"$Q = \mathrm{Re}\,\Omega\,/\,(2\,\mathrm{Im}\,\Omega)$")
+    _axes_labels(right, "frequency (Hz)", "attenuation (dB/m)")
+    handles = [line_handle(label, color=DAMPING_COLORS[c], marker="o", ms=3)
+               for c, label in enumerate(curves)]
+    handles.append(line_handle(rf"first instability $\hat V_{{first}} = {first['v_first']:.4f}$ "
+                               rf"($m = {first['m_first']}$, $n = {first['n_first']}$; dotted)",
+                               color="gray", ls=":"))
+    plotstyle.legend_below(fig, handles, ncol=3)
+    at_rest = "; ".join(f"{label}: Ω = {w.real:.4f} + {w.imag:.2e}i ({hz:.1f} Hz), Q = {q:.3g}"
+                        for label, (q, w, hz) in summary.items())
+    caption = ("The paper's tube (λ_i = 1.1, λ_z = 1.2, η = 0.85, Gent G = 97.2, R_i = 5 mm) with two "
+               "damped walls (docs/theory/real_tubes.md §4; time factor e^{iΩt}). VHB-like: μ = 15 kPa, "
+               "ρ_s = 960 kg/m³, Prony branches 26, 27 and 11 kPa (Hossain, Vu and Steinmann 2012) with "
+               "relaxation times 0.6, 6 and 60 s (assumed, of the published order); at these frequencies "
+               "ωτ ≫ 1, so the branches stiffen the wall (Ω about 2.2× the elastic one) and lose little. "
+               "Silicone-like: Ecoflex 00-30, μ = 23 kPa, ρ_s = 1070 kg/m³, fractional Kelvin–Voigt "
+               "μ(1 + (iωτ)^n) with τ = 330 µs, n = 0.32 (the springpot's modulus equal to μ: our choice). "
+               f"At V̂ = 0, n = 1: {at_rest}. (a) Q = Re Ω/(2 Im Ω) of the lowest root of n = 1 "
+               "(α̂ = 0.445) against V̂ to 0.9 V̂_cr(n = 1, m = 0) (complex_frequencies at V̂ = 0, then "
+               "solve_complex_frequency continued in V̂), faded past the first instability "
+               "(η*(0) = 0: damping leaves the critical voltages where they are). (b) The attenuation "
+               "|Im α̂| of the lowest axisymmetric branch against the real frequency, 0.25–4× that of "
+               "n = 1 (wavenumbers at the lowest frequency, then Newton continued), in dB/m "
+               "(20 log10(e)|Im α̂|/R_i) and per R_i (right axis). The peak is where the branch bends "
+               "from the bar wave (Ω/α̂ ≈ 4 c_s for VHB, 2.1 c_s for Ecoflex) towards slow short waves: "
+               "there its group velocity dΩ/dα̂ is lowest (0.6 c_s for VHB against 3.9 for long waves), "
+               "and the attenuation of a root Im Ω in time is about Im Ω/(dΩ/dα̂) in space.")
+    ctx.save(name, fig, table, caption)
+    return fig, (left, right)
+
+
 # ----------------------------------------------------------------------------- main job
 
 
@@ -1547,7 +1758,7 @@ FIGURE_ORDER = ("fig2_voltage_empty", "fig3_modes_empty", "fig4_modes_critical_e
                 "fig6_modes_fluid", "fig7_modes_critical_fluid", "fig8_speed_ratio", "fig9_density_ratio",
                 "fig10_thickness_ratio", "comparison_couplings", "stability_map", "dispersion_order_m",
                 "cross_sections", "static_response", "encapsulation",
-                "surrounding_fluid")  # the order of the index
+                "surrounding_fluid", "damping")  # the order of the index
 
 
 def _paper_figures(ctx: Context) -> None:
@@ -1572,3 +1783,4 @@ def _paper_figures(ctx: Context) -> None:
     figure_comparison(ctx, {"modes": modes, "speed": speed})
     figure_encapsulation(ctx)
     figure_surrounding_fluid(ctx)
+    figure_damping(ctx)
