@@ -121,6 +121,9 @@ def complex_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: 
     return ComplexRoots(omega, quality_factor(omega), status, jnp.asarray(int(certificate), jnp.int32))
 
 
+ROOT_OFFSET = 1e-12
+"""Relative offset from a root at which its implicit derivative is taken when F rounds to exactly 0
+there (infinite log-derivatives)."""
 SOUND_LINE_GAP = 1.0 + 1e-9
 """The boxes either side of the sound line stop at ĉ_oα̂/SOUND_LINE_GAP and start at
 ĉ_oα̂·SOUND_LINE_GAP: off its branch point and its cut."""
@@ -220,12 +223,20 @@ def _complex_root_jvp(problem, layers, primals, tangents):
     inputs = (tube, alpha, fluid)
     leaves, tree = jax.tree_util.tree_flatten(inputs)
 
-    def along(tangent_inputs, omega_dot):
-        return characteristic.value_and_log_slope_along(pieces, (*inputs, omega), (*tangent_inputs,
-                                                                                    omega_dot))[1]
-
     zeros = [jnp.zeros_like(x) for x in leaves]
-    along_omega = along(jax.tree_util.tree_unflatten(tree, zeros), jnp.ones_like(omega))
+
+    def along(tangent_inputs, omega_dot, at):
+        return characteristic.value_and_log_slope_along(pieces, (*inputs, at), (*tangent_inputs,
+                                                                                 omega_dot))[1]
+
+    # a root that rounds to F = 0 exactly has infinite log-derivatives (their ratio NaN): there,
+    # both are taken a relative ROOT_OFFSET off the root (dΩ/dθ changes by that much)
+    at_root = along(jax.tree_util.tree_unflatten(tree, zeros), jnp.ones_like(omega), omega)
+    at = jnp.where(jnp.isfinite(at_root), omega,
+                   omega + ROOT_OFFSET * jnp.maximum(1.0, jnp.abs(omega)))
+    along_omega = jnp.where(jnp.isfinite(at_root), at_root,
+                            along(jax.tree_util.tree_unflatten(tree, zeros), jnp.ones_like(omega),
+                                  at))
     # dΩ/dθ_i leaf by leaf, from the primals only (forward mode, one-hot tangents): the tangent out
     # is then a plain linear combination of the tangents in, which reverse mode transposes exactly
     # (a transpose of the carried wall tangent itself gave wrong cotangents under jit, measured)
@@ -233,7 +244,7 @@ def _complex_root_jvp(problem, layers, primals, tangents):
     for i, leaf_dot in enumerate(jax.tree_util.tree_leaves(tangents[:3])):
         one_hot = [jnp.ones_like(x) if j == i else z for j, (x, z) in enumerate(zip(leaves, zeros,
                                                                                     strict=True))]
-        along_i = along(jax.tree_util.tree_unflatten(tree, one_hot), jnp.zeros_like(omega))
+        along_i = along(jax.tree_util.tree_unflatten(tree, one_hot), jnp.zeros_like(omega), at)
         tangent = tangent + (-along_i / along_omega) * leaf_dot
     status_dot = np.zeros(np.shape(status), jax.dtypes.float0)
     return (omega, status), (tangent, status_dot)
