@@ -14,8 +14,7 @@ the wall on the tube's laminate:
    Gauss nodes), and Y' = M Y there;
 3. the flux and energy densities (Eqs. 9.4–9.6) are integrated over the wall with those weights, the
    inner face adds the follower-pressure terms (Eq. 9.7), a filling its acoustic flux and energy
-   (Eq. 9.8, Gauss–Legendre on [0, r̂_i]) and a surrounding fluid its own (Eq. 9.9, Gauss–Laguerre on
-   [r̂_o, ∞)).
+   (Eq. 9.8, Gauss–Legendre on [0, r̂_i]) and a surrounding fluid its own (Eq. 9.9, closed form).
 """
 
 import jax
@@ -106,7 +105,8 @@ def _take(coef, index):
 
 
 def _densities(coef, r, y, dy, omega, alpha, m):
-    """(flux, energy) densities per r̂ dr̂ at one radius (docs/theory/real_tubes.md Eqs. 9.4–9.6)
+    """(flux, energy, dissipation) densities per r̂ dr̂ at one radius (docs/theory/real_tubes.md
+    Eqs. 9.4–9.6, 9.10)
     from the 8 fields y = [U, V, W, Φ, T, Q, S, D] (standing-wave amplitudes of docs/theory/order_m.md
     §1), their radial derivatives dy and the general-form coefficients there."""
     u, v, w, phi, t, q, s, d_r = y
@@ -140,7 +140,7 @@ def _densities(coef, r, y, dy, omega, alpha, m):
             + jnp.conj(l_zr) * s + jnp.conj(l_tz) * t_zt + jnp.conj(l_zt) * t_tz
             + jnp.conj(dd_r) * e_r + jnp.conj(dd_t) * e_t + jnp.conj(dd_z) * e_z)
     kinetic = rho * omega**2 * (jnp.abs(u) ** 2 + jnp.abs(v) ** 2 + jnp.abs(w) ** 2)
-    return flux, 0.25 * (kinetic + jnp.real(work))
+    return flux, 0.25 * (kinetic + jnp.real(work)), 0.5 * omega * jnp.imag(work)
 
 
 def _wall_nodes(tube: Tube, wall, n_points: int):
@@ -154,7 +154,7 @@ def _wall_nodes(tube: Tube, wall, n_points: int):
 
 
 def _wall_integrals(tube, wall, states, omega, alpha, m, family, n_points):
-    """(flux, energy) of the wall (Eqs. 9.4–9.6) by Gauss–Legendre per layer, the fields at the
+    """(flux, energy, dissipation) of the wall (Eqs. 9.4–9.6, 9.10) by Gauss–Legendre per layer, the fields at the
     nodes by a Magnus step from the nearest sublayer interface (module docstring, step 2)."""
     edges = _midpoints(tube, wall)[0]
     r, weight = _wall_nodes(tube, wall, n_points)
@@ -180,9 +180,9 @@ def _wall_integrals(tube, wall, states, omega, alpha, m, family, n_points):
     rows = jnp.asarray(family.order_m_rows)
     y8 = jnp.zeros((r.shape[0], 8), jnp.complex128).at[:, rows].set(ys)
     dy8 = jnp.zeros((r.shape[0], 8), jnp.complex128).at[:, rows].set(dys)
-    flux, energy = jax.vmap(_densities, (0, 0, 0, 0, None, None, None))(
+    densities = jax.vmap(_densities, (0, 0, 0, 0, None, None, None))(
         _take(coef, (slice(None), 2)), r, y8, dy8, omega, alpha, m)
-    return jnp.sum(weight * flux), jnp.sum(weight * energy), y8[jnp.argmin(r)]
+    return tuple(jnp.sum(weight * x) for x in densities)
 
 
 def _face_terms(wall, y_inner, omega, alpha, m):
@@ -208,7 +208,7 @@ def _cavity_terms(wall, fluid, coefficient_u, y_inner, omega, alpha, m, n_points
     chi2 = (omega / c_f) ** 2 - alpha**2
     s, s_i = chi2 * r**2, chi2 * ri**2
     if jnp.iscomplexobj(alpha):
-        n = coupling_pair(s, m)[0]
+        n = jax.vmap(lambda x: coupling_pair(x, m)[0])(s)
         n_i = coupling_pair(s_i, m)[0]
         # the series branch carries no factor; beyond it the factor is not known: NaN
         n = jnp.where(jnp.abs(s_i) <= 64.0, n, jnp.nan)
@@ -227,54 +227,61 @@ def _cavity_terms(wall, fluid, coefficient_u, y_inner, omega, alpha, m, n_points
     return flux, energy
 
 
-def _outer_terms(wall, fluid, y_outer, omega, alpha, m, n_points):
-    """(flux, energy) of a surrounding fluid (Eq. 9.9) for a subsonic mode: p̂*_o(r̂) =
-    −T̄(r̂_o) K_m(γr̂)/K_m(γr̂_o), γ = sqrt(α̂² − Ω²/ĉ_o²), by Gauss–Laguerre in 2γ(r̂ − r̂_o)."""
+def _outer_terms(wall, fluid, y_outer, omega, alpha, m):
+    """(flux, energy) of a surrounding fluid (Eq. 9.9) for a subsonic mode, in closed form:
+    p̂*_o(r̂) = −T̄(r̂_o) K_m(γr̂)/K_m(γr̂_o), γ = sqrt(α̂² − Ω²/ĉ_o²), ∫_{r̂_o}^∞ K_m(γr̂)² r̂ dr̂ =
+    (r̂_o²/2)(K_{m−1}K_{m+1} − K_m²)(γr̂_o) (checked against quadrature), and the
+    gradient term by Green's identity, ∫(|p̂'|² + m²|p̂|²/r̂²) r̂ dr̂ = −r̂_o p̂ p̂'(r̂_o) − γ² ∫|p̂|² r̂ dr̂
+    with p̂*_o'(r̂_o) = ρ̂_oΩ²ū(r̂_o)."""
     rho, c_o = as_float(fluid.density_ratio), as_float(fluid.speed_ratio)
     ro = wall.r_outer
-    gamma = jnp.sqrt(alpha**2 - (omega / c_o) ** 2)
-    x, weight = np.polynomial.laguerre.laggauss(n_points)
-    r = ro + x / (2.0 * gamma)
-    weight = weight / (2.0 * gamma) * r
-    scale = scaled_k(gamma * ro, m)
-    ratio = scaled_k(gamma * r, m) / scale  # times e^{−γ(r̂ − r̂_o)}: its square is the weight
-    below = scaled_k(gamma * r, jnp.abs(m - 1.0)) / scale
-    slope = -gamma * (below + m / (gamma * r) * ratio)  # K_m' = −K_{m−1} − (m/x)K_m
-    t_o = y_outer[4]
-    squared = jnp.abs(t_o) ** 2 * jnp.sum(weight * ratio**2)
-    gradient = jnp.abs(t_o) ** 2 * jnp.sum(weight * (slope**2 + (m / r) ** 2 * ratio**2))
+    gamma_squared = alpha**2 - (omega / c_o) ** 2
+    y = jnp.sqrt(gamma_squared) * ro
+    k_m = scaled_k(y, m)
+    ratio = scaled_k(y, jnp.abs(m - 1.0)) * scaled_k(y, m + 1.0) / (k_m * k_m)
+    p_o = -y_outer[4]
+    slope_o = rho * omega**2 * y_outer[0]
+    squared = jnp.abs(p_o) ** 2 * 0.5 * ro**2 * (ratio - 1.0)  # ∫|p̂|² r̂ dr̂
+    gradient = (-ro * jnp.real(jnp.conj(p_o) * slope_o) - gamma_squared * squared
+                + alpha**2 * squared)  # ∫|∇p̂|² r̂ dr̂
     flux = 0.5 * alpha * squared / (omega * rho)
-    energy = 0.25 * ((gradient + alpha**2 * squared) / (omega**2 * rho) + squared / (rho * c_o**2))
+    energy = 0.25 * (gradient / (omega**2 * rho) + squared / (rho * c_o**2))
     return flux, energy
 
 
-@cached_jit(static_argnames=("n_points", "n_layers", "order", "family"))
-def _energy_velocity(tube, alpha, omega, fluid, n_points, n_layers, order, m=0.0,
+@cached_jit(static_argnames=("n_points", "n_layers", "order", "real", "family"))
+def _energy_velocity(tube, alpha, omega, fluid, n_points, n_layers, order, real=True, m=0.0,
                      family=Family.LONGITUDINAL):
-    """(v_e, flux, energy, relative Newton distance of α̂ from a root of the same laminate)."""
+    """(v_e, flux P̄_z, energy Ē, dissipated power D̄ per unit length (Eq. 9.10), relative Newton
+    distance of α̂ from a root of the same laminate);
+    ``real`` (static): α̂ is real (the cavity's Bessel functions in real arithmetic)."""
     wall = discretize(tube, n_layers)
     alpha = _complex(alpha)
     basis, exponentials, out = characteristic.pieces(family, wall, alpha, omega, fluid, order, m,
                                                      Unknown.ALPHA)
-    _, log_slope = characteristic.value_and_log_slope(family, wall, alpha, omega, fluid, order, m,
+    f, log_slope = characteristic.value_and_log_slope(family, wall, alpha, omega, fluid, order, m,
                                                       Unknown.ALPHA)
-    distance = jnp.abs(1.0 / log_slope) / jnp.abs(alpha)
+    step = jnp.abs(1.0 / log_slope) / jnp.abs(alpha)  # Newton's relative step f/(f' α̂)
+    # f exactly 0 (a root to the last bit) leaves 0/0 in the log-slope: a root
+    distance = jnp.where(jnp.isfinite(step), step, jnp.where(jnp.abs(f) < 1e-13, 0.0, jnp.inf))
     states, coefficients = _interface_states(basis, exponentials, out)
     rows = jnp.asarray(family.order_m_rows)
     y_inner = jnp.zeros(8, jnp.complex128).at[rows].set(states[0])
     y_outer = jnp.zeros(8, jnp.complex128).at[rows].set(states[-1])
-    flux, energy, _ = _wall_integrals(tube, wall, states, omega, alpha, m, family, n_points)
+    flux, energy, dissipation = _wall_integrals(tube, wall, states, omega, alpha, m, family,
+                                                n_points)
     face = _face_terms(wall, y_inner, omega, alpha, m)
     flux, energy = flux + face[0], energy + face[1]
     if Face.of(fluid).has_pressure and family.moves_fluid:
-        cavity = _cavity_terms(wall, fluid, coefficients[0], y_inner, omega, alpha, m, n_points)
+        cavity = _cavity_terms(wall, fluid, coefficients[0], y_inner, omega,
+                               jnp.real(alpha) if real else alpha, m, n_points)
         flux, energy = flux + cavity[0], energy + cavity[1]
     if tube.outer is not None and family.moves_fluid:
-        outside = _outer_terms(wall, tube.outer, y_outer, omega, jnp.real(alpha), m, n_points)
+        outside = _outer_terms(wall, tube.outer, y_outer, omega, jnp.real(alpha), m)
         flux, energy = flux + outside[0], energy + outside[1]
     ok = (distance <= ROOT_RTOL) & jnp.isfinite(omega) & (omega > 0)
     velocity = jnp.where(ok, flux / energy, jnp.nan)
-    return velocity, flux, energy, distance
+    return velocity, flux, energy, dissipation, distance
 
 
 def _check_alpha(alpha) -> None:
@@ -313,8 +320,8 @@ def energy_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_poin
         omega: Ω > 0, real.
         fluid: None or an ``"acoustic"`` :class:`~jaxdea.Fluid` (the paper's coupling has no
             pressure field: ValueError).
-        n_points: Gauss–Legendre nodes per layer of the wall (and in the cavity; Gauss–Laguerre
-            nodes in a surrounding fluid), static. The integrals converge spectrally in it.
+        n_points: Gauss–Legendre nodes per layer of the wall (and in the cavity), static; the
+            integrals converge spectrally in it.
         n_layers, scheme, m, torsional: the discretisation and family the root was found with, as for
             :func:`jaxdea.mode_shape`.
         outer: a surrounding :class:`~jaxdea.Fluid` or None (the tube's own ``tube.outer``); only a
@@ -361,8 +368,8 @@ def energy_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_poin
     m_value = as_float(float(m) if not traced(m) else m)
     count = laminate(n_layers, scheme, tube, float(np.abs(alpha)) if not traced(alpha) else None,
                      m=m)
-    velocity, _, _, distance = _energy_velocity(tube, _complex(alpha), omega, fluid, int(n_points),
-                                                count, problem.order,
+    velocity, _, _, _, distance = _energy_velocity(tube, _complex(alpha), omega, fluid, int(n_points),
+                                                count, problem.order, not complex_alpha,
                                                 **problem.arguments(m_value))
     if not traced((alpha, omega, tube, fluid)) and not float(distance) <= ROOT_RTOL:
         raise ValueError(f"alpha = {complex(alpha)!r} is not a root at omega = {float(omega)!r} of "
