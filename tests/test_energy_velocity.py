@@ -124,8 +124,9 @@ def test_damped_flux_balances_the_dissipation(case):
 
 
 def test_kelvin_voigt_tends_to_the_lossless_group_velocity():
-    """η_v → 0: v_e of the damped wave at the lossless Ω tends to the group velocity there; the
-    difference falls at least in proportion to η_v (measured 2nd order: ×100 per decade)."""
+    """η_v → 0: v_e of the damped wave at the lossless Ω tends to the group velocity there, the
+    difference in second order: 3.553e-5, 3.553e-7, 3.553e-9 at η_v = 1e-2, 1e-3, 1e-4 (measured;
+    v_g = 1.66065)."""
     omega = float(jd.frequencies(TUBE, ALPHA, n_roots=1)[0])
     v_g = float(jd.group_velocity(TUBE, ALPHA, omega))
     gaps = []
@@ -133,7 +134,7 @@ def test_kelvin_voigt_tends_to_the_lossless_group_velocity():
         tube = TUBE.replace(damping=jd.KelvinVoigt(viscosity))
         alpha = _damped_root(tube, omega, ALPHA)
         gaps.append(abs(float(jd.energy_velocity(tube, alpha, omega)) - v_g))
-    assert gaps[1] < 0.2 * gaps[0] and gaps[1] < 1e-4 * v_g
+    assert 0.009 < gaps[1] / gaps[0] < 0.011 and gaps[1] < 1e-6 * v_g
 
 
 def test_bad_input_raises_naming_the_parameter():
