@@ -1,5 +1,5 @@
 """Energy velocity: the time-averaged axial power flux of a mode over its time-averaged energy
-(docs/theory/real_tubes.md §9, Eqs. 9.1–9.9).
+(docs/theory/real_tubes.md §9, Eqs. 9.1–9.11).
 
 For a root (α̂, Ω) (real α̂ and Ω of :func:`jaxdea.frequencies`, or a complex α̂ at a real Ω of
 :func:`jaxdea.wavenumbers` for a damped tube) the travelling wave ∝ e^{i(Ωt − α̂z)} is solved across
@@ -154,8 +154,8 @@ def _wall_nodes(tube: Tube, wall, n_points: int):
 
 
 def _wall_integrals(tube, wall, states, omega, alpha, m, family, n_points):
-    """(flux, energy, dissipation) of the wall (Eqs. 9.4–9.6, 9.10) by Gauss–Legendre per layer, the fields at the
-    nodes by a Magnus step from the nearest sublayer interface (module docstring, step 2)."""
+    """(flux, energy, dissipation) of the wall (Eqs. 9.4–9.6, 9.10) by Gauss–Legendre per layer,
+    the fields at the nodes by a Magnus step from the nearest sublayer interface (module docstring, step 2)."""
     edges = _midpoints(tube, wall)[0]
     r, weight = _wall_nodes(tube, wall, n_points)
     count = edges.shape[0] - 1
