@@ -5,6 +5,7 @@ empty, acoustic filling, m = 1, 2, torsional, V̂ > 0, a layered wall, a surroun
 tubes: the energy balance ∂P̄/∂z = −D̄, i.e. P̄ = D̄/(2|Im α̂|) (Eq. 9.11, measured 1e-14), and the
 Kelvin–Voigt limit η_v → 0."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -135,6 +136,17 @@ def test_kelvin_voigt_tends_to_the_lossless_group_velocity():
         alpha = _damped_root(tube, omega, ALPHA)
         gaps.append(abs(float(jd.energy_velocity(tube, alpha, omega)) - v_g))
     assert 0.009 < gaps[1] / gaps[0] < 0.011 and gaps[1] < 1e-6 * v_g
+
+
+def test_runs_under_jit_and_vmap_and_a_traced_non_root_is_nan():
+    """Along the branch through the lowest root (α̂ traced, Ω = frequency(α̂)): finite, equal to the
+    concrete call; a traced Ω off the root gives NaN instead of a plausible number."""
+    omega = float(jd.frequencies(TUBE, ALPHA, n_roots=1)[0])
+    along = jax.jit(jax.vmap(lambda a: jd.energy_velocity(TUBE, a, jd.frequency(TUBE, a, omega))))
+    values = np.asarray(along(jnp.array([0.44, ALPHA, 0.45])))
+    assert np.all(np.isfinite(values))
+    assert abs(values[1] - float(jd.energy_velocity(TUBE, ALPHA, omega))) < 1e-12
+    assert np.isnan(float(jax.jit(lambda o: jd.energy_velocity(TUBE, ALPHA, o))(omega * 1.01)))
 
 
 def test_bad_input_raises_naming_the_parameter():
