@@ -98,7 +98,7 @@ def _balance(tube, alpha, omega, m=0):
     """(P̄, D̄/(2|Im α̂|), v_e) of a damped mode (Eq. 9.11)."""
     layers = laminate(None, None, tube, abs(alpha), m=m)
     problem = describe(tube, None, None, layers, None, m, damped=True)
-    _, flux, _, dissipation, distance = energy_module._energy_velocity(
+    _, flux, _, dissipation, distance, _ = energy_module._energy_velocity(
         tube, energy_module._complex(alpha), jnp.asarray(float(omega)), None, 16, layers,
         problem.order, False, **problem.arguments(jnp.asarray(float(m))))
     assert float(distance) < 1e-8
@@ -122,6 +122,27 @@ def test_damped_flux_balances_the_dissipation(case):
     assert alpha.imag < -1e-4  # attenuated towards +z
     flux, balance = _balance(tube, alpha, omega, m)
     assert flux > 0 and abs(flux / balance - 1.0) < 1e-10
+
+
+def test_hysteretic_energy_satisfies_the_virial_identity():
+    """The exact damped limit (unstretched, V̂ = 0, empty: the elastic problem with shear modulus
+    1 + iζ, docs/theory/real_tubes.md §4): no face terms, no field, so the momentum balance times u*
+    over the section gives 4(K̄ − Ū) = 2 Im α̂ · Im ∫[U*Ṫ_zr + V*Ṫ_zθ − W*Ṫ_zz] r̂ dr̂ (Eq. 9.12): a
+    check of the stored energy Ū = Ē − K̄ of a damped mode (measured: sides 2.15e-2 K̄ (m = 0) and
+    1.79e-2 K̄ (m = 1) at ζ = 0.1, agreeing to 1.2e-14 and 1.8e-14 K̄). Lossless, the same identity is equipartition."""
+    tube = jd.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, damping=jd.Hysteretic(0.1))
+    for m in (0, 1):
+        omega = float(jd.frequencies(tube.replace(damping=None), ALPHA, n_roots=1, m=m)[0])
+        alpha = _damped_root(tube, omega, ALPHA, m)
+        layers = laminate(None, None, tube, abs(alpha), m=m)
+        problem = describe(tube, None, None, layers, None, m, damped=True)
+        _, _, energy, _, _, (kinetic, axial) = energy_module._energy_velocity(
+            tube, energy_module._complex(alpha), jnp.asarray(omega), None, 16, layers,
+            problem.order, False, **problem.arguments(jnp.asarray(float(m))))
+        left = 4.0 * (2.0 * float(kinetic) - float(energy))  # 4(K − U), U = E − K
+        right = 2.0 * alpha.imag * float(axial)
+        assert abs(right) > 1e-3 * float(kinetic)  # the identity is not trivially 0 = 0
+        assert abs(left - right) < 1e-10 * float(kinetic), (m, left, right)
 
 
 def test_kelvin_voigt_tends_to_the_lossless_group_velocity():

@@ -1,5 +1,5 @@
 """Energy velocity: the time-averaged axial power flux of a mode over its time-averaged energy
-(docs/theory/real_tubes.md §9, Eqs. 9.1–9.11).
+(docs/theory/real_tubes.md §9, Eqs. 9.1–9.12).
 
 For a root (α̂, Ω) (real α̂ and Ω of :func:`jaxdea.frequencies`, or a complex α̂ at a real Ω of
 :func:`jaxdea.wavenumbers` for a damped tube) the travelling wave ∝ e^{i(Ωt − α̂z)} is solved across
@@ -105,8 +105,8 @@ def _take(coef, index):
 
 
 def _densities(coef, r, y, dy, omega, alpha, m):
-    """(flux, energy, dissipation) densities per r̂ dr̂ at one radius (docs/theory/real_tubes.md
-    Eqs. 9.4–9.6, 9.10)
+    """(flux, energy, dissipation, kinetic energy, axial work) densities per r̂ dr̂ at one radius
+    (docs/theory/real_tubes.md Eqs. 9.4–9.6, 9.10, 9.12)
     from the 8 fields y = [U, V, W, Φ, T, Q, S, D] (standing-wave amplitudes of docs/theory/order_m.md
     §1), their radial derivatives dy and the general-form coefficients there."""
     u, v, w, phi, t, q, s, d_r = y
@@ -140,7 +140,9 @@ def _densities(coef, r, y, dy, omega, alpha, m):
             + jnp.conj(l_zr) * s + jnp.conj(l_tz) * t_zt + jnp.conj(l_zt) * t_tz
             + jnp.conj(dd_r) * e_r + jnp.conj(dd_t) * e_t + jnp.conj(dd_z) * e_z)
     kinetic = rho * omega**2 * (jnp.abs(u) ** 2 + jnp.abs(v) ** 2 + jnp.abs(w) ** 2)
-    return flux, 0.25 * (kinetic + jnp.real(work)), 0.5 * omega * jnp.imag(work)
+    axial = jnp.imag(jnp.conj(u) * t_zr + jnp.conj(v) * t_zt - jnp.conj(w) * t_zz)
+    return (flux, 0.25 * (kinetic + jnp.real(work)), 0.5 * omega * jnp.imag(work), 0.25 * kinetic,
+            axial)
 
 
 def _wall_nodes(tube: Tube, wall, n_points: int):
@@ -154,7 +156,7 @@ def _wall_nodes(tube: Tube, wall, n_points: int):
 
 
 def _wall_integrals(tube, wall, states, omega, alpha, m, family, n_points):
-    """(flux, energy, dissipation) of the wall (Eqs. 9.4–9.6, 9.10) by Gauss–Legendre per layer,
+    """The integrals of :func:`_densities` over the wall by Gauss–Legendre per layer,
     the fields at the nodes by a Magnus step from the nearest sublayer interface (module docstring, step 2)."""
     edges = _midpoints(tube, wall)[0]
     r, weight = _wall_nodes(tube, wall, n_points)
@@ -253,7 +255,8 @@ def _outer_terms(wall, fluid, y_outer, omega, alpha, m):
 def _energy_velocity(tube, alpha, omega, fluid, n_points, n_layers, order, real=True, m=0.0,
                      family=Family.LONGITUDINAL):
     """(v_e, flux P̄_z, energy Ē, dissipated power D̄ per unit length (Eq. 9.10), relative Newton
-    distance of α̂ from a root of the same laminate);
+    distance of α̂ from a root of the same laminate, (the wall's kinetic energy, its axial work
+    Im ∫[U*Ṫ_zr + V*Ṫ_zθ − W*Ṫ_zz] r̂ dr̂ of Eq. 9.12): the checks of the tests);
     ``real`` (static): α̂ is real (the cavity's Bessel functions in real arithmetic)."""
     wall = discretize(tube, n_layers)
     alpha = _complex(alpha)
@@ -268,8 +271,8 @@ def _energy_velocity(tube, alpha, omega, fluid, n_points, n_layers, order, real=
     rows = jnp.asarray(family.order_m_rows)
     y_inner = jnp.zeros(8, jnp.complex128).at[rows].set(states[0])
     y_outer = jnp.zeros(8, jnp.complex128).at[rows].set(states[-1])
-    flux, energy, dissipation = _wall_integrals(tube, wall, states, omega, alpha, m, family,
-                                                n_points)
+    flux, energy, dissipation, kinetic, axial = _wall_integrals(tube, wall, states, omega, alpha,
+                                                                m, family, n_points)
     face = _face_terms(wall, y_inner, omega, alpha, m)
     flux, energy = flux + face[0], energy + face[1]
     if Face.of(fluid).has_pressure and family.moves_fluid:
@@ -281,7 +284,7 @@ def _energy_velocity(tube, alpha, omega, fluid, n_points, n_layers, order, real=
         flux, energy = flux + outside[0], energy + outside[1]
     ok = (distance <= ROOT_RTOL) & jnp.isfinite(omega) & (omega > 0)
     velocity = jnp.where(ok, flux / energy, jnp.nan)
-    return velocity, flux, energy, dissipation, distance
+    return velocity, flux, energy, dissipation, distance, (kinetic, axial)
 
 
 def _check_alpha(alpha) -> None:
@@ -368,7 +371,7 @@ def energy_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_poin
     m_value = as_float(float(m) if not traced(m) else m)
     count = laminate(n_layers, scheme, tube, float(np.abs(alpha)) if not traced(alpha) else None,
                      m=m)
-    velocity, _, _, _, distance = _energy_velocity(tube, _complex(alpha), omega, fluid, int(n_points),
+    velocity, _, _, _, distance, _ = _energy_velocity(tube, _complex(alpha), omega, fluid, int(n_points),
                                                 count, problem.order, not complex_alpha,
                                                 **problem.arguments(m_value))
     if not traced((alpha, omega, tube, fluid)) and not float(distance) <= ROOT_RTOL:
