@@ -129,7 +129,8 @@ def test_hysteretic_energy_satisfies_the_virial_identity():
     1 + iζ, docs/theory/real_tubes.md §4): no face terms, no field, so the momentum balance times u*
     over the section gives 4(K̄ − Ū) = 2 Im α̂ · Im ∫[U*Ṫ_zr + V*Ṫ_zθ − W*Ṫ_zz] r̂ dr̂ (Eq. 9.12): a
     check of the stored energy Ū = Ē − K̄ of a damped mode (measured: sides 2.15e-2 K̄ (m = 0) and
-    1.79e-2 K̄ (m = 1) at ζ = 0.1, agreeing to 1.2e-14 and 1.8e-14 K̄). Lossless, the same identity is equipartition."""
+    1.79e-2 K̄ (m = 1) at ζ = 0.1, agreeing to 1.2e-14 and 1.8e-14 K̄). Lossless, the same identity
+    is equipartition."""
     tube = jd.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, damping=jd.Hysteretic(0.1))
     for m in (0, 1):
         omega = float(jd.frequencies(tube.replace(damping=None), ALPHA, n_roots=1, m=m)[0])

@@ -12,7 +12,7 @@ the wall on the tube's laminate:
 2. the state at the Gauss–Legendre nodes of each (physical) layer follows from the nearest interface
    by one fourth-order Magnus step of the exact state matrix M(r̂) (its coefficients at the step's two
    Gauss nodes), and Y' = M Y there;
-3. the flux and energy densities (Eqs. 9.4–9.6) are integrated over the wall with those weights, the
+3. the flux and energy densities (Eqs. 9.4–9.6, 9.10) are integrated over the wall with those weights, the
    inner face adds the follower-pressure terms (Eq. 9.7), a filling its acoustic flux and energy
    (Eq. 9.8, Gauss–Legendre on [0, r̂_i]) and a surrounding fluid its own (Eq. 9.9, closed form).
 """
@@ -156,8 +156,8 @@ def _wall_nodes(tube: Tube, wall, n_points: int):
 
 
 def _wall_integrals(tube, wall, states, omega, alpha, m, family, n_points):
-    """The integrals of :func:`_densities` over the wall by Gauss–Legendre per layer,
-    the fields at the nodes by a Magnus step from the nearest sublayer interface (module docstring, step 2)."""
+    """The integrals of :func:`_densities` over the wall by Gauss–Legendre per layer, the fields
+    at the nodes by a Magnus step from the nearest sublayer interface (module docstring, step 2)."""
     edges = _midpoints(tube, wall)[0]
     r, weight = _wall_nodes(tube, wall, n_points)
     count = edges.shape[0] - 1
@@ -371,9 +371,9 @@ def energy_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_poin
     m_value = as_float(float(m) if not traced(m) else m)
     count = laminate(n_layers, scheme, tube, float(np.abs(alpha)) if not traced(alpha) else None,
                      m=m)
-    velocity, _, _, _, distance, _ = _energy_velocity(tube, _complex(alpha), omega, fluid, int(n_points),
-                                                count, problem.order, not complex_alpha,
-                                                **problem.arguments(m_value))
+    velocity, _, _, _, distance, _ = _energy_velocity(
+        tube, _complex(alpha), omega, fluid, int(n_points), count, problem.order, not complex_alpha,
+        **problem.arguments(m_value))
     if not traced((alpha, omega, tube, fluid)) and not float(distance) <= ROOT_RTOL:
         raise ValueError(f"alpha = {complex(alpha)!r} is not a root at omega = {float(omega)!r} of "
                          f"this case (relative Newton step {float(distance):.3g} > {ROOT_RTOL}): "
