@@ -27,6 +27,7 @@ SECTION_TITLES = {
     "wavenumbers": "Complex wavenumbers",
     "complex_frequencies": "Complex frequencies (damping)",
     "modes": "Mode shapes",
+    "energy": "Energy velocity",
     "base_state": "Static state",
     "design": "Design",
     "explore": "Interactive explorer",

@@ -44,6 +44,7 @@ from .solve.complex_curves import (
 from .solve.complex_frequencies import ComplexRoots, complex_frequencies, solve_complex_frequency
 from .solve.counting import CountStatus, RootCount, count_roots
 from .solve.curves import Curve, dispersion_curve
+from .solve.energy import energy_velocity
 from .solve.instability import first_instability
 from .solve.modes import ModeShape, fluid_pressure, mode_shape, outer_pressure
 from .solve.roots import (
@@ -115,6 +116,7 @@ __all__ = [
     "critical_voltages",
     "design_for_frequency",
     "dispersion_curve",
+    "energy_velocity",
     "explore",
     "first_instability",
     "fit",

@@ -48,6 +48,7 @@ CALLS = {
     "group_velocity": lambda: jd.group_velocity(TUBE, ALPHA, OMEGA),
     "phase_velocity": lambda: jd.phase_velocity(OMEGA, ALPHA),
     "mode_shape": lambda: jd.mode_shape(TUBE, ALPHA, OMEGA),
+    "energy_velocity": lambda: jd.energy_velocity(TUBE, ALPHA, OMEGA),
     "fluid_pressure": lambda: jd.fluid_pressure(
         TUBE, ALPHA, float(jd.frequencies(TUBE, ALPHA, FLUID, n_roots=1)[0]), FLUID),
     "critical_voltage": lambda: jd.critical_voltage(TUBE, ALPHA),
