@@ -35,6 +35,7 @@ import jax.numpy as jnp  # noqa: E402
 import jaxdea as jd  # noqa: E402
 
 jd.configure()  # opt in: compiled programs cached on disk, XLA's loop threshold
+from jaxdea.physics.families import Family  # noqa: E402
 from jaxdea.studies.fit import NAMES, dimensionless, fit, mode_roots  # noqa: E402
 from jaxdea.units import VACUUM_PERMITTIVITY, Scales, tube_from_si  # noqa: E402
 
@@ -118,7 +119,7 @@ for (m, n), colour in zip(modes, ("C0", "C1", "C2", "C3"), strict=True):
     count = grid.size
     curve = mode_roots(values, jnp.asarray(grid), jnp.full(count, float(n)),
                                jnp.full(count, float(m)), 1, N_LAYERS, None, None,
-                       "axisymmetric" if m == 0 else "order_m")[:, 0]
+                       Family.LONGITUDINAL if m == 0 else Family.ORDER_M)[:, 0]
     ax.plot(grid / 1e3, np.asarray(curve) * hz, color=colour, label=f"fit m={m}, n={n}")
     pick = (result.assignment[:, 0] == m) & (result.assignment[:, 1] == n)
     ax.errorbar(data["voltage_V"][pick] / 1e3, data["frequency_Hz"][pick],

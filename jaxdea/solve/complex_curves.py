@@ -213,7 +213,7 @@ def wavenumber_curve(tube: Tube, omegas, fluid: Fluid | None = None, n_roots: in
         omegas: the real Ω grid, 1-D, > 0, strictly monotone.
 
     Returns:
-        :class:`WavenumberCurve`.
+        An instance of :class:`WavenumberCurve`.
 
     Raises:
         ValueError: naming the parameter, as :func:`jaxdea.wavenumbers`, and for a grid that is not
@@ -260,7 +260,7 @@ def complex_dispersion_curve(tube: Tube, alphas, fluid: Fluid | None = None, n_r
         alphas: the real α̂ grid, 1-D, > 0, strictly monotone.
 
     Returns:
-        :class:`ComplexCurve`.
+        An instance of :class:`ComplexCurve`.
 
     Raises:
         ValueError: naming the parameter, as :func:`jaxdea.complex_frequencies`, and for a grid that

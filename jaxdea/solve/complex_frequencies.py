@@ -77,7 +77,7 @@ def complex_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: 
         omega_max: the largest Re Ω searched (default: module docstring).
 
     Returns:
-        :class:`ComplexRoots`.
+        An instance of :class:`ComplexRoots`.
 
     Raises:
         ValueError: naming the parameter, for invalid inputs, and for traced inputs (a Python

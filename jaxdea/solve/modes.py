@@ -323,9 +323,10 @@ def mode_shape(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_points: i
         torsional: with m = 0, the torsional family (static).
 
     Returns:
-        A :class:`ModeShape` ``(r, fields)``: radii r̂ (n_points,) from r̂_i to r̂_o and fields
-        (6, n_points) for m = 0 (longitudinal), (8, n_points) otherwise; the same named fields
-        (``.u``, ``.v``, ``.w``, ``.phi``, ``.T``, ``.Q``, ``.S``, ``.D``) for every family.
+        An instance of :class:`ModeShape`, ``(r, fields)``, with the radii r̂ (n_points,) from r̂_i
+        to r̂_o and the fields (6, n_points) for m = 0 (longitudinal), (8, n_points) otherwise; the
+        same named fields (``.u``, ``.v``, ``.w``, ``.phi``, ``.T``, ``.Q``, ``.S``, ``.D``) for
+        every family.
 
     Raises:
         ValueError: for invalid concrete inputs, naming the parameter (m not an integer ≥ 0,

@@ -215,8 +215,8 @@ def wavenumbers(tube: Tube, omega, fluid: Fluid | None = None, n_roots: int = 4,
         alpha_max: the largest Re α̂ searched (default: module docstring).
 
     Returns:
-        :class:`Wavenumbers`; ``certificate`` CERTIFIED when the argument-principle counts of the
-        searched box were met by the roots found.
+        An instance of :class:`Wavenumbers`; its ``certificate`` is CERTIFIED when the
+        argument-principle counts of the searched box were met by the roots found.
 
     Raises:
         ValueError: naming the parameter, for invalid inputs, and for traced inputs (a Python
