@@ -33,6 +33,8 @@ def _calls():
     tube = jd.Tube(lambda_z=1.2, eta=0.85, gent=97.2, length_ratio=10.0, lambda_i=0.9, voltage=0.1)
     paper = jd.Tube(lambda_z=1.2, eta=0.85, lambda_i=0.9)
     fluid = jd.Fluid()
+    liner = jd.Layer(0.2, jd.NeoHookean(), shear_ratio=3.0)
+    sandwich = tube.replace(layers=(liner, jd.Layer(0.6, jd.Gent(97.2), active=True), liner))
     curve = jnp.linspace(0.2, 1.2, 200)
     block = lambda x: __import__("jax").block_until_ready(x)  # noqa: E731
     return {
@@ -40,6 +42,8 @@ def _calls():
         "frequencies": lambda: jd.frequencies(tube, 0.445),
         "frequencies_acoustic": lambda: jd.frequencies(tube, 0.445, fluid),
         "frequencies_m2": lambda: jd.frequencies(tube, 0.445, m=2),
+        "frequencies_layered": lambda: jd.frequencies(sandwich, 0.445),
+        "dispersion_curve_layered": lambda: jd.dispersion_curve(sandwich, curve, n_roots=4),
         "frequency": lambda: jd.frequency(tube, 0.445, 0.77),
         "growth_rates_m2": lambda: jd.growth_rates(tube, 0.445, m=2),
         "group_velocity": lambda: jd.group_velocity(tube, 0.445, ROOT),
