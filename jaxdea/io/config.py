@@ -405,6 +405,20 @@ def _known_keys(table: dict, key: str, allowed: tuple) -> None:
             _wrong(f"unknown key '{key}.{k}'; allowed: {', '.join(allowed)}")
 
 
+def _kind(key: str, table, kinds: dict, listed: str | None = None) -> str:
+    """The ``kind`` of a ``{kind = ..., parameter = value, ...}`` table, one of ``kinds``
+    (ValueError naming ``key`` otherwise)."""
+    quoted = ", ".join(f'"{k}"' for k in kinds)
+    if not isinstance(table, dict):
+        _wrong(f"{key!r} must be a table {{kind = {quoted}, parameters...}}, got {table!r}")
+    if "kind" not in table:
+        _wrong(f"'{key}.kind' is missing: one of {quoted}")
+    kind = table["kind"]
+    if kind not in kinds:
+        _wrong(f"'{key}.kind' must be one of {quoted if listed is None else listed}, got {kind!r}")
+    return kind
+
+
 def material_from_table(key: str, table) -> object:
     """A material object of :data:`jaxdea.materials.KINDS` from a table ``{kind = ..., parameter =
     value, ...}`` (missing parameters: the class defaults), checked by
@@ -414,14 +428,7 @@ def material_from_table(key: str, table) -> object:
         ValueError: naming ``key`` (``material``, ``layers[1].material``, …) and what is allowed
             (without the prefix of :func:`parse_config`: the fit configuration reads it too).
     """
-    kinds = ", ".join(f'"{k}"' for k in KINDS)
-    if not isinstance(table, dict):
-        _wrong(f"{key!r} must be a table {{kind = {kinds}, parameters...}}, got {table!r}")
-    if "kind" not in table:
-        _wrong(f"'{key}.kind' is missing: one of {kinds}")
-    kind = table["kind"]
-    if kind not in KINDS:
-        _wrong(f"'{key}.kind' must be one of {', '.join(KINDS)}, got {kind!r}")
+    kind = _kind(key, table, KINDS, ", ".join(KINDS))
     fields = tuple(f.name for f in dataclasses.fields(KINDS[kind]))
     _known_keys(table, key, ("kind", *fields))
     params = {}
@@ -512,14 +519,7 @@ def damping_from_table(key: str, table, units: dict | None = None) -> object:
             kind or key, a value out of range, Prony's moduli and times of different lengths, an
             SI key without ``[units]``.
     """
-    kinds = ", ".join(f'"{k}"' for k in DAMPING_KINDS)
-    if not isinstance(table, dict):
-        _wrong(f"{key!r} must be a table {{kind = {kinds}, parameters...}}, got {table!r}")
-    if "kind" not in table:
-        _wrong(f"'{key}.kind' is missing: one of {kinds}")
-    kind = table["kind"]
-    if kind not in DAMPING_KINDS:
-        _wrong(f"'{key}.kind' must be one of {kinds}, got {kind!r}")
+    kind = _kind(key, table, DAMPING_KINDS)
     fields = DAMPING_KEYS[kind]
     si = {DAMPING_SI[f][0]: f for f in fields if f in DAMPING_SI}
     _known_keys(table, key, ("kind", *fields, *si))
