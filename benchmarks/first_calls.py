@@ -129,7 +129,8 @@ def main():
 
 
 def _calls_names():
-    return ("characteristic", "frequencies", "frequencies_acoustic", "frequencies_m2", "frequency",
+    return ("characteristic", "frequencies", "frequencies_acoustic", "frequencies_m2",
+            "frequencies_layered", "dispersion_curve_layered", "frequency",
             "growth_rates_m2", "group_velocity", "critical_voltage", "critical_voltage_m2",
             "critical_voltages", "first_instability", "dispersion_curve", "dispersion_curve_m2",
             "trace_branch", "count_roots", "frequencies_with_error", "mode_shape", "mode_shape_m2",
