@@ -17,6 +17,7 @@ reaches 1.25 × the highest of the ``n_roots`` elastic frequencies (``damping=No
 boxes extend it, each as wide again as the last, until ``n_roots`` roots are certified.
 """
 
+import dataclasses
 import functools
 from typing import NamedTuple
 
@@ -97,17 +98,18 @@ def complex_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: 
     m_value = as_float(float(m))
     layers = laminate(n_layers, scheme, tube, alpha, n_roots, int(m))
     wall = discretize(tube, layers)
+    elastic = np.asarray(frequencies(_elastic(tube), alpha, fluid, n_roots, omega_max,
+                                     n_layers=n_layers, scheme=scheme, m=m, torsional=torsional))
     if omega_max is None:
-        elastic = np.asarray(frequencies(tube.replace(damping=None), alpha, fluid, n_roots,
-                                         n_layers=n_layers, scheme=scheme, m=m,
-                                         torsional=torsional))
         top = float(np.nanmax(elastic)) if np.isfinite(elastic).any() else 4.0
         edges = [1.25 * top * (k + 1) for k in range(EXTENSIONS + 1)]
     else:
         edges = [float(omega_max)]
+    seeds = _seeds(tube, elastic[np.isfinite(elastic)])
     roots, certificate, low = [], SearchStatus.CERTIFIED, 0.0
     for high in _split_at_the_sound_line(edges, tube, alpha):
-        found, certificate = _box(problem, wall, alpha, fluid, m_value, low, high)
+        found, certificate = _box(problem, wall, alpha, fluid, m_value, low, high,
+                                  [z for z in seeds if low < z.real <= high])
         roots += found
         if certificate != SearchStatus.CERTIFIED or len(roots) >= n_roots:
             break
@@ -155,9 +157,28 @@ def quality_factor(omega):
     return jnp.where(im == 0, jnp.inf, jnp.real(omega) / (2.0 * jnp.where(im == 0, 1.0, im)))
 
 
-def _box(problem, wall, alpha, fluid, m, low, high):
+def _elastic(tube: Tube) -> Tube:
+    """The tube without its damping laws (the tube's and every layer's)."""
+    layers = tube.layers
+    if layers is not None:
+        layers = tuple(dataclasses.replace(layer, damping=None) for layer in layers)
+    return tube.replace(damping=None, layers=layers)
+
+
+def _seeds(tube: Tube, elastic) -> list:
+    """Guesses of the damped roots from the elastic ones Ω_e: Ω_e √(1 + η*(Ω_e)) for the tube's law
+    (exact for the unstretched, unbiased, empty tube: Ω² = Ω_e²(1 + η*(Ω)) at first order in η*),
+    Ω_e where the layers carry the damping."""
+    if tube.damping is None:
+        return [complex(z) for z in elastic]
+    grown = np.asarray(elastic * np.sqrt(1.0 + np.asarray(tube.damping.viscous_modulus(
+        jnp.asarray(elastic, jnp.complex128)))))
+    return [complex(z) for z in (*grown, *elastic) if np.isfinite(z)]
+
+
+def _box(problem, wall, alpha, fluid, m, low, high, seeds=()):
     """The roots with low < Re Ω ≤ high and −δ ≤ Im Ω ≤ high (module docstring), and the box's
-    certificate."""
+    certificate; ``seeds`` are tried first (:func:`jaxdea.solve.wavenumbers.search_box`)."""
     margin = MARGIN * min(1.0, high)
     left = max(low, margin)
     lo, hi = complex(left, -margin), complex(high, high)
@@ -167,7 +188,9 @@ def _box(problem, wall, alpha, fluid, m, low, high):
         im = np.linspace(0.0, high, GRID[1] * 2**k + 1)
         return (re[:, None] + 1j * im[None, :]).ravel()
 
-    found, status = search_box(problem, wall, alpha, fluid, m, lo, hi, starts, Unknown.OMEGA)
+    found, status = search_box(problem, wall, alpha, fluid, m, lo, hi, starts, Unknown.OMEGA,
+                               seeds=[z for z in seeds if lo.real <= z.real <= hi.real
+                                      and lo.imag <= z.imag <= hi.imag])
     return [z for z in found if z.real > low], SearchStatus(status)
 
 

@@ -65,6 +65,8 @@ DOUBLINGS = 5
 """Doublings of the box height B before the search gives up on ``n_roots``."""
 PAD = 32
 """Starts are padded to a multiple of PAD (one compiled Newton program per multiple)."""
+SEED_PAD = 8
+"""Seeds (:func:`search_box`) are padded to a multiple of SEED_PAD."""
 ROOT_RTOL = 1e-10
 """Relative Newton step at which a start has converged."""
 
@@ -147,17 +149,23 @@ def _distinct(roots, scale):
     return kept
 
 
-def search_box(problem, wall, fixed, fluid, m, lo, hi, starts_of, unknown=Unknown.ALPHA):
+def search_box(problem, wall, fixed, fluid, m, lo, hi, starts_of, unknown=Unknown.ALPHA,
+               seeds=()):
     """(the distinct roots x inside the box lo–hi, :class:`SearchStatus`) by Newton from the starts
     that ``starts_of(k)`` gives at refinement k, until they match the box's count (x = α̂ at the
-    fixed Ω, or Ω at the fixed α̂ for ``unknown=Unknown.OMEGA``)."""
+    fixed Ω, or Ω at the fixed α̂ for ``unknown=Unknown.OMEGA``). ``seeds``, guesses near the roots
+    (e.g. the elastic roots moved by the damping), are tried first, alone: where they meet the
+    count, no grid is searched (the vmapped Newton runs as long as its slowest start, and a grid
+    start that wanders takes every step)."""
     count, status = (int(v) for v in _count(problem, wall, fixed, fluid, m, lo, hi, unknown))
     if status != CountStatus.CERTIFIED:
         return [], SearchStatus.COUNT_FAILED
     inside = []
-    for k in range(REFINEMENTS + 1):
-        starts = np.asarray(starts_of(k), complex)
-        padded = np.resize(starts, -(-starts.size // PAD) * PAD)  # few programs: sizes in PADs
+    attempts = ([np.asarray(seeds, complex)] if len(seeds) else []) + [
+        np.asarray(starts_of(k), complex) for k in range(REFINEMENTS + 1)]
+    for k, starts in enumerate(attempts):
+        pad = SEED_PAD if k == 0 and len(seeds) else PAD
+        padded = np.resize(starts, -(-starts.size // pad) * pad)  # few programs: sizes in pads
         roots, ok = _newton(problem, wall, fixed, fluid, m, jnp.asarray(padded), unknown)
         found = [complex(z) for z, good in zip(np.asarray(roots), np.asarray(ok), strict=True)
                  if good and lo.real <= z.real <= hi.real and lo.imag <= z.imag <= hi.imag]
