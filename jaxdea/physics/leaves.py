@@ -28,8 +28,6 @@ fluid's, then ``thickness_ratio`` (h/R_i held at the final λ_i, λ_z), then flu
 import dataclasses
 import re
 
-import numpy as np
-
 from ..params import Fluid, Tube, as_float, mode_wavenumber
 from .base_state import geometry, with_thickness_ratio_unchecked
 

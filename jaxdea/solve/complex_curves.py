@@ -11,7 +11,8 @@ advances by sub-steps of the fraction h of the interval:
 * predictor: the tangent x + (dx/dp) Δp, dx/dp = −(∂ ln F/∂p)/(∂ ln F/∂x), both analytic
   log-derivatives of one evaluation of the characteristic contract's pieces, taken a relative
   1e-6 off the root (at the root F is rounding noise, or exactly 0);
-* corrector: Newton on F in x at the new p (at most CORRECTOR_STEPS steps);
+* corrector: Newton on F in x at the new p (at most CORRECTOR_STEPS steps); a wavenumber is
+  continued as s = α̂² (F is even in α̂), in which a wave that cuts on through α̂ = 0 is smooth;
 * acceptance: Newton converged and its correction is at most JUMP × the predicted move (a tangent
   predictor is second-order accurate, so a larger correction means the corrector fell onto another
   branch) plus a rounding allowance.
@@ -23,9 +24,8 @@ two real waves meet and go on as a complex pair: :func:`jaxdea.wavenumbers` past
 the pair.
 """
 
-from typing import NamedTuple
-
 import functools
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -165,9 +165,10 @@ def _continue(pieces_of, grid, x0):
 
 @functools.partial(jax.jit, static_argnames=("problem", "unknown"))
 def _curves(problem, wall, fluid, m, grid, starts, unknown):
-    """Every branch from ``starts`` along ``grid``: (x (K, n), status (K, n)). Wavenumbers are continued in s = α̂² (F is even in α̂: F(α̂) = F(−α̂), so F(√s) is analytic in
-    s) and reported as α̂ = √s, Re α̂ ≥ 0: a wave that cuts on passes through α̂ = 0, where α̂(Ω)
-    has a square-root branch point and s(Ω) does not."""
+    """Every branch from ``starts`` along ``grid``: (x (K, n), status (K, n)). Wavenumbers are
+    continued in s = α̂² (F is even in α̂: F(α̂) = F(−α̂), so F(√s) is analytic in s) and reported
+    as α̂ = √s, Re α̂ ≥ 0: a wave that cuts on passes through α̂ = 0, where α̂(Ω) has a
+    square-root branch point and s(Ω) does not."""
     pieces_of = _pieces_of(problem, wall, fluid, m, unknown)
     squared = unknown is Unknown.ALPHA
     xs, status = jax.vmap(lambda x0: _continue(pieces_of, grid, x0))(
