@@ -849,7 +849,8 @@ def _complex_sweep(tube, fluid, axes, n_roots, omega_max, n_layers, scheme, m_ax
     """:func:`sweep` of a damped tube (``tube.damping``): at every point the ``n_roots`` complex
     roots of :func:`jaxdea.complex_frequencies` (lowest Re Ω, certified), ``omega`` = Re Ω,
     ``omega_imag`` = Im Ω (e^{iΩt}: Im Ω > 0 decays) and ``quality_factor`` Q = Re Ω/(2 Im Ω)
-    (docs/theory/real_tubes.md §4–§5). A Python loop (the search is not traceable); one
+    (docs/theory/real_tubes.md §4–§5); a point whose search is not certified has its roots
+    SUSPECT (one may be missing below them). A Python loop (the search is not traceable); one
     discretisation for the grid (:func:`_grid_layers` of the undamped tube). A point whose search
     raises (an invalid value) is NaN, status INVALID.
 
@@ -891,6 +892,8 @@ def _complex_sweep(tube, fluid, axes, n_roots, omega_max, n_layers, scheme, m_ax
                 continue
             omega[i] = np.asarray(roots.omega)
             status[i] = np.asarray(roots.status)
+            if int(roots.certificate) != 0:  # not every root in the box was found: indices unknown
+                status[i] = np.where(status[i] == Status.CONVERGED, int(Status.SUSPECT), status[i])
             bar.update(1)
     finally:
         bar.close()
