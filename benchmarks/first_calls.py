@@ -59,7 +59,7 @@ def _calls():
         "mode_shape": lambda: jd.mode_shape(tube, 0.445, ROOT),
         "mode_shape_m2": lambda: jd.mode_shape(tube, 0.445, ROOT_M2, m=2),
         "sweep": lambda: jd.sweep(tube, voltage=jnp.linspace(0.0, 0.1, 8), alpha=0.445),
-        "design_for_frequency": lambda: jd.design_for_frequency(tube, 0.445, 0.8),
+        "design_for_frequency": lambda: jd.design_for_frequency(paper, 0.8, n=1),
     }, block
 
 
