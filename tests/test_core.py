@@ -596,6 +596,9 @@ def test_wall_coefficients_tensor_route_equals_closed_route():
     closed = jax.jit(lambda t: layer_coefficients(t, r, "closed"))(tube)
     tensor = jax.jit(lambda t: layer_coefficients(t, r, "tensor"))(tube)
     for name, x, y in zip(closed._fields, closed, tensor, strict=True):
+        if x is None or y is None:  # a single wall's layer fields (density, active): unset on both
+            assert x is None and y is None, name
+            continue
         np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-14, err_msg=name)
 
 

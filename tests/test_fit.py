@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
+from jaxdea.physics.families import Family
 from jaxdea.studies.fit import (
     NAMES,
     FitStatus,
@@ -119,8 +120,8 @@ def test_jacobian_matches_central_differences():
     values = jnp.array([TRUTH[k] for k in NAMES[:9]] + [0.0, 1.0, 1.0])
     voltage = jnp.array([2e3, 5e3, 2e3, 5e3, 2e3, 5e3, 2e3, 5e3])
     n = jnp.array([1.0, 1.0, 2.0, 2.0, 1.0, 1.0, 2.0, 2.0])
-    for family, m in (("axisymmetric", jnp.zeros(8)),
-                      ("order_m", jnp.array([1.0, 1, 1, 1, 2, 2, 2, 2]))):
+    for family, m in ((Family.LONGITUDINAL, jnp.zeros(8)),
+                      (Family.ORDER_M, jnp.array([1.0, 1, 1, 1, 2, 2, 2, 2]))):
         roots = mode_roots(values, voltage, n, m, 1, N_LAYERS, None, None, family)
         _, f, jac = model_and_jacobian(values, voltage, n, m, roots[:, 0], N_LAYERS, None,
                                                None, family)
@@ -186,9 +187,9 @@ def test_batched_jacobian_at_zero_voltage_equals_the_point_alone():
                                                         1.0, 1.0])
     n = jnp.array([1.0, 2, 3, 1, 2, 3, 1, 2])
     m = jnp.array([2.0, 2, 2, 1, 1, 1, 3, 3])
-    roots = mode_roots(values, jnp.zeros(8), n, m, 2, N_LAYERS, None, None, "order_m")
+    roots = mode_roots(values, jnp.zeros(8), n, m, 2, N_LAYERS, None, None, Family.ORDER_M)
     _, _, jac = model_and_jacobian(values, jnp.zeros(8), n, m, roots[:, 1], N_LAYERS, None, None,
-                                   "order_m")
+                                   Family.ORDER_M)
     assert np.all(np.isfinite(jac))
 
     def alone(vals):
@@ -259,8 +260,8 @@ def test_covariance_is_the_inverse_normal_matrix_of_central_differences():
         for x in (values[i] + h, values[i] - h):
             shifted = values.at[i].set(x)
             f = np.empty(m.size)
-            for family in ("axisymmetric", "order_m"):
-                rows = np.resize(np.flatnonzero((m == 0) == (family == "axisymmetric")), 8)
+            for family in (Family.LONGITUDINAL, Family.ORDER_M):
+                rows = np.resize(np.flatnonzero((m == 0) == (family is Family.LONGITUDINAL)), 8)
                 scan = mode_roots(shifted, jnp.asarray(data["voltage_V"][rows]),
                                           jnp.asarray(data["n"][rows], float),
                                           jnp.asarray(m[rows], float), 1, N_LAYERS, None, None,
@@ -522,7 +523,7 @@ def test_plot_shows_the_fitted_curves_and_the_residuals(cli_run, tmp_path):
         _, f, _ = model_and_jacobian(values, jnp.asarray(voltage[padded]),
                                      jnp.asarray(np.full(8, float(n))), jnp.asarray(np.zeros(8)),
                                      jnp.asarray(hz[padded] / scale), N_LAYERS, None, None,
-                                     "axisymmetric")
+                                     Family.LONGITUDINAL)
         np.testing.assert_allclose(np.asarray(f)[:5], hz, rtol=1e-12)
         assert np.all(np.diff(hz) < 0)  # the voltage softens the tube
     np.testing.assert_allclose(fig.axes[1].lines[0].get_ydata(), result.residuals[data["n"] == 1])

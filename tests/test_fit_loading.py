@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
+from jaxdea.physics.families import Family
 from jaxdea.studies.fit import NAMES, FitStatus, fit, fitted_frequencies, mode_roots
 from jaxdea.units import VACUUM_PERMITTIVITY, Scales, tube_from_si
 
@@ -97,7 +98,7 @@ def test_pressure_held_model_equals_the_stretch_held_tube_at_the_inner_stretch(h
     def model(by_pressure):
         roots = mode_roots(values, jnp.asarray(held["voltage_V"][index]),
                            jnp.asarray(held["n"][index], float), jnp.zeros(8), 1, N_LAYERS, None,
-                           None, "axisymmetric", by_pressure)
+                           None, Family.LONGITUDINAL, by_pressure)
         return np.asarray(roots[:rows.size, 0]) * SCALES.omega_to_hz(1.0)
 
     np.testing.assert_allclose(model(True), held["frequency_Hz"][rows], rtol=1e-12)
