@@ -72,3 +72,16 @@ def test_face_of_a_fluid_not_yet_validated():
     assert Face.of(bad, strict=False) is Face.EMPTY
     with pytest.raises(ValueError):
         Face.of(bad)
+
+
+@pytest.mark.parametrize("call", [
+    lambda: jd.frequency(jd.Tube(), None, 1.0),
+    lambda: jd.frequencies(jd.Tube(), None),
+    lambda: jd.critical_voltage(jd.Tube(), None),
+    lambda: jd.mode_shape(jd.Tube(), None, 1.0),
+], ids=["frequency", "frequencies", "critical_voltage", "mode_shape"])
+def test_a_missing_alpha_is_named(call):
+    """alpha=None is a user's missing α̂ (found by tests/test_fuzz.py: it raised JAX's "None is not a
+    valid value for jnp.array"); solvers without an α̂ of their own pass NO_ALPHA."""
+    with pytest.raises(ValueError, match="alpha must be a real number"):
+        call()

@@ -1583,7 +1583,7 @@ def damped_curves(ctx: Context) -> dict:
     continued in V̂) and the least attenuated wavenumber α̂ of the lowest branch at V̂ = 0 against
     real Ω from 0.25 to 4 × Re Ω(n = 1) (:func:`jaxdea.wavenumbers` at the lowest Ω, then Newton in
     α̂ continued in Ω)."""
-    from ..physics.problem import describe
+    from ..physics.problem import NO_ALPHA, describe
     from ..solve.complex_frequencies import complex_frequencies
     from ..solve.wavenumbers import wavenumbers
 
@@ -1605,7 +1605,7 @@ def damped_curves(ctx: Context) -> dict:
 
             omega, ok = _continued(at_voltage, first, voltages)
             freqs = first.real * np.geomspace(0.25, 4.0, ctx.res.attenuation_points)
-            problem = describe(tube, None, None, ctx.n_layers, damped=True)
+            problem = describe(tube, NO_ALPHA, None, ctx.n_layers, damped=True)
             start = complex(wavenumbers(tube, float(freqs[0]), n_roots=1, n_layers=ctx.n_layers).alpha[0])
 
             def at_frequency(w, guess, tube=tube, problem=problem):

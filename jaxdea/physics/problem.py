@@ -40,19 +40,28 @@ class Problem:
         return self.family.arguments(m)
 
 
+NO_ALPHA = object()
+"""The ``alpha`` of :func:`describe` for a solver that takes no α̂ of its own (a curve, a critical
+voltage over modes): None there is a user's missing α̂, an error that names it."""
+
+
 def describe(tube, alpha, fluid, n_layers, scheme=None, m=0, torsional=False,
              damped: bool = False) -> Problem:
     """Validate the public inputs (concrete values) and describe the problem.
 
-    ``alpha`` None where a solver takes no α̂ of its own (the Bessel order is then resolved at
-    α̂ = 1). The family is that of (m, torsional): concrete m = 0 longitudinal, m ≥ 1 or a traced
-    m order m, torsional with ``torsional=True``.
+    ``alpha`` :data:`NO_ALPHA` where a solver takes no α̂ of its own (the Bessel order is then
+    resolved at α̂ = 1); None is a missing α̂ (ValueError). The family is that of (m, torsional):
+    concrete m = 0 longitudinal, m ≥ 1 or a traced m order m, torsional with ``torsional=True``.
 
     Raises:
         ValueError: naming the parameter, for invalid concrete inputs (the tube, α̂, fluid,
             discretisation, m, torsional, and m ≥ 1 with the paper's coupling), and for a damped
             tube unless ``damped`` (the solvers of complex roots).
     """
+    if alpha is None:
+        raise ValueError("alpha must be a real number >= 1e-12 (the axial wavenumber α̂ = α R_i), "
+                         "got None")
+    alpha = None if alpha is NO_ALPHA else alpha
     order = validated_order(tube, alpha, fluid, n_layers, scheme)
     if not damped and getattr(tube, "damping", None) is not None:
         raise ValueError(

@@ -36,7 +36,7 @@ from ..numerics.scalar import Status
 from ..params import Fluid, Tube, as_float, canonical, validate_alpha, with_outer
 from ..physics import characteristic
 from ..physics.characteristic import Unknown
-from ..physics.problem import describe
+from ..physics.problem import NO_ALPHA, describe
 from ..physics.transfer import discretize, laminate
 from .complex_frequencies import complex_frequencies, quality_factor
 from .wavenumbers import default_alpha_max, validate_search, wavenumbers
@@ -231,7 +231,7 @@ def wavenumber_curve(tube: Tube, omegas, fluid: Fluid | None = None, n_roots: in
                     ("alpha_max", alpha_max))
     start = wavenumbers(tube, float(grid[0]), fluid, n_roots, m, n_layers, scheme, torsional,
                         alpha_max)
-    problem = describe(tube, None, fluid, n_layers, scheme, m, torsional, damped=True)
+    problem = describe(tube, NO_ALPHA, fluid, n_layers, scheme, m, torsional, damped=True)
     tube, fluid = canonical(tube, fluid)
     top = float(np.max(grid))
     reach = default_alpha_max(problem, tube, top, fluid) if alpha_max is None else float(alpha_max)

@@ -125,7 +125,7 @@ from ..physics.base_state import voltage_limit
 from ..physics.characteristic import Unknown
 from ..physics.dispersion import generator_polynomials, lane_generators
 from ..physics.families import Face
-from ..physics.problem import describe
+from ..physics.problem import NO_ALPHA, describe
 from ..physics.state_matrix import LONGITUDINAL, ORDER_M
 from ..physics.transfer import AUTO_SCHEME, Layers, checked_laminate, discretize, is_graded, voltage_expansion
 from .roots import (
@@ -603,7 +603,7 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
     if Face.of(fluid, strict=False).has_poles and fluid.bessel_order is None:
         raise ValueError("fluid.bessel_order must be set for a dispersion curve with the 'paper' "
                          "coupling (one Bessel order for every α̂ of the curve), got None")
-    problem = describe(tube, None, fluid, n_layers, scheme, m, torsional)
+    problem = describe(tube, NO_ALPHA, fluid, n_layers, scheme, m, torsional)
     order, family = problem.order, problem.family
     a = validate_alpha(alpha, "alpha", tube, scalar=False)
     if a is not None and (a.ndim != 1 or a.size == 0):

@@ -38,7 +38,7 @@ from ..physics import characteristic
 from ..physics.base_state import interface_radii, stretch
 from ..physics.characteristic import Unknown
 from ..physics.families import Face, Family
-from ..physics.problem import describe
+from ..physics.problem import NO_ALPHA, describe
 from ..physics.state_matrix import family_matrix
 from ..physics.transfer import (
     damped_wall,
@@ -354,7 +354,7 @@ def energy_velocity(tube: Tube, alpha, omega, fluid: Fluid | None = None, n_poin
     if not traced(alpha):
         _check_alpha(alpha)
     complex_alpha = jnp.iscomplexobj(jnp.asarray(alpha))
-    problem = describe(tube, None if complex_alpha else alpha, fluid, n_layers, scheme, m,
+    problem = describe(tube, NO_ALPHA if complex_alpha else alpha, fluid, n_layers, scheme, m,
                        torsional, damped=True)
     if Face.of(fluid).has_poles:
         raise ValueError("fluid: energy_velocity needs the 'acoustic' coupling (the paper's "

@@ -80,7 +80,7 @@ from ..physics.base_state import voltage_limit
 from ..physics.characteristic import Unknown
 from ..physics.dispersion import carried_jvp
 from ..physics.families import Face, Family
-from ..physics.problem import Problem, describe
+from ..physics.problem import NO_ALPHA, Problem, describe
 from ..physics.state_matrix import LONGITUDINAL, ORDER_M
 from ..physics.transfer import (
     AUTO_SCHEME,
@@ -1347,7 +1347,7 @@ def solve_critical_voltages(tube: Tube, n_max: int, fluid: Fluid | None = None,
         An instance of :class:`Roots` whose ``omega`` field holds V̂_cr, shape (n_max,).
     """
     tube = with_outer(tube, outer)
-    problem = describe(tube, None, fluid, n_layers, scheme, m)
+    problem = describe(tube, NO_ALPHA, fluid, n_layers, scheme, m)
     n_max = validate_max("n_max", n_max, 1)
     layers, short = checked_laminate(n_layers, scheme, canonical(tube),
                                      mode_wavenumber(canonical(tube), n_max), m=canonical(m),
@@ -1470,7 +1470,7 @@ def first_instability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid |
         >>> first = first_instability(Tube(lambda_i=0.9, lambda_z=1.2, eta=0.85), n_max=1)
         >>> float(first.voltage), int(first.m), int(first.n)  # ≈ (0.0293, 2, 1)
     """
-    describe(tube, None, fluid, n_layers, scheme)
+    describe(tube, NO_ALPHA, fluid, n_layers, scheme)
     n_max = validate_max("n_max", n_max, 1)
     m_max = validate_max("m_max", m_max, 0)
     tube = canonical(tube)

@@ -18,7 +18,7 @@ import jax.numpy as jnp
 from ..compiled import cached_jit, serializable
 from ..numerics.scalar import Status
 from ..params import Fluid, Tube, canonical, mode_wavenumber, with_outer
-from ..physics.problem import describe
+from ..physics.problem import NO_ALPHA, describe
 from ..physics.state_matrix import ORDER_M
 from ..physics.transfer import laminate
 from .roots import (
@@ -101,7 +101,7 @@ def stability(tube: Tube, n_max: int = 3, m_max: int = 8, fluid: Fluid | None = 
         >>> bool(s.stable), int(s.m), int(s.n)  # (False, 2, 1): ovalisation grows fastest
     """
     tube = with_outer(tube, outer)
-    problem = describe(tube, None, fluid, n_layers, scheme)
+    problem = describe(tube, NO_ALPHA, fluid, n_layers, scheme)
     order = problem.order
     n_max = validate_max("n_max", n_max, 1)
     m_max = validate_max("m_max", m_max, 0)

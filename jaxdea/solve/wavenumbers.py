@@ -49,7 +49,7 @@ from ..params import (
 from ..physics import characteristic
 from ..physics.characteristic import Unknown
 from ..physics.families import Face
-from ..physics.problem import describe
+from ..physics.problem import NO_ALPHA, describe
 from ..physics.transfer import discretize, laminate
 from .counting import LANES, MIN_RELATIVE_LENGTH, CountStatus, rectangle, winding_count
 
@@ -237,7 +237,7 @@ def wavenumbers(tube: Tube, omega, fluid: Fluid | None = None, n_roots: int = 4,
     validate_search("wavenumbers", tube, ("omega", omega), fluid, m, n_roots,
                     ("alpha_max", alpha_max))
     validate_positive("omega", omega)
-    problem = describe(tube, None, fluid, n_layers, scheme, m, torsional, damped=True)
+    problem = describe(tube, NO_ALPHA, fluid, n_layers, scheme, m, torsional, damped=True)
     tube, omega, fluid = canonical(tube, omega, fluid)
     omega = float(omega)
     m_value = as_float(float(m))
