@@ -34,7 +34,7 @@ jax.config.update("jax_enable_x64", True)
 
 import jaxdea as jd  # noqa: E402
 from jaxdea.physics.characteristic import Unknown  # noqa: E402
-from jaxdea.physics.problem import describe  # noqa: E402
+from jaxdea.physics.problem import NO_ALPHA, describe  # noqa: E402
 from jaxdea.physics.transfer import discretize, laminate  # noqa: E402
 from jaxdea.solve import complex_curves  # noqa: E402
 
@@ -43,7 +43,7 @@ jd.configure()
 
 def _continuation(tube, grid, starts, unknown, reach, n_roots):
     """The continuation of complex_curves alone, from given roots (its compiled program)."""
-    problem = describe(tube, None if unknown is Unknown.ALPHA else float(grid[0]), None, None, None,
+    problem = describe(tube, NO_ALPHA if unknown is Unknown.ALPHA else float(grid[0]), None, None, None,
                        0, False, damped=True)
     wall = discretize(tube, laminate(None, None, tube, reach, n_roots, 0))
     return lambda: jax.block_until_ready(complex_curves._curves(

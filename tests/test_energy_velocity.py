@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea.physics.problem import describe
+from jaxdea.physics.problem import NO_ALPHA, describe
 from jaxdea.physics.transfer import discretize, laminate
 from jaxdea.solve import energy as energy_module
 from jaxdea.solve import wavenumbers as wavenumbers_module
@@ -86,7 +86,7 @@ def _damped_root(tube, omega, alpha0, m=0):
     """The complex α̂ of the damped tube at the real Ω by complex Newton from the lossless α̂0 (the
     roots of jaxdea.wavenumbers, without its search of the plane)."""
     layers = laminate(None, None, tube, alpha0, m=m)
-    problem = describe(tube, None, None, layers, None, m, damped=True)
+    problem = describe(tube, NO_ALPHA, None, layers, None, m, damped=True)
     roots, ok = wavenumbers_module._newton(problem, discretize(tube, layers), float(omega), None,
                                            jnp.asarray(float(m)),
                                            jnp.asarray([complex(alpha0)]))
@@ -97,7 +97,7 @@ def _damped_root(tube, omega, alpha0, m=0):
 def _balance(tube, alpha, omega, m=0):
     """(P̄, D̄/(2|Im α̂|), v_e) of a damped mode (Eq. 9.11)."""
     layers = laminate(None, None, tube, abs(alpha), m=m)
-    problem = describe(tube, None, None, layers, None, m, damped=True)
+    problem = describe(tube, NO_ALPHA, None, layers, None, m, damped=True)
     _, flux, _, dissipation, distance, _ = energy_module._energy_velocity(
         tube, energy_module._complex(alpha), jnp.asarray(float(omega)), None, 16, layers,
         problem.order, False, **problem.arguments(jnp.asarray(float(m))))
@@ -136,7 +136,7 @@ def test_hysteretic_energy_satisfies_the_virial_identity():
         omega = float(jd.frequencies(tube.replace(damping=None), ALPHA, n_roots=1, m=m)[0])
         alpha = _damped_root(tube, omega, ALPHA, m)
         layers = laminate(None, None, tube, abs(alpha), m=m)
-        problem = describe(tube, None, None, layers, None, m, damped=True)
+        problem = describe(tube, NO_ALPHA, None, layers, None, m, damped=True)
         _, _, energy, _, _, (kinetic, axial) = energy_module._energy_velocity(
             tube, energy_module._complex(alpha), jnp.asarray(omega), None, 16, layers,
             problem.order, False, **problem.arguments(jnp.asarray(float(m))))
