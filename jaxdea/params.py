@@ -711,7 +711,9 @@ def axial_wavenumber(tube: Tube, n):
     if count is not None and all(v is not None for v in fields.values()):
         # all concrete and validated above, so admissible everywhere: the formula alone, in one
         # compiled program (the ~40 eager operations of admissible() cost ~1.5 ms a call)
-        return _mode_wavenumber(Tube(**fields, material=tube.material), count)
+        # the shape of every leaf and n, as where traced (a gent array gives one α̂ per tube)
+        shape = np.broadcast_shapes(*(np.shape(v) for v in fields.values()), np.shape(count))
+        return jnp.broadcast_to(_mode_wavenumber(Tube(**fields, material=tube.material), count), shape)
     n = as_float(n)
     ok = admissible(tube) & jnp.isfinite(n) & (n > 0)
     return jnp.where(ok, mode_wavenumber(tube, n), jnp.nan)

@@ -127,6 +127,24 @@ def test_vmap_over_tube_parameters_with_some_arguments_batched():
     _assert_roots_equal(both, alone)
 
 
+def test_eager_vmap_compiles_once_and_equals_the_points_alone(caplog):
+    """``jax.vmap`` outside ``jax.jit`` over the tube (the mapped path): the second and third calls
+    compile nothing. Its ``lax.map`` was traced anew at every call, so every call compiled a scan
+    and kept the executable: after ~50 calls LLVM ran out of memory maps and aborted the process
+    (found by the slow fuzz). Each point equals the point alone bit for bit (its own program)."""
+    stretches = jnp.array([0.9, 0.95, 1.05])
+    solve = jax.vmap(lambda li, v: _roots(TUBE.replace(lambda_i=li, voltage=v), 0.7))
+    first = solve(stretches, jnp.full(3, 0.1))
+    with caplog.at_level("WARNING"), jax.log_compiles(True):
+        again = [solve(stretches, jnp.full(3, v)) for v in (0.1, 0.05)]
+    compiled = [r.getMessage() for r in caplog.records if "Compiling" in r.getMessage()]
+    assert compiled == [], compiled
+    np.testing.assert_array_equal(np.asarray(again[0].omega), np.asarray(first.omega))
+    alone = _stacked([_roots(TUBE.replace(lambda_i=li, voltage=0.05), 0.7) for li in (0.9, 0.95, 1.05)])
+    np.testing.assert_array_equal(np.asarray(again[1].omega), np.asarray(alone.omega))
+    np.testing.assert_array_equal(np.asarray(again[1].status), np.asarray(alone.status))
+
+
 def test_nested_vmap():
     """vmap over V̂ of vmap over α̂: a (3, 4) grid, each point as alone."""
     voltages = jnp.array([0.0, 0.05, 0.12])

@@ -188,9 +188,9 @@ class Scales:
         for field in _FIELDS:
             value = getattr(self, field)
             if not isinstance(value, jax.core.Tracer):
-                try:
-                    shapes[field] = np.shape(np.asarray(value, dtype=np.float64))
-                except (TypeError, ValueError, OverflowError):
+                try:  # the shape alone (no cast: a complex field would warn, then fail by name)
+                    shapes[field] = np.shape(value)
+                except (TypeError, ValueError):
                     pass  # not a number: refused by _values with its name
         try:
             np.broadcast_shapes(np.shape(out), *shapes.values())

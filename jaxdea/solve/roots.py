@@ -289,7 +289,8 @@ def scanned_function(wall: Wall, alpha, fluid: Fluid | None, order: int, m=0.0,
     or ``"omega_squared"`` (g(w), w = Ω² of either sign; order m and torsional families only).
     ``decoupled`` (static, longitudinal): the 4×4 mechanical propagation of a wall whose electric
     block decouples (NaN where it does not, :func:`jaxdea.physics.dispersion.value_and_slope_on_wall`).
-    ``generators``: the wall's generators at α̂ if already formed (:func:`jaxdea.physics.dispersion.lane_generators`).
+    ``generators``: the wall's generators at α̂ if already formed
+    (:func:`jaxdea.physics.dispersion.lane_generators`).
 
     Returns a :class:`Scaled` (x ↦ (f, ℓ)): the scan takes ℓ₀ from its own first point, x = 0,
     instead of a separate evaluation of f at 0 (:func:`_scan_for_roots`). Its forward-mode slope
@@ -657,7 +658,6 @@ def _mapped_over_batches(solve, along=None, vectorised=False):
 
     @mapped.def_vmap
     def rule(axis_size, in_batched, *args):
-        del axis_size
         engine = None
         if jax.default_backend() == "cpu" and along is not None:
             engine = along(list(in_batched))
@@ -670,12 +670,21 @@ def _mapped_over_batches(solve, along=None, vectorised=False):
             leaves, tree = jax.tree_util.tree_flatten(list(args))
             flags = jax.tree_util.tree_leaves(list(in_batched))
 
-            def one(batched):
+            def point(batched):
                 it = iter(batched)
-                point = [next(it) if flag else leaf for leaf, flag in zip(leaves, flags, strict=True)]
-                return mapped(*jax.tree_util.tree_unflatten(tree, point))
+                return jax.tree_util.tree_unflatten(
+                    tree, [next(it) if flag else leaf for leaf, flag in zip(leaves, flags, strict=True)])
 
-            out = jax.lax.map(one, [leaf for leaf, flag in zip(leaves, flags, strict=True) if flag])
+            batch = [leaf for leaf, flag in zip(leaves, flags, strict=True) if flag]
+            if axis_size and not any(isinstance(leaf, jax.core.Tracer) for leaf in leaves):
+                # an eager vmap (concrete batch): each point through its own cached program. A
+                # lax.map here is traced anew at every call (its body is a new closure), so every
+                # call compiled a scan and kept its executable: 0.2-0.3 s a call, and after ~50
+                # calls the process ran out of memory maps and LLVM aborted it (the slow fuzz)
+                outs = [solve(*point([b[i] for b in batch])) for i in range(axis_size)]
+                out = jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *outs)
+            else:
+                out = jax.lax.map(lambda batched: mapped(*point(batched)), batch)
         return out, jax.tree_util.tree_map(lambda _: True, out)
 
     return mapped
