@@ -30,6 +30,15 @@ import numpy as np  # noqa: E402
 
 import jaxdea as jd  # noqa: E402
 
+if __name__ == "__main__":
+    # exactly as the tests run (tests/conftest.py): the disk cache under .jax_cache and XLA's loop
+    # threshold, set before anything below starts JAX's backend (GRID does): XLA reads its flags
+    # once, and a recording made after it had started rounded 12 calls differently from the tests.
+    # Programs called through the cache are exported ones, compiled from StableHLO, and can round
+    # differently from a direct jit (7 entries did by up to 1.2e-14): record as checked.
+    os.environ.setdefault("JAXDEA_CACHE_DIR", str(Path(__file__).resolve().parents[1] / ".jax_cache"))
+    jd.configure()
+
 GOLDEN = Path(__file__).parent / "golden" / "public_calls.json"
 OTHER_MACHINE_RTOL = 1e-12
 """Relative agreement required where the machine or the JAX build differs from the recording."""
@@ -214,9 +223,4 @@ def record(path: Path = GOLDEN) -> None:
 
 
 if __name__ == "__main__":
-    # exactly as the tests run (tests/conftest.py): the disk cache under .jax_cache and XLA's loop
-    # threshold. Programs called through the cache are exported ones, compiled from StableHLO, and
-    # can round differently from a direct jit (7 entries did by up to 1.2e-14): record as checked.
-    os.environ.setdefault("JAXDEA_CACHE_DIR", str(Path(__file__).resolve().parents[1] / ".jax_cache"))
-    jd.configure()
     record()

@@ -217,13 +217,18 @@ def test_traced_bad_fractions_give_nan_and_invalid():
 def test_a_curve_through_layers_of_different_density_is_the_roots_at_each_point():
     """The curve's generators, formed as polynomials in α̂ once per wall, carry each layer's
     density ratio (they dropped it: the §7(d) sandwich's curve was 0.2 % off its own roots and
-    every point came back INACCURATE): dispersion_curve = frequencies at each α̂, to 1e-10."""
+    every point came back INACCURATE): dispersion_curve = frequencies at each α̂ on one wall (the
+    rule's over the grid), to 1e-10."""
+    from jaxdea.physics.transfer import laminate
+
     tube = jd.Tube(voltage=0.05, lambda_i=0.9, lambda_z=1.2, eta=0.85, layers=SANDWICH)
     alphas = np.array([0.1, 1.0, 3.0])
-    curve = jd.dispersion_curve(tube, alphas, n_roots=4)
+    wall = laminate(None, None, tube, alphas, 4)
+    curve = jd.dispersion_curve(tube, alphas, n_roots=4, n_layers=wall)
     assert np.all(np.asarray(curve.status) == 0)
     for a, row in zip(alphas, np.asarray(curve.omega), strict=True):
-        np.testing.assert_allclose(row, np.asarray(jd.frequencies(tube, a, n_roots=4)), rtol=1e-10)
+        np.testing.assert_allclose(row, np.asarray(jd.frequencies(tube, a, n_roots=4, n_layers=wall)),
+                                   rtol=1e-10)
 
 
 def test_mode_shape_of_a_layered_wall_meets_its_state_equation():

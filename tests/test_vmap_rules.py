@@ -15,6 +15,7 @@ from conftest import fd_derivative
 
 import jaxdea as jd
 from jaxdea.numerics.scalar import Status
+from jaxdea.physics.transfer import TRACED_LAYERS, Layers
 from jaxdea.solve import roots
 
 TUBE = jd.Tube(voltage=0.1, lambda_i=0.9, lambda_z=1.2)
@@ -283,10 +284,11 @@ def test_the_vmap_idiom_gives_the_curves_roots_on_the_peers_points():
     (benchmarks/vmap_idiom.py, default discretisation): ``frequencies`` equal to
     ``dispersion_curve``'s roots, ``frequency`` from 1.02× the lowest root equal to the curve's
     lowest, ``critical_voltage`` equal to the points alone (every 20th), all to 1e-13 relative
-    (the solvers' tolerance is 1e-15); and reversed, the same roots."""
+    (the solvers' tolerance is 1e-15); and reversed, the same roots. The curve on the traced
+    default's wall, N = 16 (a concrete default curve starts lower, tests/test_accuracy_default.py)."""
     tube = jd.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, eta=0.85)
     alpha = np.linspace(0.01, 5.0, 200)
-    curve = jd.dispersion_curve(tube, alpha, n_roots=4)
+    curve = jd.dispersion_curve(tube, alpha, n_roots=4, n_layers=Layers(TRACED_LAYERS, "magnus6", True))
     assert np.all(np.asarray(curve.status) == Status.CONVERGED)
     omega = np.asarray(curve.omega)
     over = jax.jit(jax.vmap(lambda a: jd.solve_frequencies(tube, a, n_roots=4)))

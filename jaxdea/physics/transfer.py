@@ -118,6 +118,16 @@ the same N in the usual regime: ≤ 1e-8
 (tests/test_accuracy_default.py): wherever :func:`required_layers` ≤ 16 (the paper's tube:
 α̂ĥ ≤ 2 and m ≤ 13). A root at a point for which it asks more is INACCURATE
 (:func:`checked_laminate`)."""
+CHECKED_COUNTS = (6, 8, 12) + LAYER_COUNTS
+"""The counts of a discretisation whose roots are checked as they are solved (concrete calls of
+:func:`jaxdea.solve_frequencies` and :func:`jaxdea.dispersion_curve`): it starts from
+:data:`CHECKED_SHARE` of the rule and refines where the check asks (issue 42, item 11)."""
+CHECKED_SHARE = 0.45
+"""The share of :func:`required_layers` a checked discretisation starts from. The rule is
+calibrated for every wall with a margin (benchmarks/layer_errors_results.md: the N that 1e-8
+needs is 0.1–0.95 of it, the state unseen), so a checked call starts lower and lets the check
+of :func:`jaxdea.solve.roots._verified` refine: the unstretched 200-α̂ curve of K = 4 takes
+N = 6 (3.3e-9 off the exact cylinder) instead of 16 (9.2e-12)."""
 ORDER_FACTOR = 5.0
 """c of the order-m term of :func:`required_layers`, N ≥ c m ln(1 + ĥ/r̂_i)^p."""
 ORDER_POWER = 0.8
@@ -168,11 +178,18 @@ def required_layers(thickness, r_inner, locking, alpha, n_roots: int = 3, m=0,
 
 
 def auto_layer_count(thickness, r_inner, locking, alpha, n_roots: int = 3, m=0,
-                     at_rest: bool = False) -> int:
+                     at_rest: bool = False, checked: bool = False) -> int:
     """N of the accurate discretisation (graded sixth-order Magnus) for roots to ≤ 1e-8 relative:
-    :func:`required_layers` rounded up to :data:`LAYER_COUNTS` (16 at least, 1024 at most)."""
+    :func:`required_layers` rounded up to :data:`LAYER_COUNTS` (16 at least, 1024 at most).
+    ``checked``: the start of a discretisation whose roots are checked as they are solved,
+    :data:`CHECKED_SHARE` of the rule rounded up to :data:`CHECKED_COUNTS` (6 at least)."""
     need = float(required_layers(thickness, r_inner, locking, alpha, n_roots, m, at_rest))
-    return next((c for c in LAYER_COUNTS if c >= need), LAYER_COUNTS[-1])
+    return counted(CHECKED_SHARE * need if checked else need, CHECKED_COUNTS if checked else LAYER_COUNTS)
+
+
+def counted(need: float, counts=LAYER_COUNTS) -> int:
+    """The least of ``counts`` ≥ ``need`` (the last one where none is)."""
+    return next((c for c in counts if c >= need), counts[-1])
 
 
 def _concrete_max(x):
@@ -235,7 +252,7 @@ def wall_lengths(tube: Tube):
 
 
 def laminate(n_layers=None, scheme=None, tube: Tube | None = None, alpha=None, n_roots: int = 3,
-             m=0, at_rest: bool = False):
+             m=0, at_rest: bool = False, checked: bool = False):
     """The static discretisation passed to the solvers.
 
     ``n_layers=None`` with ``scheme`` None or ``"magnus6"``: the accurate discretisation, graded
@@ -244,35 +261,36 @@ def laminate(n_layers=None, scheme=None, tube: Tube | None = None, alpha=None, n
     ``Layers(N, "magnus6", graded=True)``. An explicit ``n_layers`` keeps its meaning: the
     equal-thickness laminate of that ``scheme`` (``"midpoint"`` if None; N itself, the historical
     form, so compiled programs and their cache keys are unchanged), and ``"midpoint"``/``"magnus4"``
-    without ``n_layers`` take the paper's N = 30. ``at_rest``: the N of a critical-voltage search
-    (:func:`auto_layer_count`). Validation is the caller's (:func:`jaxdea.params.validate_layers`,
-    ``validate_scheme``)."""
+    without ``n_layers`` take the paper's N = 30. ``at_rest``: the N of a critical-voltage search,
+    ``checked``: the start of a checked discretisation (:func:`auto_layer_count`). Validation is
+    the caller's (:func:`jaxdea.params.validate_layers`, ``validate_scheme``)."""
     if isinstance(n_layers, Layers):  # already resolved (e.g. once for a whole design run)
         return n_layers
     if n_layers is None and scheme in (None, AUTO_SCHEME):
-        return Layers(default_count(tube, alpha, n_roots, m, at_rest), AUTO_SCHEME, True)
+        return Layers(default_count(tube, alpha, n_roots, m, at_rest, checked), AUTO_SCHEME, True)
     n_layers = PAPER_LAYERS if n_layers is None else int(n_layers)
     scheme = "midpoint" if scheme is None else scheme
     return n_layers if scheme == "midpoint" else Layers(n_layers, scheme)
 
 
-def default_count(tube, alpha, n_roots: int = 3, m=0, at_rest: bool = False) -> int:
+def default_count(tube, alpha, n_roots: int = 3, m=0, at_rest: bool = False,
+                  checked: bool = False) -> int:
     """N of the accurate discretisation (:func:`laminate`)."""
-    count = _resolved_count(tube, alpha, n_roots, m, at_rest)
+    count = _resolved_count(tube, alpha, n_roots, m, at_rest, checked)
     return TRACED_LAYERS if count is None else count
 
 
-def _resolved_count(tube, alpha, n_roots, m, at_rest):
+def _resolved_count(tube, alpha, n_roots, m, at_rest, checked=False):
     """:func:`auto_layer_count` of the worst point, or None where the inputs are traced or staged."""
     alpha, m = _concrete_max(alpha), _concrete_max(m)
     lengths = None if tube is None or alpha is None or m is None else wall_lengths(tube)
     if lengths is None:
         return None
-    return auto_layer_count(*lengths, alpha, int(n_roots), m, at_rest)
+    return auto_layer_count(*lengths, alpha, int(n_roots), m, at_rest, checked)
 
 
 def checked_laminate(n_layers=None, scheme=None, tube: Tube | None = None, alpha=None,
-                     n_roots: int = 3, m=0, at_rest: bool = False):
+                     n_roots: int = 3, m=0, at_rest: bool = False, checked: bool = False):
     """(:func:`laminate` of the arguments, ``short``): ``short`` says where the accurate
     discretisation has fewer sublayers than :func:`required_layers` asks for at a point of
     ``tube``, ``alpha``, ``m`` (a boolean array of their broadcast shape; the solvers make those
@@ -282,10 +300,11 @@ def checked_laminate(n_layers=None, scheme=None, tube: Tube | None = None, alpha
 
     Traced (or staged) inputs take :data:`TRACED_LAYERS` whatever the point, so the comparison is
     staged with them: a few scalar operations per point. Invalid points (NaN lengths) are never
-    short; the solvers give them NaN and INVALID."""
+    short; the solvers give them NaN and INVALID. ``checked`` (a concrete call that checks its
+    roots as it solves them): the start of :func:`auto_layer_count`'s checked discretisation."""
     if n_layers is not None or scheme not in (None, AUTO_SCHEME) or tube is None or alpha is None:
         return laminate(n_layers, scheme, tube, alpha, n_roots, m, at_rest), None
-    count = _resolved_count(tube, alpha, n_roots, m, at_rest)
+    count = _resolved_count(tube, alpha, n_roots, m, at_rest, checked)
     if count is None:  # staged: every point gets N = 16, the comparison is staged with them
         lengths = _wall_lengths_of(tube.lambda_i, tube.lambda_z, tube.eta, tube.gent, tube.material)
         return (Layers(TRACED_LAYERS, AUTO_SCHEME, True),

@@ -127,7 +127,7 @@ from ..physics.dispersion import generator_polynomials, lane_generators
 from ..physics.families import Face
 from ..physics.problem import NO_ALPHA, describe
 from ..physics.state_matrix import LONGITUDINAL, ORDER_M
-from ..physics.transfer import AUTO_SCHEME, Layers, checked_laminate, discretize, is_graded, voltage_expansion
+from ..physics.transfer import AUTO_SCHEME, checked_laminate, discretize, is_graded, voltage_expansion
 from .roots import (
     BATCH_ENGINES,
     VERIFY_ROUNDS,
@@ -135,6 +135,7 @@ from .roots import (
     _concrete,
     _shortfall,
     attach_derivatives,
+    companion,
     critical_function,
     critical_voltage_unchecked,
     decoupled_choice,
@@ -610,8 +611,10 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
         raise ValueError(f"alpha must be a non-empty 1-D array of axial wavenumbers, got shape {a.shape}")
     n_roots = validate_roots(n_roots)
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
-    layers, short = checked_laminate(n_layers, scheme, tube, alpha, n_roots, m)
     values = detached((tube, alpha, fluid))
+    # a concrete default curve checks its roots as it solves them, so it starts below the rule
+    checked = n_layers is None and scheme in (None, AUTO_SCHEME) and _concrete(values, m)
+    layers, short = checked_laminate(n_layers, scheme, tube, alpha, n_roots, m, checked=checked)
     # one propagation compiled, not both: V̂ = 0 decouples the electric block (a program each)
     decoupled = decoupled_choice(tube, family)
 
@@ -620,7 +623,7 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
                             decoupled=decoupled)
 
     curve = solve(layers)
-    if short is None and n_layers is None and is_graded(layers) and _concrete(values, m):
+    if short is None and checked and is_graded(layers):
         curve, short = _checked_curve(solve, curve, layers, values, order, m, family)
     curve = curve._replace(status=inaccurate_where(short, Roots(curve.omega, curve.status)).status)
     if not traced((tube, alpha, fluid, m)):
@@ -652,20 +655,20 @@ _sampled_steps = cached_jit(sampled_newton_steps, static_argnames=("n_layers", "
 def _checked_curve(solve, curve, layers, values, order, m, family):
     """(curve, short): a concrete default curve checked like the points of
     :func:`jaxdea.solve_frequencies` (:func:`jaxdea.solve.roots._verified`), at CHECKED_POINTS of its
-    points (the error varies smoothly along α̂): one Newton step per root on the wall of N/2
-    sublayers estimates its error; where some exceed 1e-8 the curve is solved again
-    (``solve(layers)``) on the finer N they ask for; a root index still short at a checked point is
-    INACCURATE along the curve."""
+    points (the error varies smoothly along α̂): one Newton step per root on the
+    :func:`jaxdea.solve.roots.companion` wall estimates its error; where some exceed 1e-8 the curve
+    is solved again (``solve(layers)``) on the finer N they ask for; a root index still short at a
+    checked point is INACCURATE along the curve. The curve starts at the checked count of
+    :func:`jaxdea.physics.transfer.auto_layer_count` (0.45 of the rule, 6 at least)."""
     tube, alpha, fluid = values
     order_args = family.arguments(m)
     pick = np.unique(np.round(np.linspace(0, np.shape(alpha)[0] - 1, CHECKED_POINTS)).astype(int))
     for round_ in range(VERIFY_ROUNDS + 1):
-        coarse = Layers(layers.count // 2, AUTO_SCHEME, True)
         # picked in NumPy: JAX's eager gathers cost ≈ 0.7 ms each, a tenth of the curve (measured)
         sampled = Roots(np.asarray(curve.omega)[pick], np.asarray(curve.status)[pick])
-        steps = _sampled_steps(tube, np.asarray(alpha)[pick], fluid, sampled.omega, coarse, order,
-                               **order_args)
-        ratio = _shortfall(sampled, steps)
+        steps = _sampled_steps(tube, np.asarray(alpha)[pick], fluid, sampled.omega,
+                               companion(layers), order, **order_args)
+        ratio = _shortfall(sampled, steps, layers)
         finer = refined_layers(layers, ratio) if round_ < VERIFY_ROUNDS else None
         if finer is None:
             break

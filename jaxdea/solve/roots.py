@@ -84,11 +84,13 @@ from ..physics.problem import NO_ALPHA, Problem, describe
 from ..physics.state_matrix import LONGITUDINAL, ORDER_M
 from ..physics.transfer import (
     AUTO_SCHEME,
+    CHECKED_COUNTS,
     DEFAULT_RTOL,
     LAYER_COUNTS,
     Layers,
     Wall,
     checked_laminate,
+    counted,
     discretize,
     is_graded,
     laminate,
@@ -969,28 +971,43 @@ def secant_steps(fun: Scaled, omegas):
 def checked_frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, order, m=0.0,
                                   family=LONGITUDINAL):
     """(roots, steps): :func:`frequencies_unchecked` on ``n_layers`` (graded sixth-order Magnus)
-    and :func:`newton_steps` from its roots on the wall of half as many sublayers, in one program
-    (the check of :func:`_verified`). The walls are discretised apart: formed together (one
-    evaluation of the moduli) the program was 10 % smaller but changed the last bits of the ring
-    and torsional roots (XLA fuses the shared moduli otherwise)."""
+    and :func:`newton_steps` from its roots on the :func:`companion` wall, in one program (the check
+    of :func:`_verified`). The walls are discretised apart: formed together (one evaluation of the
+    moduli) the program was 10 % smaller but changed the last bits of the ring and torsional roots
+    (XLA fuses the shared moduli otherwise)."""
     roots = frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, order, m, family)
-    coarse = Layers(n_layers.count // 2, n_layers.scheme, True)
-    return roots, newton_steps(tube, alpha, fluid, roots.omega, coarse, order, m, family)
+    return roots, newton_steps(tube, alpha, fluid, roots.omega, companion(n_layers), order, m, family)
+
+
+def companion(layers: Layers) -> Layers:
+    """The wall whose Newton steps check the roots of the graded sixth-order Magnus wall ``layers``
+    (:func:`_shortfall`): N/2 sublayers from N = 16 on, where the roots converge as N⁻⁶ already,
+    2N below (a checked start of 6, 8 or 12: N/2 would be far from that range)."""
+    count = layers.count // 2 if layers.count >= LAYER_COUNTS[0] else 2 * layers.count
+    return Layers(count, layers.scheme, True)
 
 
 _solve_checked_frequencies = cached_jit(checked_frequencies_unchecked,
                                         static_argnames=("n_roots", "n_layers", "order", "family"))
 
 
-def _shortfall(roots: Roots, steps):
-    """Per root, estimated error / (DEFAULT_RTOL·Ω) of the default discretisation's roots.
+def _shortfall(roots: Roots, steps, layers: Layers):
+    """Per root, estimated error / (DEFAULT_RTOL·Ω) of the roots of ``layers``, from the Newton
+    steps ``steps`` (:func:`newton_steps`) on its :func:`companion` wall of kN sublayers.
 
     The graded sixth-order Magnus roots converge as Ω_N = Ω + c N⁻⁶ + … (:mod:`jaxdea.solve.accuracy`),
-    so Ω_{N/2} − Ω_N ≈ (2⁶ − 1)(Ω_N − Ω): one Newton step on the wall of N/2 sublayers from each
-    root (``steps``, :func:`newton_steps`) gives Ω_{N/2} − Ω_N to first order, and error ≈
-    |step|/63. A step that is not finite gives ratio ∞; a root that did not converge, 0."""
+    so the step Ω_kN − Ω_N = (k⁻⁶ − 1)(Ω_N − Ω) to first order:
+
+    * k = 1/2 (N ≥ 16): error ≈ |step|/63. Where N/2 is not yet asymptotic its error exceeds the
+      c N⁻⁶ law, so the estimate errs high: a bound.
+    * k = 2 (a checked start below 16): error ≈ |step|·64/63, the error itself up to the fine
+      wall's, 1/64 of it, before the asymptotic range too (within 20 % measured at N = 6 and 8,
+      tests/test_accuracy_default.py). Not a bound, so it is taken ×VERIFY_MARGIN.
+
+    A step that is not finite gives ratio ∞; a root that did not converge, 0."""
     omega, status, steps = np.asarray(roots.omega), np.asarray(roots.status), np.asarray(steps)
-    error = np.abs(steps) / (2.0 ** scheme_order(AUTO_SCHEME) - 1.0)
+    k = companion(layers).count / layers.count
+    error = np.abs(steps) / abs(k ** -scheme_order(AUTO_SCHEME) - 1.0) * (VERIFY_MARGIN if k > 1 else 1.0)
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = np.where(np.isfinite(steps), error / (DEFAULT_RTOL * np.abs(omega)), np.inf)
     return np.where(status == Status.CONVERGED, ratio, 0.0)
@@ -998,13 +1015,14 @@ def _shortfall(roots: Roots, steps):
 
 def refined_layers(layers: Layers, ratio):
     """The finer default discretisation that the estimated errors ``ratio`` (:func:`_shortfall`)
-    ask for: N' ≥ N (VERIFY_MARGIN·max ratio)^(1/6) from :data:`LAYER_COUNTS` (2N where a root
-    was lost on the coarse wall), or None where every root meets DEFAULT_RTOL or N is at its cap."""
+    ask for: N' ≥ N (VERIFY_MARGIN·max ratio)^(1/6) from :data:`CHECKED_COUNTS` (2N where a root
+    was lost on the companion wall), or None where every root meets DEFAULT_RTOL or N is at its
+    cap. From N = 16 on the counts are those of :data:`LAYER_COUNTS`."""
     worst = float(np.max(ratio, initial=0.0))
     if worst <= 1.0 or layers.count >= LAYER_COUNTS[-1]:
         return None
     need = 2.0 * layers.count if np.isinf(worst) else layers.count * (VERIFY_MARGIN * worst) ** (1 / 6)
-    return Layers(next((c for c in LAYER_COUNTS if c >= need), LAYER_COUNTS[-1]), AUTO_SCHEME, True)
+    return Layers(counted(max(need, layers.count + 1), CHECKED_COUNTS), AUTO_SCHEME, True)
 
 
 def _verified(layers, tube, alpha, fluid, omega_max, n_roots, order, m, family):
@@ -1020,7 +1038,7 @@ def _verified(layers, tube, alpha, fluid, omega_max, n_roots, order, m, family):
     order_args = family.arguments(m)
     roots, steps = _solve_checked_frequencies(tube, alpha, fluid, omega_max, n_roots, layers, order,
                                               **order_args)
-    ratio = _shortfall(roots, steps)
+    ratio = _shortfall(roots, steps, layers)
     for _ in range(VERIFY_ROUNDS):
         finer = refined_layers(layers, ratio)
         if finer is None:
@@ -1028,7 +1046,7 @@ def _verified(layers, tube, alpha, fluid, omega_max, n_roots, order, m, family):
         layers = finer
         roots, steps = _solve_checked_frequencies(tube, alpha, fluid, omega_max, n_roots, layers,
                                                   order, **order_args)
-        ratio = _shortfall(roots, steps)
+        ratio = _shortfall(roots, steps, layers)
     short = ratio > 1.0
     return layers, roots, (short if short.any() else None)
 
