@@ -526,9 +526,11 @@ def test_newton_stops_once_the_predicted_error_is_below_tolerance():
 def test_frequency_from_a_close_guess_takes_few_newton_steps():
     """Newton from a root of the coarser laminate (relative distance ~5e-6) converges in a few
     evaluations on the finer one, like Newton should (it took 36 on this case before)."""
+    from jaxdea.physics.dispersion import characteristic_on_wall
+
     tube, alpha, coarse = jd.Tube(), 0.15, 1.8540488  # the N = 30 root, 5e-6 below N = 60's
     wall = roots_module.discretize(tube, 60)
-    fun, calls = _counted(lambda om: roots_module.characteristic_on_wall(wall, om, alpha))
+    fun, calls = _counted(lambda om: characteristic_on_wall(wall, om, alpha))
     root, status = jax.jit(lambda: roots_module._newton_from_guess(_with_slope(fun), coarse, 4.0))()
     assert int(status) == Status.CONVERGED
     np.testing.assert_allclose(root, jd.frequency(tube, alpha, coarse, n_layers=60), rtol=1e-15)
