@@ -119,15 +119,17 @@ the same N in the usual regime: ≤ 1e-8
 α̂ĥ ≤ 2 and m ≤ 13). A root at a point for which it asks more is INACCURATE
 (:func:`checked_laminate`)."""
 CHECKED_COUNTS = (6, 8, 12) + LAYER_COUNTS
-"""The counts of a discretisation whose roots are checked as they are solved (concrete calls of
-:func:`jaxdea.solve_frequencies` and :func:`jaxdea.dispersion_curve`): it starts from
-:data:`CHECKED_SHARE` of the rule and refines where the check asks (issue 42, item 11)."""
+"""The counts of a discretisation whose roots are checked as they are solved and that starts below
+the rule (a concrete default :func:`jaxdea.dispersion_curve`): it starts from :data:`CHECKED_SHARE`
+of the rule and refines where the check asks (issue 42, item 11). From 16 on they are
+:data:`LAYER_COUNTS`."""
 CHECKED_SHARE = 0.45
 """The share of :func:`required_layers` a checked discretisation starts from. The rule is
 calibrated for every wall with a margin (benchmarks/layer_errors_results.md: the N that 1e-8
-needs is 0.1–0.95 of it, the state unseen), so a checked call starts lower and lets the check
-of :func:`jaxdea.solve.roots._verified` refine: the unstretched 200-α̂ curve of K = 4 takes
-N = 6 (3.3e-9 off the exact cylinder) instead of 16 (9.2e-12)."""
+needs is 0.1–0.95 of it, the state unseen), so a checked curve starts lower and lets its check
+(:func:`jaxdea.solve.curves._checked_curve`) refine: the unstretched 200-α̂ curve of K = 4 takes
+N = 6 (3.0e-9 off the exact cylinder, 5.3 ms) instead of 16 (8.3e-12, 8.1 ms;
+benchmarks/checked_curve.py)."""
 ORDER_FACTOR = 5.0
 """c of the order-m term of :func:`required_layers`, N ≥ c m ln(1 + ĥ/r̂_i)^p."""
 ORDER_POWER = 0.8
