@@ -14,6 +14,7 @@ import jax
 import numpy as np
 
 from ..params import (
+    ALPHA_MIN,
     Fluid,
     Tube,
     mode_number,
@@ -59,8 +60,8 @@ def describe(tube, alpha, fluid, n_layers, scheme=None, m=0, torsional=False,
             tube unless ``damped`` (the solvers of complex roots).
     """
     if alpha is None:
-        raise ValueError("alpha must be a real number >= 1e-12 (the axial wavenumber α̂ = α R_i), "
-                         "got None")
+        raise ValueError(f"alpha must be a real number >= {ALPHA_MIN!r} (the axial wavenumber "
+                         "α̂ = α R_i), got None")
     alpha = None if alpha is NO_ALPHA else alpha
     order = validated_order(tube, alpha, fluid, n_layers, scheme)
     if not damped and getattr(tube, "damping", None) is not None:
