@@ -330,6 +330,32 @@ def test_default_accuracy_of_a_thick_layered_wall(layers):
     np.testing.assert_allclose(np.asarray(got.omega), np.asarray(fine.omega), rtol=1e-8)
 
 
+@pytest.mark.slow
+def test_default_layered_curve_is_solved_once(monkeypatch):
+    """A concrete default curve of a layered wall starts at LAYERED_SHARE of the rule (N = 12 for
+    the sandwich on the paper's tube), where its check passes: one solve, not a solve at N = 6
+    refined to 12 (measured on equal-per-layer sublayers: 1.0e-7 at N = 6, 7.4e-9 at 8, 1.4e-9
+    at 12 against N = 96), and within 1e-8 of N = 96."""
+    from jaxdea.physics.transfer import Layers
+    from jaxdea.solve import curves
+
+    tube = jd.Tube(voltage=0.05, lambda_i=0.9, lambda_z=1.2, eta=0.85, layers=SANDWICH)
+    alphas = np.linspace(0.1, 5.0, 12)
+    solved = []
+    checked = curves._checked_curve
+
+    def counting(solve, curve, layers, *args):
+        solved.append(layers.count)
+        return checked(lambda finer: solved.append(finer.count) or solve(finer), curve, layers, *args)
+
+    monkeypatch.setattr(curves, "_checked_curve", counting)
+    got = jd.dispersion_curve(tube, alphas, n_roots=4)
+    assert solved == [12]
+    fine = jd.dispersion_curve(tube, alphas, n_roots=4, n_layers=Layers(96, "magnus6"))
+    assert np.all(np.asarray(got.status) == 0)
+    np.testing.assert_allclose(np.asarray(got.omega), np.asarray(fine.omega), rtol=1e-8)
+
+
 @pytest.mark.parametrize("which", ["encapsulation shear ratio", "Mooney-Rivlin beta"])
 def test_first_instability_derivative_in_wall_leaves(which):
     """dV̂_first/d(a layer's shear ratio) of the paper's tube in an encapsulation (0.2 of the wall),

@@ -130,6 +130,16 @@ needs is 0.1–0.95 of it, the state unseen), so a checked curve starts lower an
 (:func:`jaxdea.solve.curves._checked_curve`) refine: the unstretched 200-α̂ curve of K = 4 takes
 N = 6 (3.0e-9 off the exact cylinder, 5.3 ms) instead of 16 (8.3e-12, 8.1 ms;
 benchmarks/checked_curve.py)."""
+LAYERED_SHARE = 0.75
+"""The share of :func:`required_layers` a checked discretisation of a wall of two or more layers
+starts from. Its sublayers are equal within each layer (:func:`layer_shares`), and the graded
+single wall's error at small N partly cancels across the wall (at N = 6 the 4th root of the
+paper's tube, α̂ = 1, is 3.9e-8 off on equal sublayers and 3.7e-9 graded; the sign of the error
+turns near the grading's share of 0.5), which a layered wall does not have: the §7(d) sandwich
+of benchmarks/real_walls.py is 1.0e-7 off at N = 6, 7.4e-9 at 8 (estimated 1.4e-8 with the
+check's margin: refined) and 1.4e-9 at 12, so from :data:`CHECKED_SHARE` it was solved twice, at
+6 and at 12 (first call 9.3 → 19.6 s, the curve 32 → 48 ms). From 0.75 of the rule it starts at
+12 and is solved once."""
 ORDER_FACTOR = 5.0
 """c of the order-m term of :func:`required_layers`, N ≥ c m ln(1 + ĥ/r̂_i)^p."""
 ORDER_POWER = 0.8
@@ -180,13 +190,14 @@ def required_layers(thickness, r_inner, locking, alpha, n_roots: int = 3, m=0,
 
 
 def auto_layer_count(thickness, r_inner, locking, alpha, n_roots: int = 3, m=0,
-                     at_rest: bool = False, checked: bool = False) -> int:
+                     at_rest: bool = False, checked: bool = False, share: float = CHECKED_SHARE) -> int:
     """N of the accurate discretisation (graded sixth-order Magnus) for roots to ≤ 1e-8 relative:
     :func:`required_layers` rounded up to :data:`LAYER_COUNTS` (16 at least, 1024 at most).
     ``checked``: the start of a discretisation whose roots are checked as they are solved,
-    :data:`CHECKED_SHARE` of the rule rounded up to :data:`CHECKED_COUNTS` (6 at least)."""
+    ``share`` of the rule (:data:`CHECKED_SHARE`, or :data:`LAYERED_SHARE` for a layered wall)
+    rounded up to :data:`CHECKED_COUNTS` (6 at least)."""
     need = float(required_layers(thickness, r_inner, locking, alpha, n_roots, m, at_rest))
-    return counted(CHECKED_SHARE * need if checked else need, CHECKED_COUNTS if checked else LAYER_COUNTS)
+    return counted(share * need if checked else need, CHECKED_COUNTS if checked else LAYER_COUNTS)
 
 
 def counted(need: float, counts=LAYER_COUNTS) -> int:
@@ -288,7 +299,9 @@ def _resolved_count(tube, alpha, n_roots, m, at_rest, checked=False):
     lengths = None if tube is None or alpha is None or m is None else wall_lengths(tube)
     if lengths is None:
         return None
-    return auto_layer_count(*lengths, alpha, int(n_roots), m, at_rest, checked)
+    layered = tube.layers is not None and len(tube.layers) > 1
+    return auto_layer_count(*lengths, alpha, int(n_roots), m, at_rest, checked,
+                            LAYERED_SHARE if layered else CHECKED_SHARE)
 
 
 def checked_laminate(n_layers=None, scheme=None, tube: Tube | None = None, alpha=None,
