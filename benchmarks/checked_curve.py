@@ -9,6 +9,12 @@ exact incompressible cylinder, tests/exact_cylinder.py, at every 10th α̂) and 
 (V̂ = 0.1, λ_i = 0.9, λ_z = 1.2; reference: graded magnus6 on 192 sublayers at every 20th α̂).
 
     python3 benchmarks/checked_curve.py [--rounds 15]
+    python3 benchmarks/checked_curve.py --survey [--rounds 5]
+
+``--survey``: the start N, the counts solved and the warm time of the checked default curve
+(100 α̂ in [0.05, 3], K = 4 and 8) on a table of walls, families and states, with the start below
+the rule where the rule's count is 16 or m > 0 (``transfer.CHECKED_RULE_MAX``, today's policy)
+against the start below the rule everywhere (the policy of the first checked curve), interleaved.
 
 Writes nothing; its output is copied into benchmarks/README.md (section l).
 """
@@ -63,10 +69,65 @@ def call(tube, share):
         transfer.CHECKED_SHARE = START
 
 
+PAPER_TUBE = jd.Tube(lambda_z=1.2, eta=0.85, lambda_i=0.9)
+SURVEY = {
+    "paper's tube": (PAPER_TUBE, {}),
+    "paper's tube, m = 2": (PAPER_TUBE, dict(m=2)),
+    "paper's tube, torsional": (PAPER_TUBE, dict(torsional=True)),
+    "paper's tube, acoustic fluid": (PAPER_TUBE, dict(fluid=jd.Fluid())),
+    "unstretched": (jd.Tube(), {}),
+    "thick, η = 0.5": (jd.Tube(eta=0.5, lambda_i=0.9, lambda_z=1.2), {}),
+    "thick, η = 0.3": (jd.Tube(eta=0.3), {}),
+    "thick, η = 0.5, m = 2": (jd.Tube(eta=0.5, lambda_i=0.9, lambda_z=1.2), dict(m=2)),
+    "inflated, λ_i = 1.3, G = 10": (jd.Tube(eta=0.6, lambda_i=1.3, lambda_z=1.1, gent=10.0), {}),
+    "near locking, G = 4": (jd.Tube(eta=0.7, lambda_i=1.3, lambda_z=1.2, gent=4.0), {}),
+    "Mooney–Rivlin β = 0.2": (PAPER_TUBE.replace(material=jd.MooneyRivlin(0.2)), {}),
+}
+
+
+def survey(rounds):
+    """Print, per case and K, the solves and warm ms of both policies (module docstring)."""
+    from jaxdea.solve import curves
+
+    checked, solved = curves._checked_curve, []
+
+    def spy(solve, curve, layers, *rest):
+        solved.append(layers.count)
+        return checked(lambda finer: solved.append(finer.count) or solve(finer), curve, layers, *rest)
+
+    curves._checked_curve = spy
+    today = transfer.CHECKED_RULE_MAX
+    policies = {"below the rule where it gives 16 or m > 0": today,
+                "below the rule everywhere": transfer.LAYER_COUNTS[-1]}
+    alpha = np.linspace(0.05, 3.0, 100)
+    print(f"load {os.getloadavg()[0]:.2f}, {rounds} interleaved rounds, warm ms best")
+    print("| case | K | " + " | ".join(f"{p}: N solved, ms" for p in policies) + " |")
+    print("|---|---|" + "---|" * len(policies))
+    for name, (tube, kw) in SURVEY.items():
+        for k in (4, 8):
+            counts, times = {}, {p: [] for p in policies}
+            for _ in range(rounds + 1):
+                for policy, limit in policies.items():
+                    transfer.CHECKED_RULE_MAX = limit
+                    solved.clear()
+                    start = time.perf_counter()
+                    jax.block_until_ready(jd.dispersion_curve(tube, alpha, n_roots=k, **kw).omega)
+                    times[policy].append(1e3 * (time.perf_counter() - start))
+                    counts[policy] = list(solved)
+            transfer.CHECKED_RULE_MAX = today
+            print(f"| {name} | {k} | " + " | ".join(
+                f"{' → '.join(map(str, counts[p]))}, {min(times[p][1:]):.1f}" for p in policies) + " |",
+                flush=True)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=15)
+    parser.add_argument("--survey", action="store_true")
     args = parser.parse_args()
+    if args.survey:
+        survey(args.rounds)
+        return
     print(f"load {os.getloadavg()[0]:.2f}, {args.rounds} interleaved rounds, ms best / median")
     for name, (tube, every, reference) in CASES.items():
         times = {START: [], 1.0: []}

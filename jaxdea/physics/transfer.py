@@ -130,6 +130,9 @@ needs is 0.1–0.95 of it, the state unseen), so a checked curve starts lower an
 (:func:`jaxdea.solve.curves._checked_curve`) refine: the unstretched 200-α̂ curve of K = 4 takes
 N = 6 (3.0e-9 off the exact cylinder, 5.3 ms) instead of 16 (8.3e-12, 8.1 ms;
 benchmarks/checked_curve.py)."""
+CHECKED_RULE_MAX = LAYER_COUNTS[0]
+"""A checked discretisation starts below the rule only where the rule's count is at most this, or
+at an order m > 0 (:func:`auto_layer_count`)."""
 LAYERED_SHARE = 0.75
 """The share of :func:`required_layers` a checked discretisation of a wall of two or more layers
 starts from. Its sublayers are equal within each layer (:func:`layer_shares`), and the graded
@@ -195,9 +198,22 @@ def auto_layer_count(thickness, r_inner, locking, alpha, n_roots: int = 3, m=0,
     :func:`required_layers` rounded up to :data:`LAYER_COUNTS` (16 at least, 1024 at most).
     ``checked``: the start of a discretisation whose roots are checked as they are solved,
     ``share`` of the rule (:data:`CHECKED_SHARE`, or :data:`LAYERED_SHARE` for a layered wall)
-    rounded up to :data:`CHECKED_COUNTS` (6 at least)."""
+    rounded up to :data:`CHECKED_COUNTS` (6 at least), where the rule asks for at most
+    :data:`CHECKED_RULE_MAX` (its least count, 16) or the order m is positive; elsewhere the
+    rule's own count.
+
+    The rule's margin shrinks as K grows (its 1.5K term against errors that grow like Ω_K⁶), so
+    beyond its least count a start below the rule mostly fails its check and the curve is solved
+    twice. Measured on 100 α̂ in [0.05, 3] (benchmarks/checked_curve.py, ``--survey``): the paper's
+    tube with K = 8 started at 8 and was refined to 24, the rule's count (26.6 ms, now 14.7 ms,
+    one solve); η = 0.3 with K = 8 went 16 → 48 (48.8 ms, now 48 at once, 25.7 ms). The order-m
+    roots converge faster than the rule assumes: m = 1, 2, 4 with K = 8 pass at 12 where the rule
+    gives 24 (m = 2: 57 ms at 12, 123 ms at 24)."""
     need = float(required_layers(thickness, r_inner, locking, alpha, n_roots, m, at_rest))
-    return counted(share * need if checked else need, CHECKED_COUNTS if checked else LAYER_COUNTS)
+    rule = counted(need)
+    if not checked or (rule > CHECKED_RULE_MAX and not m > 0):
+        return rule
+    return counted(share * need, CHECKED_COUNTS)
 
 
 def counted(need: float, counts=LAYER_COUNTS) -> int:
