@@ -63,6 +63,7 @@ import zlib
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import jaxlib
 from jax import export
 
@@ -82,6 +83,27 @@ compiled the order-m continuation program in 17.2 s instead of 19.0 s for the sa
 (0.52 s) and the same ``characteristic`` rate at batch 4096 (108 k/s against 101 k/s, within the
 noise); ``jaxdea figures`` cold 60.8 → 58.7 s. Level 0 compiled in 13 s but ran 3.5× slower. GPU
 backends use the level for their kernels too, so it stays off there."""
+
+
+def materialized(x):
+    """``x`` (an array, or a pytree of them), computed once in a compiled program and read by every
+    consumer: the exact sum x + 0 as the last entry of a cumulative sum (a reduce-window, which XLA
+    neither simplifies away nor fuses into other consumers; a plain reduction of a scalar it
+    simplifies to x). XLA:CPU fuses a cheap elementwise producer into each consumer fusion
+    instead, so a value used by many outputs (a root solver's lane state, the admissibility of the
+    inputs) is emitted once per output: the 3×3 determinant's slope 18 times, the admissibility
+    43 times in every ``frequencies`` program (22 744 → 18 651 lines of optimised HLO, its
+    compilation 12 % shorter). The value is x (x + 0 = x; −0 + 0 = +0; subnormals flush to zero,
+    as everywhere in XLA:CPU), booleans pass as 0.0 and 1.0; but a value XLA no longer recomputes
+    inside a consumer's kernel is no longer contracted with its arithmetic (fused multiply-adds),
+    so the results around it may round differently, by an ulp or a few."""
+    def once(v):
+        v = jnp.asarray(v)
+        if v.dtype == jnp.bool_:
+            return once(v.astype(jnp.float64)) > 0.5
+        return jnp.cumsum(jnp.stack([v, jnp.zeros_like(v)]), axis=0)[1]
+
+    return jax.tree_util.tree_map(once, x)
 
 
 def compiler_options() -> dict:

@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .compiled import jit, serializable
+from .compiled import jit, materialized, serializable
 from .materials import Damping, Gent, Material, NeoHookean
 
 COUPLINGS = ("acoustic", "paper")
@@ -355,7 +355,7 @@ def guard(tube: Tube, alpha, fluid: Fluid | None):
     """(ok, tube, alpha, fluid): ``ok`` from :func:`admissible`; where not ok the inputs are swapped
     for a harmless default case, so that a solver under vmap does no work on them (the caller
     returns NaN, with status INVALID, there)."""
-    ok = admissible(tube, alpha, fluid)
+    ok = materialized(admissible(tube, alpha, fluid))  # read by every leaf's consumers
     swap = lambda x, d: jnp.where(ok, as_float(x), d)  # noqa: E731
     outer = None if tube.outer is None else Fluid(density_ratio=1.0, speed_ratio=OUTER_SPEED_DEFAULT)
     tube = jax.tree_util.tree_map(swap, tube, Tube(material=tube.material, damping=tube.damping,

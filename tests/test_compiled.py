@@ -507,3 +507,24 @@ def test_configure_xla_leaves_a_started_backend_and_the_users_flags_alone():
     environ = {"XLA_FLAGS": "--xla_dump_to=/tmp/x"}
     assert not compiled.configure_xla(environ)
     assert environ == {"XLA_FLAGS": "--xla_dump_to=/tmp/x"}
+
+
+def test_materialized_is_the_value_and_is_formed_once():
+    """compiled.materialized: the same values (NaN, ±inf, booleans, a pytree), and a producer read
+    by three outputs is emitted once in the optimised program instead of once per output (the
+    duplication it exists to stop; this fails if XLA starts simplifying it away)."""
+    x = jnp.array([1.5, -2.0, jnp.nan, jnp.inf, -jnp.inf, 1e-300])  # (XLA:CPU flushes subnormals)
+    got = compiled.materialized({"x": x, "flag": x > 0})
+    np.testing.assert_array_equal(np.asarray(got["x"]), np.asarray(x))
+    np.testing.assert_array_equal(np.asarray(got["flag"]), np.asarray(x > 0))
+
+    def outputs(once):
+        def f(a, b, c):
+            ok = jnp.isfinite(a) & (a > 0) & jnp.isfinite(b) & (b < 1)
+            ok = once(ok)
+            return jnp.where(ok, a, 0.0), jnp.where(ok, b, 1.0) * c, jnp.where(ok, c, 2.0) + a
+        return jax.jit(f).lower(1.0, 0.5, 2.0).compile(
+            compiler_options=compiled.compiler_options()).as_text().count("is-finite(")
+
+    assert outputs(lambda v: v) == 6  # XLA:CPU recomputes the two checks in each output
+    assert outputs(compiled.materialized) == 2

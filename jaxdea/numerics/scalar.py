@@ -12,7 +12,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from ..compiled import jit
+from ..compiled import jit, materialized
 
 ROOT_RTOL = 1e-4
 """Largest relative distance |f/f'|/|Ω| of an ``omega`` passed as a root (mode shapes, group
@@ -370,7 +370,9 @@ def iterate_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200, with_slope=False)
                            jnp.abs(s.x + jnp.clip(-s.fx / s.dfx, -s.max_step, s.max_step)))
         x_new = jnp.select([s.mode == BRACKET, s.mode == EXTREMUM, s.mode == FREE],
                            [x_bracket, x_extremum, x_free], s.x)
+        x_new = materialized(x_new)
         f_new, df_new = evaluate(x_new)
+        f_new, df_new = materialized((f_new, df_new))
         finite = jnp.isfinite(f_new) & jnp.isfinite(df_new)
         scale = jnp.maximum(jnp.abs(x_new), 1e-3 * jnp.abs(s.b - s.a))
         tol = rtol * scale
@@ -414,6 +416,11 @@ def iterate_lanes(fun, lanes: Lanes, rtol=1e-15, max_iter=200, with_slope=False)
         free_done = in_free & (((step_new <= tol) & ~fresh & ~sign_change) | (f_new == 0)
                                | finish_step)
         crossed = sign_change & ~free_done
+        # read by most of the lane state below: formed once (compiled.materialized)
+        last_step, curvature = materialized((last_step, curvature))
+        flags = materialized(jnp.stack([converged, free_done, finish_step, ext_done, crossed, trusted,
+                                        sign_change]).astype(jnp.float64)) > 0.5
+        converged, free_done, finish_step, ext_done, crossed, trusted, sign_change = flags
 
         s = s._replace(
             lo=jnp.where(in_ext, e_lo, lo), hi=jnp.where(in_ext, x_new, hi),
