@@ -204,11 +204,11 @@ def auto_layer_count(thickness, r_inner, locking, alpha, n_roots: int = 3, m=0,
 
     The rule's margin shrinks as K grows (its 1.5K term against errors that grow like Ω_K⁶), so
     beyond its least count a start below the rule mostly fails its check and the curve is solved
-    twice. Measured on 100 α̂ in [0.05, 3] (benchmarks/checked_curve.py, ``--survey``): the paper's
-    tube with K = 8 started at 8 and was refined to 24, the rule's count (26.6 ms, now 14.7 ms,
-    one solve); η = 0.3 with K = 8 went 16 → 48 (48.8 ms, now 48 at once, 25.7 ms). The order-m
-    roots converge faster than the rule assumes: m = 1, 2, 4 with K = 8 pass at 12 where the rule
-    gives 24 (m = 2: 57 ms at 12, 123 ms at 24)."""
+    twice. Measured on 100 α̂ in [0.05, 3] (benchmarks/checked_curve.py ``--survey``, section l of
+    benchmarks/README.md): the paper's tube with K = 8 started at 8 and was refined to 24, the
+    rule's count (22.3 ms; now 24 at once, 15.0 ms); η = 0.3 with K = 8 went 16 → 48 (38.2 ms;
+    now 48 at once, 25.6 ms). The order-m roots converge faster than the rule assumes: m = 1, 2, 4
+    with K = 8 pass at 12 where the rule gives 24 (m = 2: 57 ms at 12, 123 ms at 24)."""
     need = float(required_layers(thickness, r_inner, locking, alpha, n_roots, m, at_rest))
     rule = counted(need)
     if not checked or (rule > CHECKED_RULE_MAX and not m > 0):
