@@ -51,14 +51,11 @@ from .families import Family
 from .transfer import (
     EXPONENTIALS,
     Wall,
-    alpha_generators,
     carry_basis,
     carry_basis_tangent,
     damped_wall,
     discretize,
-    generator_of_w,
-    generators_at_alpha,
-    wall_generators,
+    generators_at,
 )
 
 
@@ -99,8 +96,8 @@ def value(family: Family, wall: Wall, x, fixed, fluid=None, order: int = 0, m=0,
     ``family``, ``order``, ``unknown`` and ``method`` (the sublayer exponential,
     :data:`jaxdea.physics.transfer.EXPONENTIALS`) are static; ``m`` may be traced (``order_m``).
     A real Ω, w or s takes the solvers' code path of the family (the 6×6 longitudinal system in Ω,
-    the order-m and torsional systems in w); x = α̂ the generators as polynomials in α̂
-    (:func:`jaxdea.physics.transfer.alpha_generators`), exact for complex α̂."""
+    the order-m and torsional systems in w); x = α̂, a damped wall or a complex x the generators
+    formed at the point (:func:`pieces`)."""
     family, unknown = Family(family), Unknown(unknown)
     if unknown is Unknown.ALPHA or wall.damping is not None or jnp.iscomplexobj(x):
         basis, exponentials, out = pieces(family, wall, x, fixed, fluid, order, m, unknown, method)
@@ -126,17 +123,21 @@ def value_and_scale(family: Family, wall: Wall, x, fixed, fluid=None, order: int
 
 
 def value_and_log_slope(family: Family, wall: Wall, x, fixed, fluid=None, order: int = 0, m=0,
-                        unknown: Unknown = Unknown.OMEGA):
+                        unknown: Unknown = Unknown.OMEGA, method: str = "adaptive"):
     """(f, d ln F/dx) at x, real or complex (module docstring).
 
     f is the value of :func:`value` (the same zeros, sign and argument as F); d ln F/dx is the
     analytic log-derivative of F = det(Out A S), so that x − 1/(d ln F/dx) is Newton's step on F
     at a complex x too. Only the sublayer exponentials, the initial basis and the outer rows are
-    differentiated (forward mode, tangent 1 in x), never the re-orthonormalisation."""
+    differentiated (forward mode, tangent 1 in x), never the re-orthonormalisation. ``method``:
+    the sublayer exponential (:data:`jaxdea.physics.transfer.EXPONENTIALS`); the default
+    ``"adaptive"`` takes only the squarings it needs under the tangent too (forward mode only;
+    ``"taylor"`` carries the tangent of all its masked squarings, 2× the exponentials' cost)."""
     family, unknown = Family(family), Unknown(unknown)
     x = jnp.asarray(x, dtype=jnp.result_type(x, jnp.float64))
     return value_and_log_slope_along(
-        lambda y: pieces(family, wall, y, fixed, fluid, order, m, unknown), x, jnp.ones_like(x))
+        lambda y: pieces(family, wall, y, fixed, fluid, order, m, unknown, method), x,
+        jnp.ones_like(x))
 
 
 def value_and_log_slope_along(pieces_of, primal, tangent):
@@ -187,15 +188,12 @@ def at_rest_value_and_slope(family: Family, wall_of, exponentials_of, voltage, a
 def pieces(family: Family, wall: Wall, x, fixed, fluid, order, m, unknown: Unknown,
            method: str = "taylor"):
     """(S, T_k, Out) at x: the initial basis, the sublayer exponentials (N, n, n) and the outer
-    rows, in the dtype of x (analytic in x: the generators are polynomials in w and α̂)."""
+    rows, in the dtype of x (analytic in x: the generators are formed at the point from the node
+    matrices, polynomial in w and α̂, with η*(Ω) of a damped wall,
+    :func:`jaxdea.physics.transfer.generators_at`)."""
     w, alpha = unknown.point(x, fixed)
     wall = damped_wall(wall, unknown.frequency(x, fixed))
-    if unknown is Unknown.ALPHA:
-        coefficients = generators_at_alpha(alpha_generators(wall, m, family), alpha)
-    else:
-        coefficients = wall_generators(wall, alpha, m, family)
-    generators = jax.vmap(generator_of_w, (0, None))(coefficients, w)
-    exponentials = jax.vmap(EXPONENTIALS[method])(generators)
+    exponentials = jax.vmap(EXPONENTIALS[method])(generators_at(wall, w, alpha, m, family))
     basis = initial_basis_of_w(wall, w, alpha, fluid, order, m, family)
     out = outer_conditions(wall, alpha, m, family, omega_squared=w)
     dtype = jnp.result_type(x, exponentials, basis, out, jnp.float64)

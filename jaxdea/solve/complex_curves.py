@@ -37,7 +37,7 @@ from ..params import Fluid, Tube, as_float, canonical, validate_alpha, with_oute
 from ..physics import characteristic
 from ..physics.characteristic import Unknown
 from ..physics.problem import NO_ALPHA, describe
-from ..physics.transfer import discretize, laminate
+from ..physics.transfer import discretized, laminate
 from .complex_frequencies import complex_frequencies, quality_factor
 from .wavenumbers import default_alpha_max, validate_search, wavenumbers
 
@@ -84,79 +84,102 @@ class ComplexCurve(NamedTuple):
 
 def _pieces_of(problem, wall, fluid, m, unknown):
     """The contract's pieces at (x, p) = point: x the continued variable (Ω, or s = α̂² for the
-    unknown α̂, module docstring), p the grid's variable."""
+    unknown α̂, module docstring), p the grid's variable (forward mode only: the ``"adaptive"``
+    exponentials)."""
     def pieces_of(point):
         x = jnp.sqrt(point[0]) if unknown is Unknown.ALPHA else point[0]
         return characteristic.pieces(problem.family, wall, x, point[1], fluid, problem.order, m,
-                                     unknown)
+                                     unknown, "adaptive")
 
     return pieces_of
 
 
-def _log_slope(pieces_of, x, p, direction):
-    """d ln F along ``direction`` of (x, p), from one evaluation of the pieces."""
+def _log_slopes(pieces_of, x, p):
+    """(∂ ln F/∂x, ∂ ln F/∂p) at (x, p), from one evaluation of the pieces (both tangents share
+    its primal: the exponentials, the carried basis)."""
     point = jnp.stack([x, jnp.asarray(p, x.dtype)])
-    return characteristic.value_and_log_slope_along(pieces_of, point,
-                                                    jnp.asarray(direction, x.dtype))[1]
+    directions = jnp.eye(2, dtype=x.dtype)
+    slopes = jax.vmap(lambda d: characteristic.value_and_log_slope_along(pieces_of, point, d)[1])(
+        directions)
+    return slopes[0], slopes[1]
 
 
 def _corrector(pieces_of, x0, p):
-    """(x, converged): Newton on F(x; p) from x0, x ← x − 1/(∂ ln F/∂x)."""
+    """(x, dx/dp, converged): Newton on F(x; p) from x0, x ← x − 1/(∂ ln F/∂x), and the tangent
+    dx/dp = −(∂ ln F/∂p)/(∂ ln F/∂x) from the same evaluation as the last step (taken within
+    that step, ≤ STEP_RTOL|x|, of the root: the next predictor's, at no further evaluation)."""
     def step(state):
-        k, x, _, _ = state
-        dx = 1.0 / _log_slope(pieces_of, x, p, (1.0, 0.0))
+        k, x, _, _, _ = state
+        slope_x, slope_p = _log_slopes(pieces_of, x, p)
+        dx = 1.0 / slope_x
         finite = jnp.isfinite(jnp.abs(dx))
         x_new = jnp.where(finite, x - dx, x)
-        return k + 1, x_new, finite, finite & (jnp.abs(dx) <= STEP_RTOL * jnp.abs(x_new))
+        return (k + 1, x_new, -slope_p / slope_x, finite,
+                finite & (jnp.abs(dx) <= STEP_RTOL * jnp.abs(x_new)))
 
     def going(state):
-        k, _, finite, small = state
+        k, _, _, finite, small = state
         return (k < CORRECTOR_STEPS) & finite & ~small
 
-    _, x, _, small = jax.lax.while_loop(going, step, (0, x0, jnp.asarray(True),
-                                                       jnp.asarray(False)))
-    return x, small & jnp.isfinite(jnp.abs(x))
+    nan = jnp.full_like(x0, jnp.nan)
+    _, x, tangent, _, small = jax.lax.while_loop(
+        going, step, (0, x0, nan, jnp.asarray(True), jnp.asarray(False)))
+    return x, tangent, small & jnp.isfinite(jnp.abs(x))
+
+
+def _tangent_off_the_root(pieces_of, x, p):
+    """dx/dp at a root x of F(·; p), the log-derivatives taken OFFSET off it (module docstring)."""
+    slope_x, slope_p = _log_slopes(pieces_of, x + OFFSET * jnp.maximum(1.0, jnp.abs(x)), p)
+    return -slope_p / slope_x
 
 
 def _continue(pieces_of, grid, x0):
     """One branch along the grid from its root x0 at grid[0]: (x at each grid point, status).
+
     The predictor's dx/dp = −(∂ ln F/∂p)/(∂ ln F/∂x) takes both log-derivatives from the same
     pieces: at a root F is rounding noise, and only their ratio within one evaluation is exact
-    (two evaluations gave dα̂/dΩ = −0.57 + 0.19i against 0.60 − 0.02i)."""
+    (two evaluations gave dα̂/dΩ = −0.57 + 0.19i against 0.60 − 0.02i). At the first point they
+    are taken OFFSET off the root; after it they come from the corrector's last Newton step
+    (:func:`_corrector`), and where that ratio is not finite (F exactly 0 there) the secant
+    through the last two accepted points stands in."""
     def advance(carry, p_next):
-        x, p, alive = carry
+        x, tangent, p, back, alive = carry
 
         def cond(state):
-            t, _, _, halvings = state
-            return (t < 1.0) & (halvings <= MAX_HALVINGS)
+            t = state[0]
+            return (t < 1.0) & (state[-1] <= MAX_HALVINGS)
 
         def body(state):
-            t, h, x, halvings = state
+            t, h, x, tangent, back, halvings = state
             h = jnp.minimum(h, 1.0 - t)
             here, there = p + t * (p_next - p), p + (t + h) * (p_next - p)
-            off = x + OFFSET * jnp.maximum(1.0, jnp.abs(x))  # off the root (module docstring)
-            slope_x = _log_slope(pieces_of, off, here, (1.0, 0.0))
-            slope_p = _log_slope(pieces_of, off, here, (0.0, 1.0))
-            move = -(slope_p / slope_x) * (there - here)
+            secant = (x - back[0]) / (here - back[1]).astype(x.dtype)
+            slope = jnp.where(jnp.isfinite(jnp.abs(tangent)), tangent, secant)
+            move = slope * (there - here)
             predicted = x + move
-            corrected, converged = _corrector(pieces_of, predicted, there)
+            corrected, new_tangent, converged = _corrector(pieces_of, predicted, there)
             allowance = 1e-9 * jnp.maximum(1.0, jnp.abs(x))
             good = (converged & jnp.isfinite(jnp.abs(move))
                     & (jnp.abs(corrected - predicted) <= JUMP * jnp.abs(move) + allowance))
+            back = jax.tree_util.tree_map(lambda new, old: jnp.where(good, new, old),
+                                          (x, jnp.asarray(here, back[1].dtype)), back)
             t = jnp.where(good, jnp.where(h >= 1.0 - t, 1.0, t + h), t)
             x = jnp.where(good, corrected, x)
+            tangent = jnp.where(good, new_tangent, tangent)
             h = jnp.where(good, 2.0 * h, 0.5 * h)
             halvings = jnp.where(good, 0, halvings + 1)
-            return t, h, x, halvings
+            return t, h, x, tangent, back, halvings
 
-        start = (jnp.where(alive, 0.0, 1.0), jnp.asarray(1.0), x, jnp.asarray(0))
-        t, _, x_end, _ = jax.lax.while_loop(cond, body, start)
+        start = (jnp.where(alive, 0.0, 1.0), jnp.asarray(1.0), x, tangent, back, jnp.asarray(0))
+        t, _, x_end, tangent, back, _ = jax.lax.while_loop(cond, body, start)
         alive = alive & (t >= 1.0)
         x_end = jnp.where(alive, x_end, jnp.nan)
-        return (x_end, p_next, alive), (x_end, alive)
+        return (x_end, tangent, p_next, back, alive), (x_end, alive)
 
     alive = jnp.isfinite(jnp.abs(x0))
-    _, (xs, ok) = jax.lax.scan(advance, (x0, grid[0], alive), grid[1:])
+    tangent = _tangent_off_the_root(pieces_of, x0, grid[0])
+    back = (x0, grid[0] - (grid[1] - grid[0]))  # a secant is never needed before a corrector ran
+    _, (xs, ok) = jax.lax.scan(advance, (x0, tangent, grid[0], back, alive), grid[1:])
     xs = jnp.concatenate([x0[None], xs])
     ok = jnp.concatenate([alive[None], ok])
     status = jnp.where(ok, Status.CONVERGED, jnp.where(alive, Status.MAX_ITER, Status.NO_ROOT))
@@ -237,7 +260,7 @@ def wavenumber_curve(tube: Tube, omegas, fluid: Fluid | None = None, n_roots: in
     reach = default_alpha_max(problem, tube, top, fluid) if alpha_max is None else float(alpha_max)
     finite = np.abs(np.asarray(start.alpha))[np.isfinite(np.abs(np.asarray(start.alpha)))]
     reach = max([reach, *(finite * top / float(grid[0]))])
-    wall = discretize(tube, laminate(n_layers, scheme, tube, reach, m=int(m)))
+    wall = discretized(tube, n_layers=laminate(n_layers, scheme, tube, reach, m=int(m)))
     alpha, status = _curves(problem, wall, fluid, as_float(float(m)), jnp.asarray(grid),
                             jnp.asarray(start.alpha, jnp.complex128), Unknown.ALPHA)
     return WavenumberCurve(jnp.asarray(grid), alpha, jnp.abs(jnp.imag(alpha)), status,
@@ -282,7 +305,8 @@ def complex_dispersion_curve(tube: Tube, alphas, fluid: Fluid | None = None, n_r
                                 scheme, torsional)
     problem = describe(tube, float(grid[0]), fluid, n_layers, scheme, m, torsional, damped=True)
     tube, fluid = canonical(tube, fluid)
-    wall = discretize(tube, laminate(n_layers, scheme, tube, float(np.max(grid)), n_roots, int(m)))
+    wall = discretized(tube, n_layers=laminate(n_layers, scheme, tube, float(np.max(grid)),
+                                               n_roots, int(m)))
     omega, status = _curves(problem, wall, fluid, as_float(float(m)), jnp.asarray(grid),
                             jnp.asarray(start.omega, jnp.complex128), Unknown.OMEGA)
     return ComplexCurve(jnp.asarray(grid), omega, quality_factor(omega), status, start.certificate)

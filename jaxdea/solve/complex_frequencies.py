@@ -31,7 +31,7 @@ from ..params import Fluid, Tube, as_float, canonical, guard, validate_alpha, wi
 from ..physics import characteristic
 from ..physics.characteristic import Unknown
 from ..physics.problem import describe
-from ..physics.transfer import discretize, laminate
+from ..physics.transfer import discretize, discretized, laminate
 from .roots import frequencies
 from .wavenumbers import GRID, SearchStatus, complex_newton, search_box, validate_search
 
@@ -97,7 +97,7 @@ def complex_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: 
     alpha = float(alpha)
     m_value = as_float(float(m))
     layers = laminate(n_layers, scheme, tube, alpha, n_roots, int(m))
-    wall = discretize(tube, layers)
+    wall = discretized(tube, n_layers=layers)
     elastic = np.asarray(frequencies(_elastic(tube), alpha, fluid, n_roots, omega_max,
                                      n_layers=n_layers, scheme=scheme, m=m, torsional=torsional))
     if omega_max is None:

@@ -50,7 +50,7 @@ from ..physics import characteristic
 from ..physics.characteristic import Unknown
 from ..physics.families import Face
 from ..physics.problem import NO_ALPHA, describe
-from ..physics.transfer import discretize, laminate
+from ..physics.transfer import discretized, laminate
 from .counting import LANES, MIN_RELATIVE_LENGTH, CountStatus, rectangle, winding_count
 
 MAX_EVALUATIONS = 20_000
@@ -160,6 +160,8 @@ def search_box(problem, wall, fixed, fluid, m, lo, hi, starts_of, unknown=Unknow
     count, status = (int(v) for v in _count(problem, wall, fixed, fluid, m, lo, hi, unknown))
     if status != CountStatus.CERTIFIED:
         return [], SearchStatus.COUNT_FAILED
+    if count == 0:  # most parts of a search hold no root: no Newton from their starts
+        return [], SearchStatus.CERTIFIED
     inside = []
     attempts = ([np.asarray(seeds, complex)] if len(seeds) else []) + [
         np.asarray(starts_of(k), complex) for k in range(REFINEMENTS + 1)]
@@ -265,7 +267,7 @@ def wavenumbers(tube: Tube, omega, fluid: Fluid | None = None, n_roots: int = 4,
 
 def default_alpha_max(problem, tube, omega, fluid) -> float:
     """The default α_max at Ω: 2Ω/min(c_min, ĉ_f) + 4 max(1, Ω) (module docstring)."""
-    probe = discretize(tube, 8)
+    probe = discretized(tube, n_layers=8)
     c_min = float(jnp.sqrt(problem.family.slowest_shear(probe.coef)))
     if fluid is not None:
         c_min = min(c_min, float(fluid.speed_ratio))
@@ -276,7 +278,7 @@ def _box(problem, tube, omega, fluid, m, n_layers, scheme, low, high, alpha_max)
     """The roots with Re α̂ ≥ 0 and low ≤ |Im α̂| ≤ high (the band of the box [0, α_max] between
     those heights, both signs; low = 0: the band through the real axis) and its certificate."""
     layers = laminate(n_layers, scheme, tube, abs(complex(alpha_max, high)), m=int(m))
-    wall = discretize(tube, layers)
+    wall = discretized(tube, n_layers=layers)
     eps, eta = 1e-3 * alpha_max, 1e-3 * high
 
     def grid(lo_im, hi_im, k):  # starts over one band (Newton stays on the real axis from it)
