@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import jaxdea as jd
-from jaxdea.physics.transfer import laminate
+from jaxdea.physics.transfer import Layers
 
 UNSTRETCHED = jd.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0)
 
@@ -50,19 +50,75 @@ def test_lossless_wavenumber_curve_inverts_frequencies():
 def test_complex_dispersion_curve_is_the_exact_kelvin_voigt_relation():
     """Unstretched, unbiased, empty tube with Kelvin–Voigt damping (η_v = 0.05), m = 1: every
     modulus is μ(1 + iΩη_v), so each continued root satisfies Ω² = Ω_e²(1 + iΩη_v), i.e.
-    Ω = [iΩ_e²η_v + √(4Ω_e² − Ω_e⁴η_v²)]/2, with Ω_e the elastic dispersion_curve at the same α̂;
-    to 1e-10 along 30 α̂. The quality factor is Re Ω/(2 Im Ω)."""
+    Ω = [iΩ_e²η_v + √(4Ω_e² − Ω_e⁴η_v²)]/2, with Ω_e the elastic dispersion_curve at the same α̂
+    on the same laminate: to 1e-10 along 30 α̂. The quality factor is Re Ω/(2 Im Ω)."""
     eta_v = 0.05
     tube = UNSTRETCHED.replace(damping=jd.KelvinVoigt(eta_v))
     grid = np.linspace(0.3, 3.0, 30)
-    curve = jd.complex_dispersion_curve(tube, grid, n_roots=2, m=1)
+    wall = Layers(16, "magnus6", True)
+    curve = jd.complex_dispersion_curve(tube, grid, n_roots=2, m=1, n_layers=wall)
     assert np.all(np.asarray(curve.status) == jd.Status.CONVERGED)
-    wall = laminate(None, None, UNSTRETCHED, float(np.max(grid)), 2, 1)  # the complex curve's
     elastic = np.asarray(jd.dispersion_curve(UNSTRETCHED, grid, n_roots=2, m=1, n_layers=wall).omega)
-    exact = (1j * elastic**2 * eta_v + np.sqrt(4 * elastic**2 - elastic**4 * eta_v**2)) / 2
+    exact = _kelvin_voigt(elastic, eta_v)
     np.testing.assert_allclose(curve.omega, exact, rtol=1e-10)
     np.testing.assert_allclose(curve.quality_factor,
                                np.real(exact) / (2 * np.imag(exact)), rtol=1e-9)
+
+
+def _kelvin_voigt(elastic, eta_v):
+    """The damped roots Ω of Ω² = Ω_e²(1 + iΩη_v) with Re Ω > 0 (decaying: Im Ω > 0)."""
+    return (1j * elastic**2 * eta_v + np.sqrt(4 * elastic**2 - elastic**4 * eta_v**2)) / 2
+
+
+def test_default_complex_curves_meet_the_promised_accuracy():
+    """The default discretisation of a complex curve starts below the rule and is checked
+    (complex_curves._checked): the Kelvin–Voigt curve of the unstretched tube (m = 1) is the exact
+    relation with Ω_e of the elastic curve on a fine laminate (N = 64) to 1e-8, and the hysteretic
+    wavenumber curve equals the same curve continued on N = 64 to 1e-8 (relative to max(|α̂|, 1))."""
+    eta_v = 0.05
+    grid = np.linspace(0.3, 3.0, 30)
+    fine = Layers(64, "magnus6", True)
+    curve = jd.complex_dispersion_curve(UNSTRETCHED.replace(damping=jd.KelvinVoigt(eta_v)), grid,
+                                        n_roots=2, m=1)
+    assert np.all(np.asarray(curve.status) == jd.Status.CONVERGED)
+    elastic = np.asarray(jd.dispersion_curve(UNSTRETCHED, grid, n_roots=2, m=1, n_layers=fine).omega)
+    np.testing.assert_allclose(curve.omega, _kelvin_voigt(elastic, eta_v), rtol=1e-8)
+    tube = UNSTRETCHED.replace(damping=jd.Hysteretic(0.05))
+    omegas = np.linspace(0.5, 2.0, 21)
+    waves = jd.wavenumber_curve(tube, omegas, n_roots=3)
+    reference = jd.wavenumber_curve(tube, omegas, n_roots=3, n_layers=fine)
+    assert np.all(np.asarray(waves.status) == jd.Status.CONVERGED)
+    scale = np.maximum(np.abs(np.asarray(reference.alpha)), 1.0)
+    assert np.max(np.abs(np.asarray(waves.alpha) - np.asarray(reference.alpha)) / scale) < 1e-8
+
+
+def test_a_complex_curve_short_at_its_start_is_refined(monkeypatch):
+    """η = 0.6, V̂ = 0.1, m = 2, four roots with Kelvin–Voigt damping: the checked start (N = 8)
+    leaves the roots more than 1e-8 off, so the check continues the curve again on a finer wall,
+    whose roots are within 1e-8 of N = 48's."""
+    from jaxdea.solve import complex_curves
+
+    walls = []
+    continued = complex_curves._curves
+
+    def spy(problem, wall, *args, **kwargs):
+        walls.append(int(wall.radii.shape[0]))
+        return continued(problem, wall, *args, **kwargs)
+
+    monkeypatch.setattr(complex_curves, "_curves", spy)
+    tube = jd.Tube(eta=0.6, voltage=0.1, damping=jd.KelvinVoigt(0.02))
+    grid = np.linspace(0.5, 1.5, 20)
+    curve = jd.complex_dispersion_curve(tube, grid, n_roots=4, m=2)
+    assert len(walls) >= 2 and walls[1] > walls[0], walls
+    coarse = jd.complex_dispersion_curve(tube, grid, n_roots=4, m=2,
+                                         n_layers=Layers(walls[0], "magnus6", True))
+    fine = jd.complex_dispersion_curve(tube, grid, n_roots=4, m=2,
+                                       n_layers=Layers(48, "magnus6", True))
+    assert np.all(np.asarray(curve.status) == jd.Status.CONVERGED)
+    error = np.abs(np.asarray(curve.omega) - np.asarray(fine.omega)) / np.abs(fine.omega)
+    assert np.max(error) < 1e-8
+    assert np.max(np.abs(np.asarray(coarse.omega) - np.asarray(fine.omega))
+                  / np.abs(fine.omega)) > 1e-8  # the start alone was short
 
 
 @pytest.mark.parametrize("grid, match", [

@@ -22,6 +22,19 @@ MAX_HALVINGS halvings in a row the branch ends there: NaN and status MAX_ITER fr
 That happens where a branch cannot be continued, e.g. at a turning point of a lossless tube, where
 two real waves meet and go on as a complex pair: :func:`jaxdea.wavenumbers` past that point gives
 the pair.
+
+The first point's roots are polished on the curve's own wall. The predictor's tangent comes from
+the same evaluation as the corrector's last Newton step (both log-derivatives of one evaluation of
+the pieces), so a sub-step costs its Newton steps alone: about three evaluations per grid interval.
+
+Discretisation. Without ``n_layers`` and ``scheme``, a curve starts from the checked count of
+:func:`jaxdea.physics.transfer.auto_layer_count` (below the rule where it asks for its least
+count, 16, or m > 0) and is checked as the elastic default curve is
+(:func:`jaxdea.solve.curves._checked_curve`): a Newton step of each root on the companion wall at 9
+of the grid's points estimates its error; where it exceeds 1e-8 (relative to |Ω|, or to
+max(|α̂|, 1) for a wavenumber) the curve is continued again on the finer N it asks for, and a branch
+still short is INACCURATE. The unstretched tube's Kelvin–Voigt curve of 200 α̂ and 4 roots
+(benchmarks/complex_curves.py) runs on N = 6 instead of 16, ≤ 1.2e-9 off the exact relation.
 """
 
 import functools
@@ -37,8 +50,10 @@ from ..params import Fluid, Tube, as_float, canonical, validate_alpha, with_oute
 from ..physics import characteristic
 from ..physics.characteristic import Unknown
 from ..physics.problem import NO_ALPHA, describe
-from ..physics.transfer import discretized, laminate
+from ..physics.transfer import AUTO_SCHEME, discretized, laminate
 from .complex_frequencies import complex_frequencies, quality_factor
+from .curves import CHECKED_POINTS
+from .roots import VERIFY_ROUNDS, Roots, _shortfall, companion, refined_layers
 from .wavenumbers import default_alpha_max, validate_search, wavenumbers
 
 CORRECTOR_STEPS = 30
@@ -49,6 +64,9 @@ MAX_HALVINGS = 10
 """Halvings of a sub-step in a row before a branch ends."""
 STEP_RTOL = 1e-11
 """Relative Newton step at which the corrector has converged."""
+FIRST_RTOL = 1e-5
+"""Largest relative move of the first point's root when it is polished on the curve's wall (the
+search's wall may have another N: the two differ by the discretisation error, ≤ 1e-8)."""
 OFFSET = 1e-6
 """The predictor's slopes are taken at x + OFFSET·max(1, |x|): at a root that rounds to F = 0 exactly
 both log-derivatives are infinite and their ratio NaN (met on a hysteretic tube's curve)."""
@@ -133,8 +151,10 @@ def _tangent_off_the_root(pieces_of, x, p):
     return -slope_p / slope_x
 
 
-def _continue(pieces_of, grid, x0):
-    """One branch along the grid from its root x0 at grid[0]: (x at each grid point, status).
+def _continue(pieces_of, grid, start):
+    """One branch along the grid from its root ``start`` at grid[0] (polished on this wall by the
+    corrector: NO_ROOT where that fails or moves it by more than FIRST_RTOL): (x at each grid
+    point, status).
 
     The predictor's dx/dp = −(∂ ln F/∂p)/(∂ ln F/∂x) takes both log-derivatives from the same
     pieces: at a root F is rounding noise, and only their ratio within one evaluation is exact
@@ -176,14 +196,63 @@ def _continue(pieces_of, grid, x0):
         x_end = jnp.where(alive, x_end, jnp.nan)
         return (x_end, tangent, p_next, back, alive), (x_end, alive)
 
-    alive = jnp.isfinite(jnp.abs(x0))
-    tangent = _tangent_off_the_root(pieces_of, x0, grid[0])
+    # the first point's root comes from a search on its own wall: polished on this one
+    x0, tangent, converged = _corrector(pieces_of, start, grid[0])
+    alive = converged & (jnp.abs(x0 - start) <= FIRST_RTOL * jnp.maximum(1.0, jnp.abs(start)))
+    x0 = jnp.where(alive, x0, jnp.nan)
+    tangent = jnp.where(jnp.isfinite(jnp.abs(tangent)), tangent,
+                        _tangent_off_the_root(pieces_of, x0, grid[0]))
     back = (x0, grid[0] - (grid[1] - grid[0]))  # a secant is never needed before a corrector ran
     _, (xs, ok) = jax.lax.scan(advance, (x0, tangent, grid[0], back, alive), grid[1:])
     xs = jnp.concatenate([x0[None], xs])
     ok = jnp.concatenate([alive[None], ok])
     status = jnp.where(ok, Status.CONVERGED, jnp.where(alive, Status.MAX_ITER, Status.NO_ROOT))
     return xs, status.astype(jnp.int32)
+
+
+@functools.partial(jax.jit, static_argnames=("problem", "unknown"))
+def _newton_steps(problem, wall, fluid, m, grid, xs, unknown):
+    """Newton's step 1/(∂ ln F/∂x) on ``wall`` at every x of xs (P, n), row i at grid[i] (x = α̂
+    itself for the unknown α̂): to first order the distance from x to that wall's root."""
+    def step(x, p):
+        x = jnp.where(jnp.isfinite(x), x, 1.0)
+        return 1.0 / characteristic.value_and_log_slope(problem.family, wall, x, p, fluid,
+                                                        problem.order, m, unknown)[1]
+
+    return jax.vmap(lambda row, p: jax.vmap(lambda x: step(x, p))(row))(xs, grid)
+
+
+def _checked(problem, tube, layers, fluid, m, grid, starts, unknown, checked):
+    """(x (K, n), status): every branch continued (:func:`_curves`) on the wall ``layers``; where
+    ``checked`` (the default discretisation, started at :func:`jaxdea.physics.transfer.laminate`'s
+    checked count), checked and refined like the elastic default curve
+    (:func:`jaxdea.solve.curves._checked_curve`): at CHECKED_POINTS of the grid one Newton step
+    per root on the :func:`jaxdea.solve.roots.companion` wall estimates its error
+    (:func:`jaxdea.solve.roots._shortfall`, relative to |Ω|, or to max(|α̂|, 1) for a wavenumber,
+    which may pass through 0 at a cut-on); where some exceed 1e-8 the curve is continued again on
+    the finer N they ask for (:func:`jaxdea.solve.roots.refined_layers`), at most VERIFY_ROUNDS
+    times; a branch still short at a checked point is INACCURATE where it converged."""
+    m = as_float(float(m))
+    grid, starts = jnp.asarray(grid), jnp.asarray(starts, jnp.complex128)
+    pick = np.unique(np.round(np.linspace(0, grid.shape[0] - 1, CHECKED_POINTS)).astype(int))
+    for round_ in range(VERIFY_ROUNDS + 1):
+        x, status = _curves(problem, discretized(tube, n_layers=layers), fluid, m, grid, starts,
+                            unknown)
+        if not checked:
+            return x, status
+        sampled = np.asarray(x)[pick]
+        steps = np.asarray(_newton_steps(problem, discretized(tube, n_layers=companion(layers)),
+                                         fluid, m, grid[pick], jnp.asarray(sampled), unknown))
+        scale = sampled if unknown is not Unknown.ALPHA else np.where(
+            np.abs(sampled) >= 1.0, sampled, 1.0)
+        ratio = _shortfall(Roots(scale, np.asarray(status)[pick]), steps, layers)
+        finer = refined_layers(layers, ratio) if round_ < VERIFY_ROUNDS else None
+        if finer is None:
+            break
+        layers = finer
+    short = np.any(ratio > 1.0, axis=0)[None, :]
+    return x, jnp.where(short & (status == Status.CONVERGED), Status.INACCURATE,
+                        status).astype(jnp.int32)
 
 
 @functools.partial(jax.jit, static_argnames=("problem", "unknown"))
@@ -232,8 +301,9 @@ def wavenumber_curve(tube: Tube, omegas, fluid: Fluid | None = None, n_roots: in
 
     Args:
         tube, fluid, outer, n_roots, m, torsional, n_layers, scheme, alpha_max: as for
-            :func:`jaxdea.wavenumbers` (the discretisation is resolved once, for the grid's largest
-            Ω).
+            :func:`jaxdea.wavenumbers`. The default discretisation is resolved for the largest
+            |α̂| expected (the first roots, the default α_max at the grid's largest Ω), started
+            below the rule and checked (module docstring).
         omegas: the real Ω grid, 1-D, > 0, strictly monotone.
 
     Returns:
@@ -256,13 +326,14 @@ def wavenumber_curve(tube: Tube, omegas, fluid: Fluid | None = None, n_roots: in
                         alpha_max)
     problem = describe(tube, NO_ALPHA, fluid, n_layers, scheme, m, torsional, damped=True)
     tube, fluid = canonical(tube, fluid)
-    top = float(np.max(grid))
-    reach = default_alpha_max(problem, tube, top, fluid) if alpha_max is None else float(alpha_max)
+    reach = (default_alpha_max(problem, tube, float(np.max(grid)), fluid) if alpha_max is None
+             else float(alpha_max))
     finite = np.abs(np.asarray(start.alpha))[np.isfinite(np.abs(np.asarray(start.alpha)))]
-    reach = max([reach, *(finite * top / float(grid[0]))])
-    wall = discretized(tube, n_layers=laminate(n_layers, scheme, tube, reach, m=int(m)))
-    alpha, status = _curves(problem, wall, fluid, as_float(float(m)), jnp.asarray(grid),
-                            jnp.asarray(start.alpha, jnp.complex128), Unknown.ALPHA)
+    reach = max([reach, *finite])  # the check refines where the branches reach farther
+    checked = n_layers is None and scheme in (None, AUTO_SCHEME)
+    layers = laminate(n_layers, scheme, tube, reach, n_roots, int(m), checked=checked)
+    alpha, status = _checked(problem, tube, layers, fluid, m, grid, start.alpha, Unknown.ALPHA,
+                             checked)
     return WavenumberCurve(jnp.asarray(grid), alpha, jnp.abs(jnp.imag(alpha)), status,
                            start.certificate)
 
@@ -279,8 +350,8 @@ def complex_dispersion_curve(tube: Tube, alphas, fluid: Fluid | None = None, n_r
 
     Args:
         tube, fluid, outer, n_roots, m, torsional, n_layers, scheme, omega_max: as for
-            :func:`jaxdea.complex_frequencies` (the discretisation is resolved once, for the grid's
-            largest α̂).
+            :func:`jaxdea.complex_frequencies`. The default discretisation is resolved for the
+            grid's largest α̂, started below the rule and checked (module docstring).
         alphas: the real α̂ grid, 1-D, > 0, strictly monotone.
 
     Returns:
@@ -305,8 +376,9 @@ def complex_dispersion_curve(tube: Tube, alphas, fluid: Fluid | None = None, n_r
                                 scheme, torsional)
     problem = describe(tube, float(grid[0]), fluid, n_layers, scheme, m, torsional, damped=True)
     tube, fluid = canonical(tube, fluid)
-    wall = discretized(tube, n_layers=laminate(n_layers, scheme, tube, float(np.max(grid)),
-                                               n_roots, int(m)))
-    omega, status = _curves(problem, wall, fluid, as_float(float(m)), jnp.asarray(grid),
-                            jnp.asarray(start.omega, jnp.complex128), Unknown.OMEGA)
+    checked = n_layers is None and scheme in (None, AUTO_SCHEME)
+    layers = laminate(n_layers, scheme, tube, float(np.max(grid)), n_roots, int(m),
+                      checked=checked)
+    omega, status = _checked(problem, tube, layers, fluid, m, grid, start.omega, Unknown.OMEGA,
+                             checked)
     return ComplexCurve(jnp.asarray(grid), omega, quality_factor(omega), status, start.certificate)
