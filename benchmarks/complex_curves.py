@@ -27,7 +27,6 @@ import statistics
 import time
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 jax.config.update("jax_enable_x64", True)
@@ -35,19 +34,22 @@ jax.config.update("jax_enable_x64", True)
 import jaxdea as jd  # noqa: E402
 from jaxdea.physics.characteristic import Unknown  # noqa: E402
 from jaxdea.physics.problem import NO_ALPHA, describe  # noqa: E402
-from jaxdea.physics.transfer import discretize, laminate  # noqa: E402
+from jaxdea.physics.transfer import laminate  # noqa: E402
 from jaxdea.solve import complex_curves  # noqa: E402
+from jaxdea.solve.wavenumbers import default_alpha_max  # noqa: E402
 
 jd.configure()
 
 
 def _continuation(tube, grid, starts, unknown, reach, n_roots):
-    """The continuation of complex_curves alone, from given roots (its compiled program)."""
+    """The continuation of complex_curves alone, from given roots: its checked default
+    discretisation (started where the library starts it, refined where its check asks) without
+    the first point's search."""
     problem = describe(tube, NO_ALPHA if unknown is Unknown.ALPHA else float(grid[0]), None, None, None,
                        0, False, damped=True)
-    wall = discretize(tube, laminate(None, None, tube, reach, n_roots, 0))
-    return lambda: jax.block_until_ready(complex_curves._curves(
-        problem, wall, None, jnp.asarray(0.0), jnp.asarray(grid), jnp.asarray(starts), unknown))
+    layers = laminate(None, None, tube, reach, n_roots, 0, checked=True)
+    return lambda: jax.block_until_ready(complex_curves._checked(
+        problem, tube, layers, None, 0, np.asarray(grid), starts, unknown, True))
 
 
 def main() -> None:
@@ -62,7 +64,9 @@ def main() -> None:
     omegas = np.linspace(0.5, 3.0, args.points)
     first_alpha = jd.wavenumbers(hysteretic, float(omegas[0]), n_roots=4).alpha
     first_omega = jd.complex_frequencies(kelvin, float(alphas[0]), n_roots=4).omega
-    reach = float(np.max(np.abs(np.asarray(first_alpha)))) * omegas[-1] / omegas[0]
+    problem = describe(hysteretic, NO_ALPHA, None, None, None, 0, False, damped=True)
+    reach = max(default_alpha_max(problem, hysteretic, float(omegas[-1]), None),
+                float(np.max(np.abs(np.asarray(first_alpha)))))  # as wavenumber_curve
     block = jax.block_until_ready
     calls = {
         "dispersion_curve (elastic, reference)":

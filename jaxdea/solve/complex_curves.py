@@ -37,14 +37,13 @@ still short is INACCURATE. The unstretched tube's Kelvin–Voigt curve of 200 α
 (benchmarks/complex_curves.py) runs on N = 6 instead of 16, ≤ 1.2e-9 off the exact relation.
 """
 
-import functools
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..compiled import serializable
+from ..compiled import jit, serializable
 from ..numerics.scalar import Status
 from ..params import Fluid, Tube, as_float, canonical, validate_alpha, with_outer
 from ..physics import characteristic
@@ -210,7 +209,7 @@ def _continue(pieces_of, grid, start):
     return xs, status.astype(jnp.int32)
 
 
-@functools.partial(jax.jit, static_argnames=("problem", "unknown"))
+@jit(static_argnames=("problem", "unknown"))
 def _newton_steps(problem, wall, fluid, m, grid, xs, unknown):
     """Newton's step 1/(∂ ln F/∂x) on ``wall`` at every x of xs (P, n), row i at grid[i] (x = α̂
     itself for the unknown α̂): to first order the distance from x to that wall's root."""
@@ -255,7 +254,7 @@ def _checked(problem, tube, layers, fluid, m, grid, starts, unknown, checked):
                         status).astype(jnp.int32)
 
 
-@functools.partial(jax.jit, static_argnames=("problem", "unknown"))
+@jit(static_argnames=("problem", "unknown"))
 def _curves(problem, wall, fluid, m, grid, starts, unknown):
     """Every branch from ``starts`` along ``grid``: (x (K, n), status (K, n)). Wavenumbers are
     continued in s = α̂² (F is even in α̂: F(α̂) = F(−α̂), so F(√s) is analytic in s) and reported

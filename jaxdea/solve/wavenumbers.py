@@ -26,14 +26,13 @@ surface-wave speed; a soft mode near an instability can be slower and needs a la
 """
 
 import enum
-import functools
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..compiled import serializable
+from ..compiled import jit, serializable
 from ..numerics.scalar import Status
 from ..params import (
     Fluid,
@@ -102,7 +101,7 @@ def _phasor(problem, wall, fixed, fluid, m, unknown):
     return phasor
 
 
-@functools.partial(jax.jit, static_argnames=("problem", "unknown"))
+@jit(static_argnames=("problem", "unknown"))
 def _count(problem, wall, fixed, fluid, m, corner_lo, corner_hi, unknown=Unknown.ALPHA):
     """Zeros of F(x) (x = α̂ at a fixed Ω, or Ω at a fixed α̂) in the rectangle (corner_lo,
     corner_hi): (count, status)."""
@@ -134,7 +133,7 @@ def complex_newton(problem, wall, fixed, fluid, m, x0, unknown=Unknown.ALPHA):
     return x, done & jnp.isfinite(jnp.abs(x)) & (jnp.abs(f) < 1e-8)
 
 
-@functools.partial(jax.jit, static_argnames=("problem", "unknown"))
+@jit(static_argnames=("problem", "unknown"))
 def _newton(problem, wall, fixed, fluid, m, starts, unknown=Unknown.ALPHA):
     """:func:`complex_newton` from every start: (roots, converged)."""
     return jax.vmap(lambda x0: complex_newton(problem, wall, fixed, fluid, m, x0, unknown))(starts)
