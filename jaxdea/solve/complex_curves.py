@@ -12,10 +12,12 @@ advances by sub-steps of the fraction h of the interval:
   log-derivatives of one evaluation of the characteristic contract's pieces (at the first point
   taken a relative 1e-6 off the root: at the root F is rounding noise, or exactly 0), x'' the
   difference of the tangents at the last two accepted points over their distance (third-order
-  accurate: the benchmark's curves take 2.2–2.5 evaluations per grid interval, 3.0–3.1 with the
-  tangent alone);
-* corrector: Newton on F in x at the new p (at most CORRECTOR_STEPS steps); a wavenumber is
-  continued as s = α̂² (F is even in α̂), in which a wave that cuts on through α̂ = 0 is smooth;
+  accurate);
+* corrector: Newton on F in x at the new p (at most CORRECTOR_STEPS steps), stopped at a step
+  ≤ STEP_RTOL|x| or where the error a step leaves, K δ² with the branch's measured contraction K,
+  is below a hundredth of that (:func:`_corrector`; the roots move by ≤ 1e-13 relative against
+  full convergence, measured); a wavenumber is continued as s = α̂² (F is even in α̂), in which a
+  wave that cuts on through α̂ = 0 is smooth;
 * acceptance: Newton converged and its correction is at most JUMP × the predicted move (the
   predictor is accurate to higher order, so a larger correction means the corrector fell onto another
   branch) plus a rounding allowance.
@@ -28,7 +30,10 @@ the pair.
 
 The first point's roots are polished on the curve's own wall. The predictor's tangent comes from
 the same evaluation as the corrector's last Newton step (both log-derivatives of one evaluation of
-the pieces), so a sub-step costs its Newton steps alone.
+the pieces), so a sub-step costs its Newton steps alone. The benchmark's curves
+(benchmarks/complex_curves.py) take 1.6 and 2.0 evaluations per grid interval and branch (3.0 and
+3.1 with the tangent predictor and full convergence, 5.0 and 5.2 with two evaluations for the
+tangent).
 
 Discretisation. Without ``n_layers`` and ``scheme``, a curve starts from the checked count of
 :func:`jaxdea.physics.transfer.auto_layer_count` (below the rule where it asks for its least
@@ -69,6 +74,11 @@ STEP_RTOL = 1e-11
 FIRST_RTOL = 1e-5
 """Largest relative move of the first point's root when it is polished on the curve's wall (the
 search's wall may have another N: the two differ by the discretisation error, ≤ 1e-8)."""
+EARLY_SHARE = 1e-2
+"""A corrector stops after a step whose predicted remaining error K δ² is this share of STEP_RTOL
+(:func:`_corrector`)."""
+NOISE = 1e-13
+"""Steps below this relative size are rounding noise: no contraction is measured from them."""
 OFFSET = 1e-6
 """The predictor's slopes are taken at x + OFFSET·max(1, |x|): at a root that rounds to F = 0 exactly
 both log-derivatives are infinite and their ratio NaN (met on a hysteretic tube's curve)."""
@@ -124,27 +134,39 @@ def _log_slopes(pieces_of, x, p):
     return slopes[0], slopes[1]
 
 
-def _corrector(pieces_of, x0, p):
-    """(x, dx/dp, converged): Newton on F(x; p) from x0, x ← x − 1/(∂ ln F/∂x), and the tangent
-    dx/dp = −(∂ ln F/∂p)/(∂ ln F/∂x) from the same evaluation as the last step (taken within
-    that step, ≤ STEP_RTOL|x|, of the root: the next predictor's, at no further evaluation)."""
+def _corrector(pieces_of, x0, p, contraction=jnp.inf):
+    """(x, dx/dp, converged, contraction): Newton on F(x; p) from x0, x ← x − 1/(∂ ln F/∂x), and
+    the tangent dx/dp = −(∂ ln F/∂p)/(∂ ln F/∂x) from the same evaluation as the last step (taken
+    within that step of the root: the next predictor's, at no further evaluation).
+
+    Converged where a step δ is ≤ STEP_RTOL|x|, or where the error it leaves, K δ² by Newton's
+    quadratic convergence, is ≤ EARLY_SHARE · STEP_RTOL|x| for the branch's ``contraction`` K
+    (|δ_k|/|δ_{k−1}|² of its last two successive steps, measured anew whenever a corrector takes
+    two; ∞ until then): one evaluation instead of two when the predictor was close."""
     def step(state):
-        k, x, _, _, _ = state
+        k, x, _, _, _, last, contraction = state
         slope_x, slope_p = _log_slopes(pieces_of, x, p)
         dx = 1.0 / slope_x
         finite = jnp.isfinite(jnp.abs(dx))
         x_new = jnp.where(finite, x - dx, x)
-        return (k + 1, x_new, -slope_p / slope_x, finite,
-                finite & (jnp.abs(dx) <= STEP_RTOL * jnp.abs(x_new)))
+        size = jnp.abs(dx)
+        measured = (k > 0) & (last > NOISE * jnp.abs(x_new))
+        contraction = jnp.where(measured & finite, size / jnp.where(measured, last, 1.0) ** 2,
+                                contraction)
+        small = (size <= STEP_RTOL * jnp.abs(x_new)) | (
+            contraction * size * size <= EARLY_SHARE * STEP_RTOL * jnp.abs(x_new))
+        return (k + 1, x_new, -slope_p / slope_x, finite, finite & small, size, contraction)
 
     def going(state):
-        k, _, _, finite, small = state
+        k, _, _, finite, small, _, _ = state
         return (k < CORRECTOR_STEPS) & finite & ~small
 
     nan = jnp.full_like(x0, jnp.nan)
-    _, x, tangent, _, small = jax.lax.while_loop(
-        going, step, (0, x0, nan, jnp.asarray(True), jnp.asarray(False)))
-    return x, tangent, small & jnp.isfinite(jnp.abs(x))
+    zero = jnp.zeros(jnp.shape(x0), jnp.float64)
+    _, x, tangent, _, small, _, contraction = jax.lax.while_loop(
+        going, step, (0, x0, nan, jnp.asarray(True), jnp.asarray(False), zero,
+                      jnp.asarray(contraction, jnp.float64)))
+    return x, tangent, small & jnp.isfinite(jnp.abs(x)), contraction
 
 
 def _tangent_off_the_root(pieces_of, x, p):
@@ -165,14 +187,14 @@ def _continue(pieces_of, grid, start):
     (:func:`_corrector`), and where that ratio is not finite (F exactly 0 there) the secant
     through the last two accepted points stands in."""
     def advance(carry, p_next):
-        x, tangent, p, back, alive = carry
+        x, tangent, p, back, contraction, alive = carry
 
         def cond(state):
             t = state[0]
             return (t < 1.0) & (state[-1] <= MAX_HALVINGS)
 
         def body(state):
-            t, h, x, tangent, back, halvings = state
+            t, h, x, tangent, back, contraction, halvings = state
             h = jnp.minimum(h, 1.0 - t)
             here, there = p + t * (p_next - p), p + (t + h) * (p_next - p)
             span = (here - back[1]).astype(x.dtype)
@@ -185,7 +207,8 @@ def _continue(pieces_of, grid, start):
             step = (there - here).astype(x.dtype)
             move = slope * step + 0.5 * curvature * step * step
             predicted = x + move
-            corrected, new_tangent, converged = _corrector(pieces_of, predicted, there)
+            corrected, new_tangent, converged, measured = _corrector(pieces_of, predicted, there,
+                                                                     contraction)
             allowance = 1e-9 * jnp.maximum(1.0, jnp.abs(x))
             good = (converged & jnp.isfinite(jnp.abs(move))
                     & (jnp.abs(corrected - predicted) <= JUMP * jnp.abs(move) + allowance))
@@ -194,25 +217,28 @@ def _continue(pieces_of, grid, start):
             t = jnp.where(good, jnp.where(h >= 1.0 - t, 1.0, t + h), t)
             x = jnp.where(good, corrected, x)
             tangent = jnp.where(good, new_tangent, tangent)
+            contraction = jnp.where(converged, measured, contraction)
             h = jnp.where(good, 2.0 * h, 0.5 * h)
             halvings = jnp.where(good, 0, halvings + 1)
-            return t, h, x, tangent, back, halvings
+            return t, h, x, tangent, back, contraction, halvings
 
-        start = (jnp.where(alive, 0.0, 1.0), jnp.asarray(1.0), x, tangent, back, jnp.asarray(0))
-        t, _, x_end, tangent, back, _ = jax.lax.while_loop(cond, body, start)
+        start = (jnp.where(alive, 0.0, 1.0), jnp.asarray(1.0), x, tangent, back, contraction,
+                 jnp.asarray(0))
+        t, _, x_end, tangent, back, contraction, _ = jax.lax.while_loop(cond, body, start)
         alive = alive & (t >= 1.0)
         x_end = jnp.where(alive, x_end, jnp.nan)
-        return (x_end, tangent, p_next, back, alive), (x_end, alive)
+        return (x_end, tangent, p_next, back, contraction, alive), (x_end, alive)
 
     # the first point's root comes from a search on its own wall: polished on this one
-    x0, tangent, converged = _corrector(pieces_of, start, grid[0])
+    x0, tangent, converged, contraction = _corrector(pieces_of, start, grid[0])
     alive = converged & (jnp.abs(x0 - start) <= FIRST_RTOL * jnp.maximum(1.0, jnp.abs(start)))
     x0 = jnp.where(alive, x0, jnp.nan)
     tangent = jnp.where(jnp.isfinite(jnp.abs(tangent)), tangent,
                         _tangent_off_the_root(pieces_of, x0, grid[0]))
     # a secant is never needed before a corrector ran; no curvature at the first step
     back = (x0, grid[0] - (grid[1] - grid[0]), jnp.full_like(x0, jnp.nan))
-    _, (xs, ok) = jax.lax.scan(advance, (x0, tangent, grid[0], back, alive), grid[1:])
+    _, (xs, ok) = jax.lax.scan(advance, (x0, tangent, grid[0], back, contraction, alive),
+                               grid[1:])
     xs = jnp.concatenate([x0[None], xs])
     ok = jnp.concatenate([alive[None], ok])
     status = jnp.where(ok, Status.CONVERGED, jnp.where(alive, Status.MAX_ITER, Status.NO_ROOT))
