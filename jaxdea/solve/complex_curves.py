@@ -31,9 +31,9 @@ the pair.
 The first point's roots are polished on the curve's own wall. The predictor's tangent comes from
 the same evaluation as the corrector's last Newton step (both log-derivatives of one evaluation of
 the pieces), so a sub-step costs its Newton steps alone. The benchmark's curves
-(benchmarks/complex_curves.py) take 1.6 and 2.0 evaluations per grid interval and branch (3.0 and
-3.1 with the tangent predictor and full convergence, 5.0 and 5.2 with two evaluations for the
-tangent).
+(benchmarks/complex_curves.py) take 1.6 and 2.0 evaluations per grid interval, their branches
+evaluated together (3.0 and 3.1 with the tangent predictor and full convergence, 5.0 and 5.2 with
+two evaluations for the tangent).
 
 Discretisation. Without ``n_layers`` and ``scheme``, a curve starts from the checked count of
 :func:`jaxdea.physics.transfer.auto_layer_count` (below the rule where it asks for its least
