@@ -80,8 +80,9 @@ EARLY_SHARE = 1e-2
 NOISE = 1e-13
 """Steps below this relative size are rounding noise: no contraction is measured from them."""
 OFFSET = 1e-6
-"""The predictor's slopes are taken at x + OFFSET·max(1, |x|): at a root that rounds to F = 0 exactly
-both log-derivatives are infinite and their ratio NaN (met on a hysteretic tube's curve)."""
+"""Where the first point's polish gives no finite tangent, its slopes are taken at
+x + OFFSET·max(1, |x|): at a root that rounds to F = 0 exactly both log-derivatives are infinite
+and their ratio NaN (met on a hysteretic tube's curve)."""
 
 
 @serializable
@@ -182,10 +183,11 @@ def _continue(pieces_of, grid, start):
 
     The predictor's dx/dp = −(∂ ln F/∂p)/(∂ ln F/∂x) takes both log-derivatives from the same
     pieces: at a root F is rounding noise, and only their ratio within one evaluation is exact
-    (two evaluations gave dα̂/dΩ = −0.57 + 0.19i against 0.60 − 0.02i). At the first point they
-    are taken OFFSET off the root; after it they come from the corrector's last Newton step
-    (:func:`_corrector`), and where that ratio is not finite (F exactly 0 there) the secant
-    through the last two accepted points stands in."""
+    (two evaluations gave dα̂/dΩ = −0.57 + 0.19i against 0.60 − 0.02i). They come from the
+    corrector's last Newton step (:func:`_corrector`); where that ratio is not finite (F exactly 0
+    there) the secant through the last two accepted points stands in, and at the first point the
+    ratio taken OFFSET off the root (one evaluation per branch, formed whether needed or not:
+    the branches run as one batch)."""
     def advance(carry, p_next):
         x, tangent, p, back, contraction, alive = carry
 

@@ -263,7 +263,7 @@ def _energy_velocity(tube, alpha, omega, fluid, n_points, n_layers, order, real=
     basis, exponentials, out = characteristic.pieces(family, wall, alpha, omega, fluid, order, m,
                                                      Unknown.ALPHA)
     f, log_slope = characteristic.value_and_log_slope(family, wall, alpha, omega, fluid, order, m,
-                                                      Unknown.ALPHA)
+                                                      Unknown.ALPHA, "taylor")  # any mode
     step = jnp.abs(1.0 / log_slope) / jnp.abs(alpha)  # Newton's relative step f/(f' α̂)
     # f exactly 0 (a root to the last bit) leaves 0/0 in the log-slope: a root
     distance = jnp.where(jnp.isfinite(step), step, jnp.where(jnp.abs(f) < 1e-13, 0.0, jnp.inf))
