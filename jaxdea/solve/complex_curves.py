@@ -60,7 +60,7 @@ from ..physics.problem import NO_ALPHA, describe
 from ..physics.transfer import AUTO_SCHEME, discretized, laminate
 from .complex_frequencies import complex_frequencies, quality_factor
 from .curves import CHECKED_POINTS
-from .roots import VERIFY_ROUNDS, Roots, _shortfall, companion, refined_layers
+from .roots import Roots, _shortfall, companion, refined
 from .wavenumbers import default_alpha_max, validate_search, wavenumbers
 
 CORRECTOR_STEPS = 30
@@ -272,21 +272,22 @@ def _checked(problem, tube, layers, fluid, m, grid, starts, unknown, checked):
     m = as_float(float(m))
     grid, starts = jnp.asarray(grid), jnp.asarray(starts, jnp.complex128)
     pick = np.unique(np.round(np.linspace(0, grid.shape[0] - 1, CHECKED_POINTS)).astype(int))
-    for round_ in range(VERIFY_ROUNDS + 1):
-        x, status = _curves(problem, discretized(tube, n_layers=layers), fluid, m, grid, starts,
-                            unknown)
-        if not checked:
-            return x, status
-        sampled = np.asarray(x)[pick]
+
+    def solve(layers):
+        return _curves(problem, discretized(tube, n_layers=layers), fluid, m, grid, starts, unknown)
+
+    if not checked:
+        return solve(layers)
+
+    def ratio_of(curve, layers):
+        sampled = np.asarray(curve[0])[pick]
         steps = np.asarray(_newton_steps(problem, discretized(tube, n_layers=companion(layers)),
                                          fluid, m, grid[pick], jnp.asarray(sampled), unknown))
         scale = sampled if unknown is not Unknown.ALPHA else np.where(
             np.abs(sampled) >= 1.0, sampled, 1.0)
-        ratio = _shortfall(Roots(scale, np.asarray(status)[pick]), steps, layers)
-        finer = refined_layers(layers, ratio) if round_ < VERIFY_ROUNDS else None
-        if finer is None:
-            break
-        layers = finer
+        return _shortfall(Roots(scale, np.asarray(curve[1])[pick]), steps, layers)
+
+    _, (x, status), ratio = refined(solve, ratio_of, layers)
     short = np.any(ratio > 1.0, axis=0)[None, :]
     return x, jnp.where(short & (status == Status.CONVERGED), Status.INACCURATE,
                         status).astype(jnp.int32)

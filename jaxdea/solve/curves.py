@@ -130,7 +130,6 @@ from ..physics.state_matrix import LONGITUDINAL, ORDER_M
 from ..physics.transfer import AUTO_SCHEME, checked_laminate, discretize, is_graded, voltage_expansion
 from .roots import (
     BATCH_ENGINES,
-    VERIFY_ROUNDS,
     Roots,
     _concrete,
     _shortfall,
@@ -143,7 +142,7 @@ from .roots import (
     inaccurate_where,
     invalid_where,
     newton_steps,
-    refined_layers,
+    refined,
     scan_roots,
     scan_step,
     scanned_function,
@@ -663,17 +662,15 @@ def _checked_curve(solve, curve, layers, values, order, m, family):
     tube, alpha, fluid = values
     order_args = family.arguments(m)
     pick = np.unique(np.round(np.linspace(0, np.shape(alpha)[0] - 1, CHECKED_POINTS)).astype(int))
-    for round_ in range(VERIFY_ROUNDS + 1):
+
+    def ratio_of(curve, layers):
         # picked in NumPy: JAX's eager gathers cost ≈ 0.7 ms each, a tenth of the curve (measured)
         sampled = Roots(np.asarray(curve.omega)[pick], np.asarray(curve.status)[pick])
         steps = _sampled_steps(tube, np.asarray(alpha)[pick], fluid, sampled.omega,
                                companion(layers), order, **order_args)
-        ratio = _shortfall(sampled, steps, layers)
-        finer = refined_layers(layers, ratio) if round_ < VERIFY_ROUNDS else None
-        if finer is None:
-            break
-        layers = finer
-        curve = solve(layers)
+        return _shortfall(sampled, steps, layers)
+
+    _, curve, ratio = refined(solve, ratio_of, layers, curve)
     short = np.broadcast_to(np.any(ratio > 1.0, axis=0), np.shape(curve.omega))
     return curve, (short if short.any() else None)
 

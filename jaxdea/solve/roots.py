@@ -1036,19 +1036,33 @@ def _verified(layers, tube, alpha, fluid, omega_max, n_roots, order, m, family):
     VERIFY_ROUNDS times; roots still short are INACCURATE (``short``). Where the rule sufficed, the
     roots are those of N."""
     order_args = family.arguments(m)
-    roots, steps = _solve_checked_frequencies(tube, alpha, fluid, omega_max, n_roots, layers, order,
-                                              **order_args)
-    ratio = _shortfall(roots, steps, layers)
+
+    def solve(layers):
+        return _solve_checked_frequencies(tube, alpha, fluid, omega_max, n_roots, layers, order,
+                                          **order_args)
+
+    layers, (roots, _), ratio = refined(solve, lambda found, layers: _shortfall(*found, layers),
+                                        layers)
+    short = ratio > 1.0
+    return layers, roots, (short if short.any() else None)
+
+
+def refined(solve, ratio_of, layers, result=None):
+    """(layers, result, ratio): ``result = solve(layers)`` (given: not solved again) and its
+    estimated error ratios ``ratio_of(result, layers)`` (:func:`_shortfall`), solved again on the
+    finer :func:`refined_layers` while some exceed 1, at most VERIFY_ROUNDS times: the refinement
+    of every checked default discretisation (:func:`_verified`,
+    :func:`jaxdea.solve.curves._checked_curve`, the complex curves)."""
+    result = solve(layers) if result is None else result
+    ratio = ratio_of(result, layers)
     for _ in range(VERIFY_ROUNDS):
         finer = refined_layers(layers, ratio)
         if finer is None:
             break
         layers = finer
-        roots, steps = _solve_checked_frequencies(tube, alpha, fluid, omega_max, n_roots, layers,
-                                                  order, **order_args)
-        ratio = _shortfall(roots, steps, layers)
-    short = ratio > 1.0
-    return layers, roots, (short if short.any() else None)
+        result = solve(layers)
+        ratio = ratio_of(result, layers)
+    return layers, result, ratio
 
 
 def decoupled_choice(tube, family):
