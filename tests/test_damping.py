@@ -12,6 +12,7 @@ import pytest
 from exact_cylinder_m import roots_m
 
 import jaxdea as jd
+from jaxdea.physics import transfer
 
 ETA = 0.85
 REST = dict(voltage=0.0, lambda_i=1.0, lambda_z=1.0, eta=ETA)
@@ -37,6 +38,49 @@ def test_kelvin_voigt_public_values():
     expected = (1j * longitudinal**2 * 0.1 + np.sqrt(4 * longitudinal**2 - longitudinal**4 * 0.01)) / 2
     np.testing.assert_allclose(got, expected, rtol=1e-9)
     np.testing.assert_allclose(res.quality_factor, got.real / (2 * got.imag), rtol=1e-14)
+
+
+def test_kelvin_voigt_roots_beside_the_viscous_singularity():
+    """KV η_v = 0.1, m = 1, α̂ = 1: the shear modulus 1 + iΩη_v vanishes at Ω = i/η_v = 10i, where the
+    roots of the higher modes accumulate (docs/theory/real_tubes.md §5). The searched boxes reach past
+    it, so the search leaves out the corner Re Ω < 5 < Im Ω (Q < 1/2) and must still find the
+    two strongly damped roots above it (Q ≈ 0.24) and certify the count: the five roots equal
+    [iΩ_e²η_v + √(4Ω_e² − Ω_e⁴η_v²)]/2 over every underdamped elastic root Ω_e of the exact
+    cylinder (Ω_eη_v < 2), to 1e-9. Before the corner was left out the contour passed 0.02 from
+    the singularity and the search was not certified."""
+    tube = jd.Tube(**REST, damping=jd.KelvinVoigt(viscosity=0.1))
+    wall = transfer.discretized(tube, n_layers=transfer.laminate(
+        None, None, tube, 1.0, 5, 1))
+    top = 40.0
+    assert 10.0 <= transfer.viscous_singularity(wall, top) <= 10.0 + top / 512
+    elastic = elastic_exact(1, 1.0, 10)
+    elastic = elastic[elastic * 0.1 < 2.0]
+    assert elastic.size == 5 and elastic[-1] > 17.0  # three low modes and two past 10 (overdamped side)
+    exact = (1j * elastic**2 * 0.1 + np.sqrt(4 * elastic**2 - elastic**4 * 0.01)) / 2
+    exact = np.sort_complex(exact)
+    res = jd.complex_frequencies(tube, 1.0, n_roots=5, m=1)
+    assert int(res.certificate) == jd.SearchStatus.CERTIFIED
+    np.testing.assert_allclose(np.asarray(res.omega), exact, rtol=1e-9)
+    assert np.all(np.asarray(res.quality_factor)[3:] < 0.5)
+
+
+def test_an_inflated_kelvin_voigt_tube_is_certified_past_its_singularity():
+    """An inflated, biased Kelvin–Voigt tube whose damped shear divisor vanishes on the imaginary
+    axis between 26.2i and 32.6i (η_v = 0.0185): asking for 5 roots reaches past it. The search had
+    returned nothing (COUNT_FAILED); now it is certified, its first four roots are those of the
+    search for four (whose box stays below the singularity) and each root is a fixed point of
+    complex Newton on F (an independent solve from the root)."""
+    tube = jd.Tube(eta=0.7125, lambda_i=1.169, lambda_z=1.233, voltage=0.01126,
+                   damping=jd.KelvinVoigt(0.0185))
+    four = jd.complex_frequencies(tube, 1.488, n_roots=4)
+    five = jd.complex_frequencies(tube, 1.488, n_roots=5)
+    assert int(four.certificate) == int(five.certificate) == jd.SearchStatus.CERTIFIED
+    assert np.all(np.asarray(five.status) == 0)
+    np.testing.assert_allclose(np.asarray(five.omega)[:4], np.asarray(four.omega), rtol=1e-10)
+    for z in np.asarray(five.omega):
+        again, status = jd.solve_complex_frequency(tube, 1.488, complex(z) * (1 + 1e-3))
+        assert int(status) == 0
+        assert abs(complex(again) - z) <= 1e-9 * abs(z)
 
 
 def test_hysteretic_order_one():

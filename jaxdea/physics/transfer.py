@@ -649,6 +649,50 @@ def damped_wall(wall: Wall, omega) -> Wall:
     return wall._replace(coef=base._replace(**dict(zip(base._fields, head, strict=False))))
 
 
+def shear_divisors(wall: Wall, omega):
+    """(s_z, s_θ) = (c_z − εd², c_θ − εd²) of the wall at the (complex) Ω (:func:`damped_wall`),
+    the divisors of every state matrix (docs/theory/real_tubes.md §2): where one vanishes, M has a
+    pole and F = det(Out A S) an essential singularity."""
+    coef = general_form(damped_wall(wall, omega).coef)
+    ed2 = coef.eps * coef.d * coef.d
+    return coef.c - ed2, coef.shear.c_t - ed2
+
+
+@jit
+def _divisors_on_imaginary_axis(wall: Wall, heights):
+    """(min Re s, max |Im s| / min |s(0)|) over the nodes and both divisors of
+    :func:`shear_divisors` at each Ω = iy of ``heights``."""
+    rest = jnp.min(jnp.abs(jnp.stack(shear_divisors(wall, 0.0))))
+
+    def at(y):
+        s = jnp.stack(shear_divisors(wall, 1j * y))
+        return jnp.min(jnp.real(s)), jnp.max(jnp.abs(jnp.imag(s))) / rest
+
+    return jax.vmap(at)(heights)
+
+
+VISCOUS_SAMPLES = 512
+"""Heights of the imaginary axis at which :func:`viscous_singularity` samples the divisors."""
+
+
+def viscous_singularity(wall: Wall, top: float) -> float:
+    """y_s: the lowest height ≤ ``top`` of the imaginary axis where a damped wall's shear divisor
+    vanishes (:func:`shear_divisors` at Ω = iy_s; within top/VISCOUS_SAMPLES above it), or inf where
+    none does (an elastic wall, hysteretic or fractional laws of order < 1).
+
+    η*(Ω) has Im η* > 0 in Re Ω > 0 for every law (docs/theory/real_tubes.md §4), so s ≠ 0 there;
+    on the imaginary axis η*(iy) is real for Kelvin–Voigt and Prony branches, and s(iy) =
+    s(0) + η*(iy) f turns negative: for Kelvin–Voigt at y_s = s(0)/(η_v f), the point where the
+    roots Ω_k of the higher modes accumulate (the unstretched tube: Ω² = Ω_e²(1 + iΩη_v), Ω → i/η_v
+    as Ω_e → ∞). A contour that passes near it cannot be counted."""
+    if wall.damping is None:
+        return math.inf
+    heights = np.linspace(0.0, float(top), VISCOUS_SAMPLES + 1)[1:]
+    real, imag = (np.asarray(x) for x in _divisors_on_imaginary_axis(wall, jnp.asarray(heights)))
+    hit = np.flatnonzero((real <= 0.0) & (imag <= 1e-9))
+    return float(heights[hit[0]]) if hit.size else math.inf
+
+
 def voltage_expansion(tube: Tube, n_layers) -> tuple[Wall, Wall, Wall]:
     """(W_0, W_1, W_2) with every leaf of :func:`discretize` at voltage V̂ equal to W_0 + V̂ W_1 + V̂² W_2.
 

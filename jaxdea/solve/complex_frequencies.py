@@ -4,13 +4,16 @@ factors (API.md, "Real tubes"; docs/theory/real_tubes.md §4–§5).
 A damped tube (``Tube(damping=...)``) adds η*(Ω)(L + Lᵀ) to the incremental stress on the relaxed
 base state, so the characteristic function F(Ω) = det(Out A(Ω) S) of
 :mod:`jaxdea.physics.characteristic` (unknown ``omega``) is complex. It is analytic in Re Ω > 0
-(entire for Kelvin–Voigt and hysteretic damping; Prony poles and the fractional branch cut lie on
-the imaginary axis). With the time factor e^{iΩt} a decaying mode has Im Ω > 0 and the quality
-factor Q = Re Ω/(2 Im Ω).
+(entire for hysteretic damping; Prony poles, the fractional branch cut and, for Kelvin–Voigt and
+Prony, the essential singularity where the damped shear modulus vanishes lie on the imaginary
+axis: docs/theory/real_tubes.md §5). With the time factor e^{iΩt} a decaying mode has Im Ω > 0
+and the quality factor Q = Re Ω/(2 Im Ω).
 
 Search and certificate: the roots are sought in boxes [ε, Ω_max] × [−δ, Ω_max] of the Ω plane
 (δ = ε = 0.02 min(1, Ω_max): the real roots of an elastic tube lie inside, the imaginary axis, where
-Prony's relaxation roots and poles lie, outside; modes with Q < 1/2 above the box are not sought),
+Prony's relaxation roots and poles lie, outside; modes with Q < 1/2 above the box are not sought,
+nor those of the corner Re Ω < y_s/2 < Im Ω where the wall's damped shear modulus vanishes at iy_s,
+the point where the roots of ever higher modes gather: :func:`_box`),
 each counted by the argument principle and searched by complex Newton on the analytic
 log-derivative (:func:`jaxdea.solve.wavenumbers.search_box`). Without ``omega_max`` the first box
 reaches 1.25 × the highest of the ``n_roots`` elastic frequencies (``damping=None``) and the next
@@ -31,7 +34,7 @@ from ..params import Fluid, Tube, as_float, canonical, guard, validate_alpha, wi
 from ..physics import characteristic
 from ..physics.characteristic import Unknown
 from ..physics.problem import describe
-from ..physics.transfer import discretize, discretized, laminate
+from ..physics.transfer import discretize, discretized, laminate, viscous_singularity
 from .roots import frequencies
 from .wavenumbers import GRID, SearchStatus, complex_newton, search_box, validate_search
 
@@ -40,6 +43,9 @@ EXTENSIONS = 3
 MARGIN = 0.02
 """ε = δ = MARGIN · min(1, Ω_max): the box's distance from the imaginary axis and below the real
 axis."""
+VISCOUS_SHARE = 0.5
+"""κ: a box keeps κy_s from the viscous singularity iy_s of the damped wall (:func:`_box`); the
+corner it leaves out, Re Ω < κy_s < Im Ω, holds only modes with Q < 1/2."""
 
 
 @serializable
@@ -178,20 +184,40 @@ def _seeds(tube: Tube, elastic) -> list:
 
 def _box(problem, wall, alpha, fluid, m, low, high, seeds=()):
     """The roots with low < Re Ω ≤ high and −δ ≤ Im Ω ≤ high (module docstring), and the box's
-    certificate; ``seeds`` are tried first (:func:`jaxdea.solve.wavenumbers.search_box`)."""
+    certificate; ``seeds`` are tried first (:func:`jaxdea.solve.wavenumbers.search_box`).
+
+    Where the damped wall's shear divisor vanishes at iy_s on the imaginary axis inside the box's
+    height (:func:`jaxdea.physics.transfer.viscous_singularity`) and the box reaches left of
+    VISCOUS_SHARE·y_s, the corner {Re Ω < VISCOUS_SHARE·y_s < Im Ω} (Q < 1/2) is left out: the box
+    is searched as two, [ε, high] × [−δ, κy_s] and [κy_s, high] × [κy_s, high], whose contours
+    keep κy_s from the singularity."""
     margin = MARGIN * min(1.0, high)
     left = max(low, margin)
-    lo, hi = complex(left, -margin), complex(high, high)
+    corner = VISCOUS_SHARE * viscous_singularity(wall, high)
+    parts = [(complex(left, -margin), complex(high, min(high, corner)))]
+    if left < corner < high:
+        parts.append((complex(corner, corner), complex(high, high)))
+    found, certificate = [], SearchStatus.CERTIFIED
+    for lo, hi in parts:
+        roots, status = _part(problem, wall, alpha, fluid, m, lo, hi, seeds)
+        found += roots
+        if status != SearchStatus.CERTIFIED:
+            certificate = status
+            break
+    return [z for z in found if z.real > low], certificate
 
+
+def _part(problem, wall, alpha, fluid, m, lo, hi, seeds):
+    """(roots, certificate) of the rectangle lo–hi, from a grid of starts refined in turn."""
     def starts(k):
-        re = np.linspace(left, high, GRID[0] * 2**k + 2)[1:-1]
-        im = np.linspace(0.0, high, GRID[1] * 2**k + 1)
+        re = np.linspace(lo.real, hi.real, GRID[0] * 2**k + 2)[1:-1]
+        im = np.linspace(max(lo.imag, 0.0), hi.imag, GRID[1] * 2**k + 1)
         return (re[:, None] + 1j * im[None, :]).ravel()
 
     found, status = search_box(problem, wall, alpha, fluid, m, lo, hi, starts, Unknown.OMEGA,
                                seeds=[z for z in seeds if lo.real <= z.real <= hi.real
                                       and lo.imag <= z.imag <= hi.imag])
-    return [z for z in found if z.real > low], SearchStatus(status)
+    return found, SearchStatus(status)
 
 
 def solve_complex_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, m: int = 0,
