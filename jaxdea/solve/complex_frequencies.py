@@ -194,9 +194,10 @@ def _box(problem, wall, alpha, fluid, m, low, high, seeds=()):
     margin = MARGIN * min(1.0, high)
     left = max(low, margin)
     corner = VISCOUS_SHARE * viscous_singularity(wall, high)
-    parts = [(complex(left, -margin), complex(high, min(high, corner)))]
+    parts = [(complex(left, -margin), complex(high, high))]
     if left < corner < high:
-        parts.append((complex(corner, corner), complex(high, high)))
+        parts = [(complex(left, -margin), complex(high, corner)),
+                 (complex(corner, corner), complex(high, high))]
     found, certificate = [], SearchStatus.CERTIFIED
     for lo, hi in parts:
         roots, status = _part(problem, wall, alpha, fluid, m, lo, hi, seeds)
