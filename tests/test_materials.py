@@ -256,6 +256,18 @@ def test_bad_materials_are_named(material, message):
         jd.frequencies(tube, jnp.asarray(0.8), n_roots=1)
 
 
+def test_a_material_closed_over_by_a_callers_jit_is_checked_there():
+    """Concrete parameters inside a caller's jit: the check at rest is staged there, so it is
+    evaluated op by op and still names an unnormalised material; a normalised one gives the roots
+    of the call outside jit."""
+    bad = jd.Tube(**LOADED, material=mt.Energy(lambda i1, i2, p: p * (i1 - 3.0), 1.0))
+    with pytest.raises(ValueError, match=r"is 2.0, it must be 1"):
+        jax.jit(lambda a: jd.frequencies(bad, a, n_roots=1))(0.8)
+    good = jd.Tube(**LOADED, material=mt.MooneyRivlin(0.3))
+    inside = jax.jit(lambda a: jd.frequencies(good, a, n_roots=2))(0.8)
+    np.testing.assert_allclose(inside, jd.frequencies(good, 0.8, n_roots=2), rtol=1e-13)
+
+
 def test_gent_gent_locking_is_checked():
     """A GentGent wall past its own locking constant is refused by name, and gives NaN under jit."""
     tube = jd.Tube(lambda_i=2.0, lambda_z=1.0, eta=0.85, material=mt.GentGent(1.0, 0.2))
