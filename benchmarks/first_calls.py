@@ -36,6 +36,9 @@ def _calls():
     liner = jd.Layer(0.2, jd.NeoHookean(), shear_ratio=3.0)
     sandwich = tube.replace(layers=(liner, jd.Layer(0.6, jd.Gent(97.2), active=True), liner))
     curve = jnp.linspace(0.2, 1.2, 200)
+    unstretched = jd.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, eta=0.85)  # as complex_curves.py
+    kelvin = unstretched.replace(damping=jd.KelvinVoigt(0.05))
+    hysteretic = unstretched.replace(damping=jd.Hysteretic(0.05))
     block = lambda x: __import__("jax").block_until_ready(x)  # noqa: E731
     return {
         "characteristic": lambda: jd.characteristic(tube, 1.3, 0.445),
@@ -60,6 +63,12 @@ def _calls():
         "mode_shape_m2": lambda: jd.mode_shape(tube, 0.445, ROOT_M2, m=2),
         "sweep": lambda: jd.sweep(tube, voltage=jnp.linspace(0.0, 0.1, 8), alpha=0.445),
         "design_for_frequency": lambda: jd.design_for_frequency(paper, 0.8, n=1),
+        "complex_frequencies": lambda: jd.complex_frequencies(kelvin, 0.445, n_roots=4),
+        "wavenumbers": lambda: jd.wavenumbers(hysteretic, 1.0, n_roots=4),
+        "complex_dispersion_curve": lambda: jd.complex_dispersion_curve(
+            kelvin, jnp.linspace(0.15, 3.0, 200), n_roots=4),
+        "wavenumber_curve": lambda: jd.wavenumber_curve(hysteretic, jnp.linspace(0.5, 3.0, 200),
+                                                        n_roots=4),
     }, block
 
 
