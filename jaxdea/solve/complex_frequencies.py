@@ -36,7 +36,7 @@ from ..physics.characteristic import Unknown
 from ..physics.problem import describe
 from ..physics.transfer import discretize, discretized, laminate, viscous_singularity
 from .roots import frequencies
-from .wavenumbers import GRID, SearchStatus, complex_newton, search_box, validate_search
+from .wavenumbers import GRID, SearchStatus, complex_newton, inside, search_box, validate_search
 
 EXTENSIONS = 3
 """Boxes added to the right when fewer than ``n_roots`` roots lie below the default Ω_max."""
@@ -44,8 +44,8 @@ MARGIN = 0.02
 """ε = δ = MARGIN · min(1, Ω_max): the box's distance from the imaginary axis and below the real
 axis."""
 VISCOUS_SHARE = 0.5
-"""κ: a box keeps κy_s from the viscous singularity iy_s of the damped wall (:func:`_box`); the
-corner it leaves out, Re Ω < κy_s < Im Ω, holds only modes with Q < 1/2."""
+"""κ: a box's contour keeps κy_s from the viscous singularity iy_s of the damped wall
+(:func:`_box`); the corner it leaves out, Re Ω < κy_s < Im Ω, holds only modes with Q < 1/2."""
 
 
 @serializable
@@ -188,37 +188,23 @@ def _box(problem, wall, alpha, fluid, m, low, high, seeds=()):
 
     Where the damped wall's shear divisor vanishes at iy_s on the imaginary axis inside the box's
     height (:func:`jaxdea.physics.transfer.viscous_singularity`) and the box reaches left of
-    VISCOUS_SHARE·y_s, the corner {Re Ω < VISCOUS_SHARE·y_s < Im Ω} (Q < 1/2) is left out: the box
-    is searched as two, [ε, high] × [−δ, κy_s] and [κy_s, high] × [κy_s, high], whose contours
-    keep κy_s from the singularity."""
+    κy_s (κ = VISCOUS_SHARE), the corner {Re Ω < κy_s < Im Ω} (Q < 1/2) is left out: the contour
+    (:func:`jaxdea.solve.wavenumbers.region`) keeps κy_s from the singularity."""
     margin = MARGIN * min(1.0, high)
     left = max(low, margin)
+    lo, hi = complex(left, -margin), complex(high, high)
     corner = VISCOUS_SHARE * viscous_singularity(wall, high)
-    parts = [(complex(left, -margin), complex(high, high))]
-    if left < corner < high:
-        parts = [(complex(left, -margin), complex(high, corner)),
-                 (complex(corner, corner), complex(high, high))]
-    found, certificate = [], SearchStatus.CERTIFIED
-    for lo, hi in parts:
-        roots, status = _part(problem, wall, alpha, fluid, m, lo, hi, seeds)
-        found += roots
-        if status != SearchStatus.CERTIFIED:
-            certificate = status
-            break
-    return [z for z in found if z.real > low], certificate
+    corner = corner if left < corner < high else None
 
-
-def _part(problem, wall, alpha, fluid, m, lo, hi, seeds):
-    """(roots, certificate) of the rectangle lo–hi, from a grid of starts refined in turn."""
     def starts(k):
-        re = np.linspace(lo.real, hi.real, GRID[0] * 2**k + 2)[1:-1]
-        im = np.linspace(max(lo.imag, 0.0), hi.imag, GRID[1] * 2**k + 1)
-        return (re[:, None] + 1j * im[None, :]).ravel()
+        re = np.linspace(left, high, GRID[0] * 2**k + 2)[1:-1]
+        im = np.linspace(0.0, high, GRID[1] * 2**k + 1)
+        grid = (re[:, None] + 1j * im[None, :]).ravel()
+        return grid if corner is None else grid[~((grid.real < corner) & (grid.imag > corner))]
 
     found, status = search_box(problem, wall, alpha, fluid, m, lo, hi, starts, Unknown.OMEGA,
-                               seeds=[z for z in seeds if lo.real <= z.real <= hi.real
-                                      and lo.imag <= z.imag <= hi.imag])
-    return found, SearchStatus(status)
+                               seeds=[z for z in seeds if inside(z, lo, hi, corner)], corner=corner)
+    return [z for z in found if z.real > low], SearchStatus(status)
 
 
 def solve_complex_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None, m: int = 0,

@@ -50,7 +50,7 @@ from ..physics.characteristic import Unknown
 from ..physics.families import Face
 from ..physics.problem import NO_ALPHA, describe
 from ..physics.transfer import discretized, laminate
-from .counting import LANES, MIN_RELATIVE_LENGTH, CountStatus, rectangle, winding_count
+from .counting import LANES, MIN_RELATIVE_LENGTH, CountStatus, winding_count
 
 MAX_EVALUATIONS = 20_000
 """Evaluations of f allowed per contour count."""
@@ -101,16 +101,37 @@ def _phasor(problem, wall, fixed, fluid, m, unknown):
     return phasor
 
 
+HEXAGON_PIECES = (10, 10, 10, 9, 10, 9)
+"""Initial pieces of the six sides of a searched region (:func:`region`; LANES samples in all)."""
+
+
+def region(lo: complex, hi: complex, corner: float | None = None) -> np.ndarray:
+    """The six vertices (counter-clockwise) of the searched region: the rectangle lo–hi, less the
+    corner {Re x < c < Im x} where ``corner`` c lies inside it, or else the rectangle itself with
+    its top and left sides halved (one counting program serves both)."""
+    if corner is not None and lo.real < corner < hi.real and lo.imag < corner < hi.imag:
+        top_left, left = complex(corner, corner), [complex(corner, hi.imag), complex(lo.real, corner)]
+        return np.array([lo, complex(hi.real, lo.imag), hi, left[0], top_left, left[1]])
+    return np.array([lo, complex(hi.real, lo.imag), hi, complex(0.5 * (lo.real + hi.real), hi.imag),
+                     complex(lo.real, hi.imag), complex(lo.real, 0.5 * (lo.imag + hi.imag))])
+
+
+def inside(z: complex, lo: complex, hi: complex, corner: float | None = None) -> bool:
+    """Whether z lies in the searched region of :func:`region` (its boundary included)."""
+    if not (lo.real <= z.real <= hi.real and lo.imag <= z.imag <= hi.imag):
+        return False
+    return corner is None or not (z.real < corner and z.imag > corner)
+
+
 @jit(static_argnames=("problem", "unknown"))
-def _count(problem, wall, fixed, fluid, m, corner_lo, corner_hi, unknown=Unknown.ALPHA):
-    """Zeros of F(x) (x = α̂ at a fixed Ω, or Ω at a fixed α̂) in the rectangle (corner_lo,
-    corner_hi): (count, status)."""
-    starts, ends, divisor, pieces = rectangle(corner_lo, corner_hi)
-    size = jnp.abs(corner_hi - corner_lo)
+def _count(problem, wall, fixed, fluid, m, vertices, size, unknown=Unknown.ALPHA):
+    """Zeros of F(x) (x = α̂ at a fixed Ω, or Ω at a fixed α̂) inside the closed polygon of
+    ``vertices`` (:func:`region`), refined to segments of at most ``size``/LANES: (count, status)."""
+    starts = jnp.asarray(vertices, complex)
+    ends = jnp.roll(starts, -1)
     count, status, _ = winding_count(_phasor(problem, wall, fixed, fluid, m, unknown), starts, ends,
-                                     divisor,
-                                     pieces, size / LANES, MIN_RELATIVE_LENGTH * size,
-                                     MAX_EVALUATIONS)
+                                     2.0 * np.pi, HEXAGON_PIECES, size / LANES,
+                                     MIN_RELATIVE_LENGTH * size, MAX_EVALUATIONS)
     return count, status
 
 
@@ -149,19 +170,22 @@ def _distinct(roots, scale):
 
 
 def search_box(problem, wall, fixed, fluid, m, lo, hi, starts_of, unknown=Unknown.ALPHA,
-               seeds=()):
+               seeds=(), corner=None):
     """(the distinct roots x inside the box lo–hi, :class:`SearchStatus`) by Newton from the starts
     that ``starts_of(k)`` gives at refinement k, until they match the box's count (x = α̂ at the
-    fixed Ω, or Ω at the fixed α̂ for ``unknown=Unknown.OMEGA``). ``seeds``, guesses near the roots
+    fixed Ω, or Ω at the fixed α̂ for ``unknown=Unknown.OMEGA``). ``corner``: the box less its
+    corner {Re x < c < Im x} (:func:`region`). ``seeds``, guesses near the roots
     (e.g. the elastic roots moved by the damping), are tried first, alone: where they meet the
     count, no grid is searched (the vmapped Newton runs as long as its slowest start, and a grid
     start that wanders takes every step)."""
-    count, status = (int(v) for v in _count(problem, wall, fixed, fluid, m, lo, hi, unknown))
+    vertices = region(lo, hi, corner)
+    count, status = (int(v) for v in _count(problem, wall, fixed, fluid, m, vertices,
+                                            abs(hi - lo), unknown))
     if status != CountStatus.CERTIFIED:
         return [], SearchStatus.COUNT_FAILED
     if count == 0:  # most parts of a search hold no root: no Newton from their starts
         return [], SearchStatus.CERTIFIED
-    inside = []
+    found_inside = []
     attempts = ([np.asarray(seeds, complex)] if len(seeds) else []) + [
         np.asarray(starts_of(k), complex) for k in range(REFINEMENTS + 1)]
     for k, starts in enumerate(attempts):
@@ -169,11 +193,12 @@ def search_box(problem, wall, fixed, fluid, m, lo, hi, starts_of, unknown=Unknow
         padded = np.resize(starts, -(-starts.size // pad) * pad)  # few programs: sizes in pads
         roots, ok = _newton(problem, wall, fixed, fluid, m, jnp.asarray(padded), unknown)
         found = [complex(z) for z, good in zip(np.asarray(roots), np.asarray(ok), strict=True)
-                 if good and lo.real <= z.real <= hi.real and lo.imag <= z.imag <= hi.imag]
-        inside = _distinct(inside + found, abs(hi - lo))
-        if len(inside) >= count:
+                 if good and inside(complex(z), lo, hi, corner)]
+        found_inside = _distinct(found_inside + found, abs(hi - lo))
+        if len(found_inside) >= count:
             break
-    return inside, SearchStatus.CERTIFIED if len(inside) == count else SearchStatus.NOT_CERTIFIED
+    return found_inside, (SearchStatus.CERTIFIED if len(found_inside) == count
+                          else SearchStatus.NOT_CERTIFIED)
 
 
 def validate_search(caller: str, tube, fixed, fluid, m, n_roots, limit) -> None:
