@@ -1,5 +1,6 @@
-"""jaxdea: differentiable dispersion (every circumferential order m) of pre-stretched, voltage-driven soft dielectric
-elastomer tubes, empty or filled with an inviscid compressible fluid (see docs/theory/axisymmetric.md).
+"""jaxdea: differentiable dispersion (every circumferential order m) of pre-stretched,
+voltage-driven soft dielectric elastomer tubes, empty or filled with an inviscid compressible fluid
+(see docs/theory/axisymmetric.md).
 
 64-bit floats are required: ``jax.config.update("jax_enable_x64", True)`` before use.
 Importing jaxdea changes nothing in the process; :func:`configure` opts in to the on-disk program
@@ -8,7 +9,7 @@ cache and XLA's loop threshold (:mod:`jaxdea.compiled`).
 
 from importlib import metadata as _metadata
 
-from . import compiled, units
+from . import compiled, units  # noqa: F401 - jaxdea.compiled and jaxdea.units as attributes
 from .apps.explore import explore  # ipywidgets is imported on the first call only
 from .compiled import Configuration, configure
 from .io.fit_io import plot_fit, write_fit

@@ -53,6 +53,16 @@ def test_kelvin_voigt_roots_beside_the_viscous_singularity():
         None, None, tube, 1.0, 5, 1))
     top = 40.0
     assert 10.0 <= transfer.viscous_singularity(wall, top) <= 10.0 + top / 512
+    # a layered wall finds it in its Kelvin–Voigt layer beside a fractional one (whose s(iy) is
+    # never real), and a hysteretic wall has none
+    mixed = tube.replace(damping=None, layers=(
+        jd.Layer(0.3, jd.NeoHookean(), damping=jd.FractionalKelvinVoigt(0.3, 0.5, 0.32)),
+        jd.Layer(0.7, jd.Gent(97.2), active=True, damping=jd.KelvinVoigt(0.1))))
+    layered = transfer.discretized(mixed, n_layers=transfer.Layers(16, "magnus6", True))
+    assert 10.0 <= transfer.viscous_singularity(layered, top) <= 10.0 + top / 512
+    hysteretic = transfer.discretized(tube.replace(damping=jd.Hysteretic(0.2)),
+                                      n_layers=transfer.Layers(16, "magnus6", True))
+    assert transfer.viscous_singularity(hysteretic, top) == np.inf
     elastic = elastic_exact(1, 1.0, 10)
     elastic = elastic[elastic * 0.1 < 2.0]
     assert elastic.size == 5 and elastic[-1] > 17.0  # three low modes and two past 10 (overdamped side)

@@ -56,16 +56,16 @@ import numpy as np
 
 from ..compiled import jit
 from ..files import atomic_write, save_figure, write_together
-from ..numerics.scalar import Status
 from ..materials import Gent, NeoHookean
+from ..numerics.scalar import Status
 from ..params import Fluid, Layer, Tube, axial_wavenumber, mode_wavenumber
 from ..physics.base_state import pull_in, squared_voltage
 from ..physics.leaves import apply_parameters
 from ..physics.state_matrix import ORDER_M
 from ..solve.curves import solve_critical_path, solve_path
 from ..solve.instability import first_instability
-from ..solve.roots import critical_voltage, frequencies
 from ..solve.modes import mode_shape
+from ..solve.roots import critical_voltage, frequencies
 from . import plotstyle
 from .plotstyle import SHORT_LABELS, line_handle, new_figure, past_first_instability, patch_handle
 
@@ -1399,7 +1399,8 @@ def figure_encapsulation(ctx: Context):
     caption = ("The paper's tube (λ_i = 0.9, λ_z = 1.2, DE wall η = 0.85, Gent G = 97.2) bonded inside a "
                "neo-Hookean encapsulation that takes 0–50 % of the new wall, with 0.3–10× the DE's shear "
                "modulus, stretched with it and of the same length. (a) The first instability over m ≤ 4, "
-               f"n ≤ 2 (m ≤ 8, n ≤ 3 gives the same modes and the same largest value, measured): the bare tube ovalises, (m, n) = ({bare[1]}, {bare[2]}), at V̂ = {bare[0]:.4f}; the "
+               "n ≤ 2 (m ≤ 8, n ≤ 3 gives the same modes and the same largest value, measured): the "
+               f"bare tube ovalises, (m, n) = ({bare[1]}, {bare[2]}), at V̂ = {bare[0]:.4f}; the "
                f"largest V̂_first here is {top[1][0]:.4f}, (m, n) = ({top[1][1]}, {top[1][2]}), at "
                f"{100 * top[0][0]:.0f} % and {top[0][1]:g}×. The first unstable (m, n) over the grid: "
                + ", ".join(f"({m}, {n})" for m, n in orders) + ". (b) The two lowest axisymmetric "

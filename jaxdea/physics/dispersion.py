@@ -15,8 +15,9 @@ The characteristic function is det(B Q_N), with Q_N the orthonormalised propagat
 (:func:`jaxdea.physics.transfer.propagate_basis`): real, finite, entire in Ω, the same zeros and sign as
 det C, and |f| ≤ 1 (well scaled for Newton at any α̂ĥ).
 
-Circumferential order m (docs/theory/order_m.md §4–§5). A static *family* (:mod:`jaxdea.physics.state_matrix`) picks
-the problem: ``"longitudinal"`` (m = 0, the 6×6 system above, its code unchanged), ``"order_m"``
+Circumferential order m (docs/theory/order_m.md §4–§5). A static *family*
+(:mod:`jaxdea.physics.state_matrix`) picks the problem: ``"longitudinal"`` (m = 0, the 6×6 system
+above, its code unchanged), ``"order_m"``
 (the 8×8 system with a traced order m: Y(r̂_i) = S x, x = [U_i, V_i, W_i, D_i], outer rows
 Φ, T, Q, S; the acoustic fluid of order m through the U column only) and ``"torsional"``
 (m = 0, (V, Q) alone, no fluid coupling). Each is a function of w = Ω² of either sign

@@ -659,14 +659,15 @@ def shear_divisors(wall: Wall, omega):
 
 
 @jit
-def _divisors_on_imaginary_axis(wall: Wall, heights):
-    """(min Re s, max |Im s| / min |s(0)|) over the nodes and both divisors of
-    :func:`shear_divisors` at each Ω = iy of ``heights``."""
-    rest = jnp.min(jnp.abs(jnp.stack(shear_divisors(wall, 0.0))))
+def _vanishing_on_imaginary_axis(wall: Wall, heights):
+    """Whether at Ω = iy, for each y of ``heights``, a divisor of :func:`shear_divisors` vanishes
+    or has turned negative at some node: Re s ≤ 0 there with Im s = 0 to rounding (1e-9 of the
+    node's elastic s)."""
+    rest = jnp.abs(jnp.stack(shear_divisors(wall, 0.0)))
 
     def at(y):
         s = jnp.stack(shear_divisors(wall, 1j * y))
-        return jnp.min(jnp.real(s)), jnp.max(jnp.abs(jnp.imag(s))) / rest
+        return jnp.any((jnp.real(s) <= 0.0) & (jnp.abs(jnp.imag(s)) <= 1e-9 * rest))
 
     return jax.vmap(at)(heights)
 
@@ -677,8 +678,9 @@ VISCOUS_SAMPLES = 512
 
 def viscous_singularity(wall: Wall, top: float) -> float:
     """y_s: the lowest height ≤ ``top`` of the imaginary axis where a damped wall's shear divisor
-    vanishes (:func:`shear_divisors` at Ω = iy_s; within top/VISCOUS_SAMPLES above it), or inf where
-    none does (an elastic wall, hysteretic or fractional laws of order < 1).
+    vanishes at a node (:func:`shear_divisors` at Ω = iy_s; within top/VISCOUS_SAMPLES above it), or
+    inf where none does (an elastic wall, hysteretic or fractional laws of order < 1; in a layered
+    wall each layer's nodes with their own law).
 
     η*(Ω) has Im η* > 0 in Re Ω > 0 for every law (docs/theory/real_tubes.md §4), so s ≠ 0 there;
     on the imaginary axis η*(iy) is real for Kelvin–Voigt and Prony branches, and s(iy) =
@@ -688,8 +690,7 @@ def viscous_singularity(wall: Wall, top: float) -> float:
     if wall.damping is None:
         return math.inf
     heights = np.linspace(0.0, float(top), VISCOUS_SAMPLES + 1)[1:]
-    real, imag = (np.asarray(x) for x in _divisors_on_imaginary_axis(wall, jnp.asarray(heights)))
-    hit = np.flatnonzero((real <= 0.0) & (imag <= 1e-9))
+    hit = np.flatnonzero(np.asarray(_vanishing_on_imaginary_axis(wall, jnp.asarray(heights))))
     return float(heights[hit[0]]) if hit.size else math.inf
 
 

@@ -1,9 +1,10 @@
 """Branch tracing: pseudo-arclength continuation of one dispersion branch Ω(s) along a parameter s.
 
 A branch is a connected curve of the zero set of f(s, Ω) = 0, with f the characteristic function of
-:mod:`jaxdea.physics.dispersion` and s any named parameter of :mod:`jaxdea.physics.leaves` (α̂, V̂, λ_i, h/R_i, ρ̂_f,
-…). Following a curve instead of re-solving at every s keeps the identity of a mode through
-veerings, where two branches come within a tiny gap and "the k-th root" jumps from one to the other.
+:mod:`jaxdea.physics.dispersion` and s any named parameter of :mod:`jaxdea.physics.leaves`
+(α̂, V̂, λ_i, h/R_i, ρ̂_f, …). Following a curve instead of re-solving at every s keeps the identity of
+a mode through veerings, where two branches come within a tiny gap and "the k-th root" jumps from
+one to the other.
 
 Coordinates. The trace runs in scaled coordinates x = (x_s, x_Ω),
 

@@ -1397,8 +1397,8 @@ def fit(data, free: Mapping, fixed: Mapping, fluid=None, *, initial: Mapping | N
         n_starts: the number of starts (the lowest initial cost) that are fitted; 0 (with
             ``initial``): ``initial`` only.
         grid_points: candidate starts per free parameter (at fractions (k + ½)/grid_points of
-            each bound interval, in log for :data:`LOG_STARTS`); beyond :data:`MAX_GRID` candidates in all, a Latin hypercube of
-            :data:`MAX_GRID` points instead (fixed seed).
+            each bound interval, in log for :data:`LOG_STARTS`); beyond :data:`MAX_GRID`
+            candidates in all, a Latin hypercube of :data:`MAX_GRID` points instead (fixed seed).
         max_iterations: Levenberg–Marquardt iterations per fit.
         max_reassignments: outer assign–fit rounds for unlabelled peaks.
         outer: None (the tube in vacuum or air), or the known surrounding fluid in SI: a
