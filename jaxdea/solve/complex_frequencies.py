@@ -36,7 +36,7 @@ from ..physics.characteristic import Unknown
 from ..physics.problem import describe
 from ..physics.transfer import discretize, discretized, laminate, viscous_singularity
 from .roots import frequencies
-from .wavenumbers import GRID, SearchStatus, complex_newton, inside, search_box, validate_search
+from .wavenumbers import GRID, SearchStatus, complex_newton, search_box, validate_search
 
 EXTENSIONS = 3
 """Boxes added to the right when fewer than ``n_roots`` roots lie below the default Ω_max."""
@@ -193,17 +193,15 @@ def _box(problem, wall, alpha, fluid, m, low, high, seeds=()):
     margin = MARGIN * min(1.0, high)
     left = max(low, margin)
     lo, hi = complex(left, -margin), complex(high, high)
-    corner = VISCOUS_SHARE * viscous_singularity(wall, high)
-    corner = corner if left < corner < high else None
 
     def starts(k):
         re = np.linspace(left, high, GRID[0] * 2**k + 2)[1:-1]
         im = np.linspace(0.0, high, GRID[1] * 2**k + 1)
-        grid = (re[:, None] + 1j * im[None, :]).ravel()
-        return grid if corner is None else grid[~((grid.real < corner) & (grid.imag > corner))]
+        return (re[:, None] + 1j * im[None, :]).ravel()
 
     found, status = search_box(problem, wall, alpha, fluid, m, lo, hi, starts, Unknown.OMEGA,
-                               seeds=[z for z in seeds if inside(z, lo, hi, corner)], corner=corner)
+                               seeds=seeds,
+                               corner=VISCOUS_SHARE * viscous_singularity(wall, high))
     return [z for z in found if z.real > low], SearchStatus(status)
 
 

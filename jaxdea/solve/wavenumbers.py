@@ -110,17 +110,18 @@ def region(lo: complex, hi: complex, corner: float | None = None) -> np.ndarray:
     corner {Re x < c < Im x} where ``corner`` c lies inside it, or else the rectangle itself with
     its top and left sides halved (one counting program serves both)."""
     if corner is not None and lo.real < corner < hi.real and lo.imag < corner < hi.imag:
-        top_left, left = complex(corner, corner), [complex(corner, hi.imag), complex(lo.real, corner)]
-        return np.array([lo, complex(hi.real, lo.imag), hi, left[0], top_left, left[1]])
+        return np.array([lo, complex(hi.real, lo.imag), hi, complex(corner, hi.imag),
+                         complex(corner, corner), complex(lo.real, corner)])
     return np.array([lo, complex(hi.real, lo.imag), hi, complex(0.5 * (lo.real + hi.real), hi.imag),
                      complex(lo.real, hi.imag), complex(lo.real, 0.5 * (lo.imag + hi.imag))])
 
 
-def inside(z: complex, lo: complex, hi: complex, corner: float | None = None) -> bool:
-    """Whether z lies in the searched region of :func:`region` (its boundary included)."""
-    if not (lo.real <= z.real <= hi.real and lo.imag <= z.imag <= hi.imag):
-        return False
-    return corner is None or not (z.real < corner and z.imag > corner)
+def inside(z, lo: complex, hi: complex, corner: float | None = None):
+    """Whether z (a number or an array) lies in the searched region of :func:`region`, its boundary
+    included (a corner outside the rectangle leaves it whole)."""
+    z = np.asarray(z)
+    ok = (lo.real <= z.real) & (z.real <= hi.real) & (lo.imag <= z.imag) & (z.imag <= hi.imag)
+    return ok if corner is None else ok & ~((z.real < corner) & (z.imag > corner))
 
 
 @jit(static_argnames=("problem", "unknown"))
@@ -174,8 +175,9 @@ def search_box(problem, wall, fixed, fluid, m, lo, hi, starts_of, unknown=Unknow
     """(the distinct roots x inside the box lo–hi, :class:`SearchStatus`) by Newton from the starts
     that ``starts_of(k)`` gives at refinement k, until they match the box's count (x = α̂ at the
     fixed Ω, or Ω at the fixed α̂ for ``unknown=Unknown.OMEGA``). ``corner``: the box less its
-    corner {Re x < c < Im x} (:func:`region`). ``seeds``, guesses near the roots
-    (e.g. the elastic roots moved by the damping), are tried first, alone: where they meet the
+    corner {Re x < c < Im x} (:func:`region`; starts and seeds outside are dropped). ``seeds``,
+    guesses near the roots (e.g. the elastic roots moved by the damping), are tried first, alone:
+    where they meet the
     count, no grid is searched (the vmapped Newton runs as long as its slowest start, and a grid
     start that wanders takes every step)."""
     vertices = region(lo, hi, corner)
@@ -186,10 +188,13 @@ def search_box(problem, wall, fixed, fluid, m, lo, hi, starts_of, unknown=Unknow
     if count == 0:  # most parts of a search hold no root: no Newton from their starts
         return [], SearchStatus.CERTIFIED
     found_inside = []
-    attempts = ([np.asarray(seeds, complex)] if len(seeds) else []) + [
+    seeds = np.asarray(seeds, complex)
+    seeds = seeds[inside(seeds, lo, hi, corner)]
+    attempts = ([seeds] if seeds.size else []) + [
         np.asarray(starts_of(k), complex) for k in range(REFINEMENTS + 1)]
     for k, starts in enumerate(attempts):
-        pad = SEED_PAD if k == 0 and len(seeds) else PAD
+        starts = starts[inside(starts, lo, hi, corner)]
+        pad = SEED_PAD if k == 0 and seeds.size else PAD
         padded = np.resize(starts, -(-starts.size // pad) * pad)  # few programs: sizes in pads
         roots, ok = _newton(problem, wall, fixed, fluid, m, jnp.asarray(padded), unknown)
         found = [complex(z) for z, good in zip(np.asarray(roots), np.asarray(ok), strict=True)
