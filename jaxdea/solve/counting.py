@@ -146,17 +146,6 @@ def _phase_count(phasor, lo, hi, height, symmetric, max_evaluations):
                          MIN_RELATIVE_LENGTH * jnp.maximum(jnp.abs(hi), height), max_evaluations)
 
 
-def rectangle(corner_lo, corner_hi):
-    """The sides (starts, ends), divisor 2π and initial pieces of the counter-clockwise rectangle
-    with corners ``corner_lo`` (lower left) and ``corner_hi`` (upper right) in the complex plane,
-    for :func:`winding_count`."""
-    lo, hi = jnp.asarray(corner_lo, complex), jnp.asarray(corner_hi, complex)
-    low_right = jnp.real(hi) + 1j * jnp.imag(lo)
-    up_left = jnp.real(lo) + 1j * jnp.imag(hi)
-    starts, ends = jnp.stack([lo, low_right, hi, up_left]), jnp.stack([low_right, hi, up_left, lo])
-    return starts, ends, 2.0 * np.pi, (15, 15, 15, 15)
-
-
 def winding_count(phasor, starts, ends, divisor, pieces, h_max, h_min, max_evaluations):
     """Zeros inside the closed polygon with sides ``starts`` → ``ends``: the winding of the unit
     phasor F/|F| (with a finiteness flag) that ``phasor(z)`` gives for z of shape (LANES,), divided
