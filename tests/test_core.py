@@ -431,6 +431,11 @@ def _scanned_case(case):
         tube, layers, alpha = jd.Tube(voltage=0.0, eta=0.3), transfer.Layers(64, "magnus6", True), 20.0
     elif case == "coupled":
         tube = jd.Tube(voltage=0.15, lambda_i=0.95, **PAPER)
+    elif case == "layered":  # a stiff liner and a soft encapsulation around the Gent DE layer
+        tube = tube.replace(layers=(jd.Layer(0.2, jd.NeoHookean(), shear_ratio=3.0, density_ratio=1.2),
+                                    jd.Layer(0.5, jd.Gent(97.2), active=True),
+                                    jd.Layer(0.3, jd.MooneyRivlin(0.2), shear_ratio=0.5)))
+        return transfer.discretized(tube, n_layers=layers), fluid, order, alpha  # compiled: 1 s
     return discretize(tube, layers), fluid, order, alpha
 
 
@@ -489,6 +494,29 @@ def test_scale_and_slope_on_wall_equals_forward_mode(case):
         np.testing.assert_allclose(log_scale, log_ref, rtol=1e-13, atol=1e-12)
         np.testing.assert_allclose(df, df_ref, rtol=1e-11, atol=1e-13 * scale)
         np.testing.assert_allclose(dlog, dlog_ref, rtol=1e-11, atol=1e-12)
+
+
+@pytest.mark.parametrize("case", ["at_rest_voltage", "acoustic", "paper", "thick", "coupled",
+                                  "layered"])
+def test_decoupled_value_and_scale_equals_the_full_propagation(case):
+    """The check's 4×4 values (f, ℓ) of a wall without voltage (decoupled_characteristic_and_scale,
+    the Newton steps of a checked curve) equal the 6×6 characteristic_and_scale ("adaptive"); a
+    wall that does not decouple gives NaN, never a wrong value."""
+    from jaxdea.physics.dispersion import decoupled_characteristic_and_scale
+
+    wall, fluid, order, alpha = _scanned_case(case)
+    omegas = jnp.linspace(0.0, 6.0, 25)
+    f_ref, log_ref = jax.jit(jax.vmap(
+        lambda o: characteristic_and_scale(wall, o, alpha, fluid, order, "adaptive")))(omegas)
+    f, log_scale = jax.jit(jax.vmap(
+        lambda o: decoupled_characteristic_and_scale(wall, o, alpha, fluid, order)))(omegas)
+    if case == "coupled":
+        assert np.all(np.isnan(np.asarray(f))) and np.all(np.isnan(np.asarray(log_scale)))
+        return
+    scale = float(jnp.max(jnp.abs(f_ref)))
+    assert scale > 1e-3  # f (|f| ≤ 1) not vanishingly small on the grid: the test can fail
+    np.testing.assert_allclose(f, f_ref, rtol=0, atol=1e-13 * scale)
+    np.testing.assert_allclose(log_scale, log_ref, rtol=1e-13, atol=1e-12)
 
 
 def test_carried_slope_is_forward_mode_on_a_thick_wall():

@@ -110,13 +110,18 @@ def value(family: Family, wall: Wall, x, fixed, fluid=None, order: int = 0, m=0,
 
 
 def value_and_scale(family: Family, wall: Wall, x, fixed, fluid=None, order: int = 0, m=0,
-                    unknown: Unknown = Unknown.OMEGA, method: str = "adaptive"):
+                    unknown: Unknown = Unknown.OMEGA, method: str = "adaptive",
+                    decoupled: bool = False):
     """(f, ℓ) with F = f e^ℓ at a real Ω (``omega``) or w (``omega_squared``): the arithmetic of
     :func:`value` (f equal to it bit for bit), ℓ = log det R beside it, no slope (the error check of
     :func:`jaxdea.solve.roots.newton_steps`, which needs the entire F where f turns sign in a
-    near-jump)."""
+    near-jump). ``decoupled`` (static; the longitudinal family in Ω): the 4×4 mechanical path of a
+    wall whose electric block decouples
+    (:func:`jaxdea.physics.dispersion.decoupled_characteristic_and_scale`, equal to rounding)."""
     family, unknown = Family(family), Unknown(unknown)
     if unknown is Unknown.OMEGA and not family.carries_m:
+        if decoupled:
+            return dispersion.decoupled_characteristic_and_scale(wall, x, fixed, fluid, order)
         return dispersion.characteristic_and_scale(wall, x, fixed, fluid, order, method)
     w, alpha = unknown.point(x, fixed)
     return dispersion.characteristic_and_scale_of_w(wall, w, alpha, fluid, order, method, m, family)

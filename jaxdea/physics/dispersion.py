@@ -141,6 +141,24 @@ def characteristic_and_scale(wall: Wall, omega, alpha, fluid=None, order=0, meth
     return jnp.linalg.det(q[OUTER_ROWS, :]), log_scale
 
 
+def decoupled_characteristic_and_scale(wall: Wall, omega, alpha, fluid=None, order=0):
+    """(f, log_scale) of :func:`characteristic_and_scale` (``"adaptive"``) on the 4×4 mechanical
+    propagation of a wall whose electric block decouples (V̂ = 0; NaN where it does not): the
+    values of :func:`_decoupled_value_and_slope` without its slope, f = q_Φ det(B Q_m) and ℓ the
+    sum of the blocks' log-scales, equal to the 6×6 values to rounding (tests)."""
+    basis = initial_basis(wall, omega, alpha, fluid, order)
+    q_phi, log_electric = electric_column(wall_generators(wall, alpha, at_rest=True,
+                                                          block=tuple(ELECTRIC)))
+    block = wall_generators(wall, alpha, block=tuple(MECHANICAL))
+    exponentials = jax.vmap(EXPONENTIALS["adaptive"])(
+        jax.vmap(generator_of_w, (0, None))(block, omega * omega))
+    q, log_scale = carry_basis(basis[MECHANICAL, :2], exponentials)
+    rows = q[2:] if wall.outer is None else outer_rows_of(wall, alpha)(omega)[1:, MECHANICAL] @ q
+    ok = electric_decoupled(wall, alpha)
+    return (jnp.where(ok, q_phi * determinant(rows), jnp.nan),
+            jnp.where(ok, log_scale + log_electric, jnp.nan))
+
+
 def outer_rows_of(wall: Wall, alpha, m=0, family: str = LONGITUDINAL, w_of=None):
     """x ↦ Out at w = ``w_of``(x) (Ω² of x = Ω by default) for a wall in a surrounding fluid
     (:func:`outer_conditions`); None without one, where the rows do not depend on x. The

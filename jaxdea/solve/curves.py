@@ -623,7 +623,7 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
 
     curve = solve(layers)
     if short is None and checked and is_graded(layers):
-        curve, short = _checked_curve(solve, curve, layers, values, order, m, family)
+        curve, short = _checked_curve(solve, curve, layers, values, order, m, family, decoupled)
     curve = curve._replace(status=inaccurate_where(short, Roots(curve.omega, curve.status)).status)
     if not traced((tube, alpha, fluid, m)):
         # concrete inputs carry no tangents: the implicit derivatives would leave the values as
@@ -642,23 +642,26 @@ CHECKED_POINTS = 9
 """Points of a concrete default curve (evenly spread, both ends) whose roots are checked."""
 
 
-def sampled_newton_steps(tube, alphas, fluid, omegas, n_layers, order, m=0.0, family=LONGITUDINAL):
+def sampled_newton_steps(tube, alphas, fluid, omegas, n_layers, order, m=0.0, family=LONGITUDINAL,
+                         decoupled: bool = False):
     """:func:`jaxdea.solve.roots.newton_steps` at each (α̂, its roots) of a curve's sampled points."""
-    return jax.vmap(lambda a, w: newton_steps(tube, a, fluid, w, n_layers, order, m, family))(
-        alphas, omegas)
+    return jax.vmap(lambda a, w: newton_steps(tube, a, fluid, w, n_layers, order, m, family,
+                                              decoupled))(alphas, omegas)
 
 
-_sampled_steps = cached_jit(sampled_newton_steps, static_argnames=("n_layers", "order", "family"))
+_sampled_steps = cached_jit(sampled_newton_steps,
+                            static_argnames=("n_layers", "order", "family", "decoupled"))
 
 
-def _checked_curve(solve, curve, layers, values, order, m, family):
+def _checked_curve(solve, curve, layers, values, order, m, family, decoupled=None):
     """(curve, short): a concrete default curve checked like the points of
     :func:`jaxdea.solve_frequencies` (:func:`jaxdea.solve.roots._verified`), at CHECKED_POINTS of its
     points (the error varies smoothly along α̂): one Newton step per root on the
     :func:`jaxdea.solve.roots.companion` wall estimates its error; where some exceed 1e-8 the curve
     is solved again (``solve(layers)``) on the finer N they ask for; a root index still short at a
     checked point is INACCURATE along the curve. The curve starts at the checked count of
-    :func:`jaxdea.physics.transfer.auto_layer_count` (0.45 of the rule, 6 at least)."""
+    :func:`jaxdea.physics.transfer.auto_layer_count` (0.45 of the rule, 6 at least). ``decoupled``
+    (:func:`jaxdea.solve.roots.decoupled_choice`): True takes the 4×4 path for the steps too."""
     tube, alpha, fluid = values
     order_args = family.arguments(m)
     pick = np.unique(np.round(np.linspace(0, np.shape(alpha)[0] - 1, CHECKED_POINTS)).astype(int))
@@ -667,7 +670,7 @@ def _checked_curve(solve, curve, layers, values, order, m, family):
         # picked in NumPy: JAX's eager gathers cost ≈ 0.7 ms each, a tenth of the curve (measured)
         sampled = Roots(np.asarray(curve.omega)[pick], np.asarray(curve.status)[pick])
         steps = _sampled_steps(tube, np.asarray(alpha)[pick], fluid, sampled.omega,
-                               companion(layers), order, **order_args)
+                               companion(layers), order, **order_args, decoupled=bool(decoupled))
         return _shortfall(sampled, steps, layers)
 
     _, curve, ratio = refined(solve, ratio_of, layers, curve)

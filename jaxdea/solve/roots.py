@@ -934,7 +934,8 @@ SECANT_STEP = 1e-6
 """Relative step of the secant slope in :func:`newton_steps`."""
 
 
-def newton_steps(tube, alpha, fluid, omegas, n_layers, order, m=0.0, family=LONGITUDINAL):
+def newton_steps(tube, alpha, fluid, omegas, n_layers, order, m=0.0, family=LONGITUDINAL,
+                 decoupled: bool = False):
     """−g(Ω)/g'(Ω) at each Ω of ``omegas`` on the laminate ``n_layers``: to first order the
     distance from Ω to that laminate's root (:func:`secant_steps`).
 
@@ -944,12 +945,15 @@ def newton_steps(tube, alpha, fluid, omegas, n_layers, order, m=0.0, family=LONG
     near-jump (±7.1e-3 on either side of the root near Ω = 61.468 of η = 0.3 at α̂ĥ = 150), so a
     Newton step on f measures the distance to a zero of its continuous part, not to the root (it
     was −0.086 there, whatever N, and the default's root, 2e-11 relative from the converged one,
-    was called INACCURATE); g has an ordinary simple root there."""
+    was called INACCURATE); g has an ordinary simple root there. ``decoupled`` (static,
+    longitudinal): the 4×4 mechanical path of a wall without voltage (:func:`decoupled_choice`;
+    the same steps to rounding, 2–3 times cheaper)."""
     ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
     wall = discretize(tube, n_layers)
     family = Family(family)
     m = family.safe_m(m, ok) if family.carries_m else 0
-    fun = Scaled(lambda om: characteristic.value_and_scale(family, wall, om, alpha, fluid, order, m))
+    fun = Scaled(lambda om: characteristic.value_and_scale(family, wall, om, alpha, fluid, order, m,
+                                                           decoupled=decoupled))
     return jnp.where(ok, secant_steps(fun, omegas), jnp.nan)
 
 
