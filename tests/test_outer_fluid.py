@@ -281,6 +281,68 @@ def test_leaky_roots_against_the_exact_cylinder(m):
     assert got.certificate == jd.SearchStatus.CERTIFIED
 
 
+@pytest.mark.parametrize("alpha", [0.35, 0.2])
+def test_tall_leaky_boxes_are_counted(alpha):
+    """A water-like surrounding fluid (ĉ_o = 3.5, ρ̂_o = 0.7) and boxes reaching 3.3–11× the sound
+    line ĉ_oα̂: on the leaky sheet the outer Bessel ratio leaves its range (|arg y| ≥ 0.9π) where
+    Im Ω > 2.75 Re Ω, which the first leaky box's left side crossed (every count below failed:
+    COUNT_FAILED). The leaky boxes now leave out their corner Re Ω < Ω_b/2 < Im Ω (Q < 1/2) and are
+    split at 5× their left edge: every box is counted (CERTIFIED), f is finite on every contour,
+    and the subsonic roots are those of ``frequencies``."""
+    from jaxdea.physics import characteristic
+    from jaxdea.physics.characteristic import Unknown
+    from jaxdea.physics.problem import describe
+    from jaxdea.physics.transfer import Layers, discretized
+    from jaxdea.solve import complex_frequencies as cf
+    from jaxdea.solve.wavenumbers import region
+
+    tube = jd.Tube(eta=0.85, outer=jd.Fluid(density_ratio=0.7, speed_ratio=3.5))
+    real = np.asarray(jd.frequencies(tube, alpha, n_roots=4))
+    for omega_max in (4.0, 8.0):
+        got = jd.complex_frequencies(tube, alpha, n_roots=4, omega_max=omega_max)
+        assert int(got.certificate) == jd.SearchStatus.CERTIFIED, omega_max
+        omega = np.asarray(got.omega)
+        np.testing.assert_allclose(omega[np.isfinite(omega)].real, real[np.isfinite(real)],
+                                   rtol=1e-10)
+    # every leaky contour of omega_max = 8 inside the range: f finite at 64 points per side
+    line = cf._below_the_sound_line(tube, alpha)
+    edges = cf._split_at_the_sound_line([8.0], tube, alpha)
+    assert max(b / a for a, b in zip(edges[1:], edges[2:], strict=False)) <= cf.LEAKY_RATIO + 1e-9
+    problem = describe(tube, alpha, None, None, None, 0, False, damped=True)
+    wall = discretized(tube, n_layers=Layers(16, "magnus6", True))
+    value = jax.jit(jax.vmap(lambda x: characteristic.value(problem.family, wall, x, alpha, None,
+                                                            problem.order, 0.0, Unknown.OMEGA)))
+    low = line * cf.SOUND_LINE_GAP ** 2
+    for high in edges[1:]:
+        vertices = region(complex(low, -0.02), complex(high, high), cf.LEAKY_SHARE * high)
+        t = np.linspace(0.0, 1.0, 64)[:, None]
+        points = (vertices[None, :] * (1 - t) + np.roll(vertices, -1)[None, :] * t).ravel()
+        assert np.all(np.isfinite(np.asarray(value(jnp.asarray(points))))), (low, high)
+        low = high
+
+
+@pytest.mark.parametrize("omega", [0.5, 1.0])
+def test_wavenumbers_in_a_surrounding_fluid(omega):
+    """``wavenumbers`` of a tube in a water-like fluid (ĉ_o = 3.5): the sound line α̂ = Ω/ĉ_o is a
+    branch point of the outer factor inside the searched box, and every count across it had failed
+    (COUNT_FAILED, no root returned). Searched either side of it: CERTIFIED, the propagating
+    (real) waves subsonic and exactly the α̂ at which ``frequencies`` gives Ω (1e-10), and every
+    complex root right of the sound line (the decaying sheet, real coefficients there) listed with
+    its conjugate."""
+    tube = jd.Tube(eta=0.85, outer=jd.Fluid(density_ratio=0.7, speed_ratio=3.5))
+    got = jd.wavenumbers(tube, omega, n_roots=4)
+    assert int(got.certificate) == jd.SearchStatus.CERTIFIED
+    alpha = np.asarray(got.alpha)
+    assert np.all(np.isfinite(alpha))
+    real = alpha[np.abs(alpha.imag) < 1e-9].real
+    assert len(real) >= 1 and np.all(real > omega / 3.5)
+    for a in real:
+        roots = np.asarray(jd.frequencies(tube, float(a), n_roots=4))
+        assert np.nanmin(np.abs(roots - omega)) < 1e-10 * omega, (a, roots)
+    for a in alpha[(np.abs(alpha.imag) >= 1e-9) & (alpha.real > omega / 3.5)]:
+        assert np.min(np.abs(alpha - np.conj(a))) < 1e-9 * abs(a), (a, alpha)
+
+
 def test_si_presets():
     """``fluid_from_si(scales, WATER)`` is the fluid of its two SI numbers, for a filling or outside,
     and a preset with a sound speed besides is refused."""

@@ -620,12 +620,14 @@ def outer_face(wall: Wall, omega_squared, alpha, m=0):
     wave γ = ik, k = sqrt(Ω²/ĉ_o² − α̂²) (principal; analytic there), so that K_m(γr) ∝ H_m^(2)(kr)
     radiates (e^{iΩt}; a leaky mode, Im Ω > 0, grows radially: the improper sheet). The two sheets
     meet with a jump along the vertical cut Re Ω = ĉ_oα̂ (:func:`jaxdea.complex_frequencies`
-    searches either side of it)."""
+    searches either side of it). A complex α̂ at a real Ω (:func:`jaxdea.wavenumbers`) takes the
+    same two sheets by Re α̂ against Ω/ĉ_o: outgoing left of it (supersonic waves radiate),
+    decaying right of it, with the cut Re α̂ = Ω/ĉ_o (the search's parts stop either side)."""
     fluid, ro = wall.outer, wall.r_outer
     rho, c_o = as_float(fluid.density_ratio), as_float(fluid.speed_ratio)
     y_squared = (alpha * alpha - omega_squared / (c_o * c_o)) * ro * ro
     if jnp.iscomplexobj(y_squared):
-        leaky = jnp.real(jnp.sqrt(omega_squared)) > c_o * alpha
+        leaky = jnp.real(jnp.sqrt(omega_squared)) > c_o * jnp.real(alpha)
         y = jnp.where(leaky, 1j * jnp.sqrt(-y_squared), jnp.sqrt(y_squared))
     else:
         y = jnp.sqrt(jnp.where(y_squared > 0, y_squared, jnp.nan))

@@ -13,7 +13,9 @@ Search and certificate: the roots are sought in boxes [ε, Ω_max] × [−δ, Ω
 (δ = ε = 0.02 min(1, Ω_max): the real roots of an elastic tube lie inside, the imaginary axis, where
 Prony's relaxation roots and poles lie, outside; modes with Q < 1/2 above the box are not sought,
 nor those of the corner Re Ω < y_s/2 < Im Ω where the wall's damped shear modulus vanishes at iy_s,
-the point where the roots of ever higher modes gather: :func:`_box`),
+the point where the roots of ever higher modes gather, nor, in a surrounding fluid's leaky sheet,
+those of the corner Re Ω < Ω_b/2 < Im Ω of a box reaching Ω_b, where the radiation condition leaves
+the range of the outer Bessel functions: :func:`_box`),
 each counted by the argument principle and searched by complex Newton on the analytic
 log-derivative (:func:`jaxdea.solve.wavenumbers.search_box`). Without ``omega_max`` the first box
 reaches 1.25 × the highest of the ``n_roots`` elastic frequencies (``damping=None``) and the next
@@ -46,6 +48,19 @@ axis."""
 VISCOUS_SHARE = 0.5
 """κ: a box's contour keeps κy_s from the viscous singularity iy_s of the damped wall
 (:func:`_box`); the corner it leaves out, Re Ω < κy_s < Im Ω, holds only modes with Q < 1/2."""
+LEAKY_SHARE = 0.5
+"""A box right of the sound line, [Ω_a, Ω_b] × [−δ, Ω_b], leaves out the corner
+Re Ω < LEAKY_SHARE·Ω_b < Im Ω (modes with Q < 1/2 only; :func:`_box`). On the leaky sheet the outer
+argument y = γr̂_o (:func:`jaxdea.physics.dispersion.outer_face`) depends on u = Ω/(ĉ_oα̂) alone and
+turns towards the negative real axis as Im u/Re u grows: |arg y| reaches
+:data:`jaxdea.numerics.bessel.ARG_MAX` = 0.9π, beyond which the Bessel ratio is NaN, at
+Im Ω/Re Ω = 2.75 just right of the sound line and 3.07 far from it. With the corner at Ω_b/2 and
+boxes no wider than Ω_b ≤ :data:`LEAKY_RATIO`·Ω_a, every point of the contour and of the region has
+Im Ω/Re Ω ≤ max(Ω_b/(2Ω_a), 2) ≤ 2.5: inside that range (before, the first leaky box of an
+unstretched tube in water-like fluid reached Im Ω = 2.9 Re Ω at its left side and its count
+failed: COUNT_FAILED, tests/test_outer_fluid.py)."""
+LEAKY_RATIO = 5.0
+"""The widest box right of the sound line spans [Ω_a, LEAKY_RATIO·Ω_a] (:data:`LEAKY_SHARE`)."""
 
 
 @serializable
@@ -113,9 +128,11 @@ def complex_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: 
         edges = [float(omega_max)]
     seeds = _seeds(tube, elastic[np.isfinite(elastic)])
     roots, certificate, low = [], SearchStatus.CERTIFIED, 0.0
+    line = _below_the_sound_line(tube, alpha)
     for high in _split_at_the_sound_line(edges, tube, alpha):
+        leaky = line is not None and low > line
         found, certificate = _box(problem, wall, alpha, fluid, m_value, low, high,
-                                  [z for z in seeds if low < z.real <= high])
+                                  [z for z in seeds if low < z.real <= high], leaky)
         roots += found
         if certificate != SearchStatus.CERTIFIED or len(roots) >= n_roots:
             break
@@ -149,11 +166,20 @@ def _below_the_sound_line(tube, alpha):
 def _split_at_the_sound_line(edges, tube, alpha):
     """The right edges of the boxes, with one just left of the sound line where it falls inside
     (the next box starts just right of it): the argument principle holds on a contour inside one
-    sheet, never across the cut."""
+    sheet, never across the cut. Right of it no box is wider than LEAKY_RATIO times its left
+    edge (:data:`LEAKY_SHARE`)."""
     line = _below_the_sound_line(tube, alpha)
     if line is None or line >= edges[-1]:
         return edges
-    return sorted({*(e for e in edges if e < line or e > line * SOUND_LINE_GAP ** 2), line})
+    right = sorted({*(e for e in edges if e > line * SOUND_LINE_GAP ** 2)})
+    split, low = [], line * SOUND_LINE_GAP ** 2
+    for edge in right:
+        while edge > LEAKY_RATIO * low:
+            low *= LEAKY_RATIO
+            split.append(low)
+        split.append(edge)
+        low = edge
+    return [e for e in edges if e < line] + [line] + split
 
 
 def quality_factor(omega):
@@ -182,14 +208,16 @@ def _seeds(tube: Tube, elastic) -> list:
     return [complex(z) for z in (*grown, *elastic) if np.isfinite(z)]
 
 
-def _box(problem, wall, alpha, fluid, m, low, high, seeds=()):
+def _box(problem, wall, alpha, fluid, m, low, high, seeds=(), leaky=False):
     """The roots with low < Re Ω ≤ high and −δ ≤ Im Ω ≤ high (module docstring), and the box's
     certificate; ``seeds`` are tried first (:func:`jaxdea.solve.wavenumbers.search_box`).
 
     Where the damped wall's shear divisor vanishes at iy_s on the imaginary axis inside the box's
     height (:func:`jaxdea.physics.transfer.viscous_singularity`) and the box reaches left of
     κy_s (κ = VISCOUS_SHARE), the corner {Re Ω < κy_s < Im Ω} (Q < 1/2) is left out: the contour
-    (:func:`jaxdea.solve.wavenumbers.region`) keeps κy_s from the singularity."""
+    (:func:`jaxdea.solve.wavenumbers.region`) keeps κy_s from the singularity. A ``leaky`` box
+    (right of a surrounding fluid's sound line) leaves out {Re Ω < LEAKY_SHARE·high < Im Ω}
+    (:data:`LEAKY_SHARE`), the lower of the two corners where both apply."""
     margin = MARGIN * min(1.0, high)
     left = max(low, margin)
     lo, hi = complex(left, -margin), complex(high, high)
@@ -199,9 +227,11 @@ def _box(problem, wall, alpha, fluid, m, low, high, seeds=()):
         im = np.linspace(0.0, high, GRID[1] * 2**k + 1)
         return (re[:, None] + 1j * im[None, :]).ravel()
 
+    corner = VISCOUS_SHARE * viscous_singularity(wall, high)
+    if leaky:
+        corner = min(corner, LEAKY_SHARE * high)
     found, status = search_box(problem, wall, alpha, fluid, m, lo, hi, starts, Unknown.OMEGA,
-                               seeds=seeds,
-                               corner=VISCOUS_SHARE * viscous_singularity(wall, high))
+                               seeds=seeds, corner=corner)
     return [z for z in found if z.real > low], SearchStatus(status)
 
 

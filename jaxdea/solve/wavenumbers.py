@@ -294,6 +294,34 @@ def wavenumbers(tube: Tube, omega, fluid: Fluid | None = None, n_roots: int = 4,
                        jnp.asarray(int(certificate), jnp.int32))
 
 
+SOUND_LINE_GAP = 1.0 + 1e-9
+"""The parts either side of a surrounding fluid's sound line α̂ = Ω/ĉ_o stop at it /SOUND_LINE_GAP
+and start at it ·SOUND_LINE_GAP: off its branch point and its cut (:func:`_split_at_the_sound_line`)."""
+
+
+def _split_at_the_sound_line(parts, tube, omega, grid):
+    """The parts of a band (((lo, hi), starts) pairs), each right part that the sound line
+    α̂_s = Ω/ĉ_o of a surrounding fluid crosses cut in two at it, with the grid of starts over each
+    (``grid(lo_im, hi_im, k, lo_re, hi_re)``). γ = sqrt(α̂² − Ω²/ĉ_o²) takes the outgoing sheet
+    left of it (Re α̂ < α̂_s: supersonic waves radiate, :func:`jaxdea.physics.dispersion.outer_face`)
+    and the decaying one right of it; the two meet with a jump along Re α̂ = α̂_s, so the argument
+    principle holds on a contour inside one of them, never across (a box across it was COUNT_FAILED
+    at every Ω: tests/test_outer_fluid.py)."""
+    if tube.outer is None:
+        return parts
+    line = omega / float(tube.outer.speed_ratio)
+    split = []
+    for (lo, hi), starts in parts:
+        if not lo.real < line < hi.real:
+            split.append(((lo, hi), starts))
+            continue
+        left, right = line / SOUND_LINE_GAP, line * SOUND_LINE_GAP
+        for a, b in ((lo.real, left), (right, hi.real)):
+            split.append(((complex(a, lo.imag), complex(b, hi.imag)),
+                          lambda k, a=a, b=b, lo=lo, hi=hi: grid(lo.imag, hi.imag, k, a, b)))
+    return split
+
+
 def default_alpha_max(problem, tube, omega, fluid) -> float:
     """The default α_max at Ω: 2Ω/min(c_min, ĉ_f) + 4 max(1, Ω) (module docstring)."""
     probe = discretized(tube, n_layers=8)
@@ -310,8 +338,9 @@ def _box(problem, tube, omega, fluid, m, n_layers, scheme, low, high, alpha_max)
     wall = discretized(tube, n_layers=layers)
     eps, eta = 1e-3 * alpha_max, 1e-3 * high
 
-    def grid(lo_im, hi_im, k):  # starts over one band (Newton stays on the real axis from it)
-        re = np.linspace(eps, alpha_max, GRID[0] * 2**k + 2)[1:-1]
+    def grid(lo_im, hi_im, k, lo_re=eps, hi_re=alpha_max):  # starts over one band (Newton stays
+        # on the real axis from it)
+        re = np.linspace(lo_re, hi_re, GRID[0] * 2**k + 2)[1:-1]
         im = np.linspace(lo_im, hi_im, GRID[1] * 2**k + 1)
         return (re[:, None] + 1j * im[None, :]).ravel()
 
@@ -330,6 +359,7 @@ def _box(problem, tube, omega, fluid, m, n_layers, scheme, low, high, alpha_max)
                  ((complex(eps, -high), complex(alpha_max, -low)), lambda k: grid(-high, -low, k)),
                  ((complex(-eps, low), complex(eps, high)), axis(low, high)),
                  ((complex(-eps, -high), complex(eps, -low)), axis(-high, -low))]
+    parts = _split_at_the_sound_line(parts, tube, omega, grid)
     roots, status = [], SearchStatus.CERTIFIED
     for (lo, hi), starts in parts:
         found, part_status = search_box(problem, wall, omega, fluid, m, lo, hi, starts)
