@@ -208,3 +208,55 @@ def test_implicit_derivatives_of_a_complex_root():
     assert abs(grad - fd) <= 1e-6 * abs(fd)
     status = jd.solve_complex_frequency(loaded, 0.6, guess)[1]
     assert int(status) == jd.Status.CONVERGED
+
+
+@pytest.mark.parametrize("case", ["kelvin_voigt", "prony_filled", "hysteretic_in_water", "layered",
+                                  "voltage"])
+def test_the_blocks_of_a_wall_without_voltage_equal_the_full_state(case):
+    """The complex searches of a longitudinal wall without voltage propagate its mechanical and
+    electric blocks apart (characteristic.block_pieces, Problem.decoupled): f and d ln F/dx equal
+    the 6×6 propagation's at complex Ω and complex α̂ (to rounding: 1e-13 of max |f|, 1e-12 of the
+    log-derivative), damped, filled, in a surrounding fluid and layered; a wall with voltage gives
+    NaN, never a wrong value. describe() decouples exactly the longitudinal walls without voltage."""
+    from jaxdea.params import canonical
+    from jaxdea.physics import characteristic as ch
+    from jaxdea.physics.characteristic import Unknown
+    from jaxdea.physics.families import Family
+    from jaxdea.physics.problem import describe
+
+    fluid = None
+    tube = jd.Tube(voltage=0.0, lambda_i=1.1, lambda_z=1.2, eta=0.7, damping=jd.KelvinVoigt(0.05))
+    if case == "prony_filled":
+        tube, fluid = jd.Tube(voltage=0.0, damping=jd.Prony((0.8,), (0.5,))), jd.Fluid()
+    elif case == "hysteretic_in_water":
+        tube = jd.Tube(voltage=0.0, eta=0.85, damping=jd.Hysteretic(0.1),
+                       outer=jd.Fluid(density_ratio=0.7, speed_ratio=3.5))
+    elif case == "layered":
+        tube = jd.Tube(voltage=0.0, layers=(
+            jd.Layer(0.3, jd.NeoHookean(), shear_ratio=2.0),
+            jd.Layer(0.7, jd.Gent(97.2), active=True, damping=jd.KelvinVoigt(0.03))))
+    elif case == "voltage":
+        tube = tube.replace(voltage=0.05)
+    assert describe(tube, 0.8, fluid, None, damped=True).decoupled == (case != "voltage")
+    assert not describe(tube, 0.8, fluid, None, m=1, damped=True).decoupled
+    tube, _, fluid = canonical(tube, 0.8, fluid)
+    wall = transfer.discretized(tube, n_layers=transfer.Layers(12, "magnus6", True))
+    for unknown, xs, fixed in ((Unknown.OMEGA, [0.7 + 0.05j, 1.9 + 0.3j, 3.0 + 1.0j], 0.8),
+                               (Unknown.ALPHA, [0.5 + 0.01j, 1.5 - 0.7j, 0.05 + 2.0j], 1.3)):
+        def both(x, decoupled, unknown=unknown, fixed=fixed):
+            return ch.value_and_log_slope(Family.LONGITUDINAL, wall, x, fixed, fluid, 0, 0.0,
+                                          unknown, decoupled=decoupled)
+
+        xs = jnp.asarray(xs)
+        f_ref, slope_ref = jax.jit(jax.vmap(lambda x: both(x, False)))(xs)
+        f, slope = jax.jit(jax.vmap(lambda x: both(x, True)))(xs)
+        value = jax.jit(jax.vmap(lambda x, unknown=unknown, fixed=fixed: ch.value(
+            Family.LONGITUDINAL, wall, x, fixed, fluid, 0, 0.0, unknown, decoupled=True)))(xs)
+        if case == "voltage":
+            assert np.all(np.isnan(np.asarray(f))) and np.all(np.isnan(np.asarray(value)))
+            continue
+        scale = float(jnp.max(jnp.abs(f_ref)))
+        assert scale > 1e-3
+        np.testing.assert_allclose(f, f_ref, rtol=0, atol=1e-13 * scale)
+        np.testing.assert_allclose(value, f_ref, rtol=0, atol=1e-13 * scale)
+        np.testing.assert_allclose(slope, slope_ref, rtol=1e-12)

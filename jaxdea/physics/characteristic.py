@@ -30,7 +30,8 @@ re-orthonormalisation is never differentiated. x ← x − 1/(d ln F/dx) is Newt
 
 The real-Ω capabilities of the solvers (polynomials in α̂ and w, the decoupled electric block, the
 4×4 mechanical path: :func:`jaxdea.physics.dispersion.value_and_slope_on_wall`) evaluate this same
-f, to rounding; :func:`value` is the one entry for values.
+f, to rounding; :func:`value` is the one entry for values. The complex searches of a wall without
+voltage take its decoupled blocks too (:func:`block_pieces`, ``decoupled``), in any dtype.
 """
 
 import enum
@@ -41,6 +42,8 @@ import jax.numpy as jnp
 from ..params import Fluid, Tube
 from . import dispersion
 from .dispersion import (
+    ELECTRIC,
+    MECHANICAL,
     characteristic_of_w,
     characteristic_on_wall,
     determinant,
@@ -56,6 +59,8 @@ from .transfer import (
     damped_wall,
     discretize,
     generators_at,
+    node_matrices_at,
+    scheme_generators,
 )
 
 
@@ -90,16 +95,23 @@ class Unknown(enum.StrEnum):
 
 
 def value(family: Family, wall: Wall, x, fixed, fluid=None, order: int = 0, m=0,
-          unknown: Unknown = Unknown.OMEGA, method: str = "taylor"):
+          unknown: Unknown = Unknown.OMEGA, method: str = "taylor", decoupled: bool = False):
     """f(x) = det(Out Q_N) (module docstring), real for real x, complex for complex x.
 
-    ``family``, ``order``, ``unknown`` and ``method`` (the sublayer exponential,
-    :data:`jaxdea.physics.transfer.EXPONENTIALS`) are static; ``m`` may be traced (``order_m``).
-    A real Ω, w or s takes the solvers' code path of the family (the 6×6 longitudinal system in Ω,
-    the order-m and torsional systems in w); x = α̂, a damped wall or a complex x the generators
-    formed at the point (:func:`pieces`)."""
+    ``family``, ``order``, ``unknown``, ``method`` (the sublayer exponential,
+    :data:`jaxdea.physics.transfer.EXPONENTIALS`) and ``decoupled`` are static; ``m`` may be traced
+    (``order_m``). A real Ω, w or s takes the solvers' code path of the family (the 6×6
+    longitudinal system in Ω, the order-m and torsional systems in w); x = α̂, a damped wall or a
+    complex x the generators formed at the point (:func:`pieces`; ``decoupled``: its blocks,
+    :func:`block_pieces`)."""
     family, unknown = Family(family), Unknown(unknown)
     if unknown is Unknown.ALPHA or wall.damping is not None or jnp.iscomplexobj(x):
+        if decoupled:
+            f = 1.0
+            for basis, exponentials, out in block_pieces(family, wall, x, fixed, fluid, order, m,
+                                                         unknown, method):
+                f = f * determinant(out @ carry_basis(basis, exponentials)[0])
+            return f
         basis, exponentials, out = pieces(family, wall, x, fixed, fluid, order, m, unknown, method)
         q, _ = carry_basis(basis, exponentials)
         return determinant(out @ q)
@@ -128,7 +140,8 @@ def value_and_scale(family: Family, wall: Wall, x, fixed, fluid=None, order: int
 
 
 def value_and_log_slope(family: Family, wall: Wall, x, fixed, fluid=None, order: int = 0, m=0,
-                        unknown: Unknown = Unknown.OMEGA, method: str = "adaptive"):
+                        unknown: Unknown = Unknown.OMEGA, method: str = "adaptive",
+                        decoupled: bool = False):
     """(f, d ln F/dx) at x, real or complex (module docstring).
 
     f is the value of :func:`value` (the same zeros, sign and argument as F); d ln F/dx is the
@@ -137,11 +150,13 @@ def value_and_log_slope(family: Family, wall: Wall, x, fixed, fluid=None, order:
     differentiated (forward mode, tangent 1 in x), never the re-orthonormalisation. ``method``:
     the sublayer exponential (:data:`jaxdea.physics.transfer.EXPONENTIALS`); the default
     ``"adaptive"`` takes only the squarings it needs under the tangent too (forward mode only;
-    ``"taylor"`` carries the tangent of all its masked squarings, 2× the exponentials' cost)."""
+    ``"taylor"`` carries the tangent of all its masked squarings, 2× the exponentials' cost).
+    ``decoupled``: the blocks of :func:`block_pieces`."""
     family, unknown = Family(family), Unknown(unknown)
     x = jnp.asarray(x, dtype=jnp.result_type(x, jnp.float64))
+    of = block_pieces if decoupled else pieces
     return value_and_log_slope_along(
-        lambda y: pieces(family, wall, y, fixed, fluid, order, m, unknown, method), x,
+        lambda y: of(family, wall, y, fixed, fluid, order, m, unknown, method), x,
         jnp.ones_like(x))
 
 
@@ -149,12 +164,20 @@ def value_and_log_slope_along(pieces_of, primal, tangent):
     """(f, d ln F[tangent]) for (S, T_k, Out) = ``pieces_of(primal)`` (:func:`pieces` of whatever
     ``primal`` holds: x, or the tube and α̂ at a fixed x), the derivative of ln F = ln det(Out A S)
     along ``tangent``: tr((Out Q_N)⁻¹(Out' Q_N + Out Z)), Z carried across the wall in the frame
-    of Q (:func:`jaxdea.physics.transfer.carry_basis_tangent`)."""
-    (basis, exponentials, out), (basis_dot, exponentials_dot, out_dot) = jax.jvp(
-        pieces_of, (primal,), (tangent,))
-    q, z = carry_basis_tangent(basis, basis_dot, exponentials, exponentials_dot)
-    outer_q = out @ q
-    return determinant(outer_q), jnp.trace(jnp.linalg.solve(outer_q, out_dot @ q + out @ z))
+    of Q (:func:`jaxdea.physics.transfer.carry_basis_tangent`). ``pieces_of`` may give a tuple of
+    such triples instead, the blocks of a decoupled wall (:func:`block_pieces`): F is the product
+    of their determinants, ln F the sum."""
+    primals, tangents = jax.jvp(pieces_of, (primal,), (tangent,))
+    if not isinstance(primals[0], tuple):
+        primals, tangents = (primals,), (tangents,)
+    f, log_slope = 1.0, 0.0
+    for (basis, exponentials, out), (basis_dot, exponentials_dot, out_dot) in zip(
+            primals, tangents, strict=True):
+        q, z = carry_basis_tangent(basis, basis_dot, exponentials, exponentials_dot)
+        outer_q = out @ q
+        f = f * determinant(outer_q)
+        log_slope = log_slope + jnp.trace(jnp.linalg.solve(outer_q, out_dot @ q + out @ z))
+    return f, log_slope
 
 
 def value_and_slope(family: Family, wall: Wall, omega, alpha, fluid=None, order: int = 0, m=0,
@@ -203,6 +226,36 @@ def pieces(family: Family, wall: Wall, x, fixed, fluid, order, m, unknown: Unkno
     out = outer_conditions(wall, alpha, m, family, omega_squared=w)
     dtype = jnp.result_type(x, exponentials, basis, out, jnp.float64)
     return basis.astype(dtype), exponentials.astype(dtype), out.astype(dtype)
+
+
+def block_pieces(family: Family, wall: Wall, x, fixed, fluid, order, m, unknown: Unknown,
+                 method: str = "taylor"):
+    """The pieces of :func:`pieces` as two blocks, ((S_m, T_m, Out_m), (S_e, T_e, Out_e)), for a
+    longitudinal wall whose state matrices are block-diagonal in (U, W, T, S) and (Φ, D) (no
+    voltage; a damped wall too: η* changes the mechanical moduli only): the mechanical 4×4
+    propagation of the basis columns ū, w̄ with the rows T, S, and the electric 2×2 one of the
+    column D̄ with the row Φ. Y stays block-diagonal, so Gram–Schmidt acts on each block and
+    F = det(Out_m A_m S_m)·det(Out_e A_e S_e) (the column D̄ and the row Φ moved first together:
+    the same sign), from 4×4 and 2×2 exponentials instead of 6×6 (the real solvers' decoupled path,
+    :func:`jaxdea.physics.dispersion.value_and_slope_on_wall`, in any dtype). NaN where the wall
+    does not decouple (an entry of the node matrices' off-diagonal blocks not exactly 0, as
+    :func:`jaxdea.physics.dispersion.electric_decoupled` tests them)."""
+    w, alpha = unknown.point(x, fixed)
+    wall = damped_wall(wall, unknown.frequency(x, fixed))
+    matrices = node_matrices_at(wall, w, alpha, m, family)
+    ok = (jnp.all(matrices[..., MECHANICAL[:, None], ELECTRIC] == 0)
+          & jnp.all(matrices[..., ELECTRIC[:, None], MECHANICAL] == 0))
+    basis = initial_basis_of_w(wall, w, alpha, fluid, order, m, family)
+    out = outer_conditions(wall, alpha, m, family, omega_squared=w)
+    blocks = []
+    for index, columns, rows in ((MECHANICAL, slice(0, 2), slice(1, 3)),
+                                 (ELECTRIC, slice(2, 3), slice(0, 1))):
+        exponentials = jax.vmap(EXPONENTIALS[method])(
+            scheme_generators(wall, matrices[..., index[:, None], index]))
+        block = (basis[index][:, columns], exponentials, out[rows][:, index])
+        dtype = jnp.result_type(x, *block, jnp.float64)
+        blocks.append(tuple(jnp.where(ok, b, jnp.nan).astype(dtype) for b in block))
+    return tuple(blocks)
 
 
 def problem_function(tube: Tube, alpha, fluid: Fluid | None, n_layers, order: int, m=0,

@@ -30,11 +30,15 @@ from .transfer import validate_scheme
 
 @dataclasses.dataclass(frozen=True)
 class Problem:
-    """The static description of a case: ``family``, inner ``face`` and Bessel ``order`` ν."""
+    """The static description of a case: ``family``, inner ``face`` and Bessel ``order`` ν;
+    ``decoupled``: the electric block decouples (a longitudinal wall without voltage), so the
+    searches of complex roots propagate the mechanical and electric blocks apart
+    (:func:`jaxdea.physics.characteristic.block_pieces`)."""
 
     family: Family
     face: Face
     order: int
+    decoupled: bool = False
 
     def arguments(self, m) -> dict:
         """The keywords (m, family) of the family's programs (:meth:`Family.arguments`)."""
@@ -69,7 +73,20 @@ def describe(tube, alpha, fluid, n_layers, scheme=None, m=0, torsional=False,
             "tube.damping: a damped tube has complex frequencies; this solver finds real roots of "
             "the elastic tube. Use jaxdea.complex_frequencies (complex Omega at a real alpha) or "
             "jaxdea.wavenumbers (complex alpha at a real Omega), or tube.replace(damping=None)")
-    return Problem(family_of(m, torsional, fluid), Face.of(fluid), order)
+    family = family_of(m, torsional, fluid)
+    return Problem(family, Face.of(fluid), order,
+                   damped and family is Family.LONGITUDINAL and _no_voltage(tube))
+
+
+def _no_voltage(tube) -> bool:
+    """Whether the tube's V̂ is concrete and 0 at every point (its electric block decouples)."""
+    voltage = tube.voltage
+    if isinstance(voltage, jax.core.Tracer):
+        return False
+    try:
+        return bool(np.all(np.asarray(voltage) == 0))
+    except (TypeError, ValueError, jax.errors.ConcretizationTypeError):
+        return False
 
 
 def bessel_order(tube: Tube, alpha, fluid: Fluid | None) -> int:

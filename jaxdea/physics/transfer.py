@@ -1187,9 +1187,19 @@ def generators_at(wall: Wall, omega_squared, alpha, m=0, family=LONGITUDINAL):
     the point, against 24 for its coefficients in w, which a damped wall would form again at every
     Ω. The products are batched ``einsum``s: on complex 6×6 matrices XLA:CPU ran them faster than
     :func:`matmul_small` (a value and log-slope at N = 16, 230 against 620 µs, measured)."""
+    return scheme_generators(wall, node_matrices_at(wall, omega_squared, alpha, m, family))
+
+
+def node_matrices_at(wall: Wall, omega_squared, alpha, m=0, family=LONGITUDINAL):
+    """The state matrices M(r̂; w, α̂) at every node of the wall, shape radii.shape + (n, n)."""
     flat = jax.tree_util.tree_map(jnp.ravel, (wall.coef, wall.radii))
     matrices = jax.vmap(lambda c, r: family_matrix(family, c, r, omega_squared, alpha, m))(*flat)
-    matrices = matrices.reshape(wall.radii.shape + matrices.shape[-2:])
+    return matrices.reshape(wall.radii.shape + matrices.shape[-2:])
+
+
+def scheme_generators(wall: Wall, matrices):
+    """The generators of every sublayer from the node matrices (:func:`node_matrices_at`, or a
+    block of them: exact where M is block-diagonal) by the wall's scheme (:func:`generators_at`)."""
     count = wall.radii.shape[0]
     h = (wall.step if jnp.ndim(wall.step) else jnp.full(count, wall.step))[:, None, None]
     if wall.radii.ndim == 1:  # the midpoint laminate: G = h M

@@ -119,8 +119,8 @@ def _pieces_of(problem, wall, fluid, m, unknown):
     exponentials)."""
     def pieces_of(point):
         x = jnp.sqrt(point[0]) if unknown is Unknown.ALPHA else point[0]
-        return characteristic.pieces(problem.family, wall, x, point[1], fluid, problem.order, m,
-                                     unknown, "adaptive")
+        of = characteristic.block_pieces if problem.decoupled else characteristic.pieces
+        return of(problem.family, wall, x, point[1], fluid, problem.order, m, unknown, "adaptive")
 
     return pieces_of
 
@@ -254,7 +254,8 @@ def _newton_steps(problem, wall, fluid, m, grid, xs, unknown):
     def step(x, p):
         x = jnp.where(jnp.isfinite(x), x, 1.0)
         return 1.0 / characteristic.value_and_log_slope(problem.family, wall, x, p, fluid,
-                                                        problem.order, m, unknown)[1]
+                                                        problem.order, m, unknown,
+                                                        decoupled=problem.decoupled)[1]
 
     return jax.vmap(lambda row, p: jax.vmap(lambda x: step(x, p))(row))(xs, grid)
 

@@ -265,8 +265,9 @@ def solve_complex_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None
 def _pieces_of(problem, layers, m):
     def pieces(args):
         tube, alpha, fluid, omega = args
-        return characteristic.pieces(problem.family, discretize(tube, layers), omega, alpha, fluid,
-                                     problem.order, m, Unknown.OMEGA)
+        of = characteristic.block_pieces if problem.decoupled else characteristic.pieces
+        return of(problem.family, discretize(tube, layers), omega, alpha, fluid, problem.order, m,
+                  Unknown.OMEGA)
     return pieces
 
 

@@ -93,7 +93,8 @@ class Wavenumbers(NamedTuple):
 def _phasor(problem, wall, fixed, fluid, m, unknown):
     def phasor(z):
         f = jax.vmap(lambda x: characteristic.value(problem.family, wall, x, fixed, fluid,
-                                                    problem.order, m, unknown))(z)
+                                                    problem.order, m, unknown,
+                                                    decoupled=problem.decoupled))(z)
         size = jnp.abs(f)
         finite = jnp.isfinite(size)
         return jnp.where(size > 0, f / jnp.where(size > 0, size, 1.0), 0.0), finite
@@ -143,7 +144,8 @@ def complex_newton(problem, wall, fixed, fluid, m, x0, unknown=Unknown.ALPHA):
     def step(state):
         k, x, done = state
         _, log_slope = characteristic.value_and_log_slope(problem.family, wall, x, fixed, fluid,
-                                                          problem.order, m, unknown)
+                                                          problem.order, m, unknown,
+                                                          decoupled=problem.decoupled)
         dx = jnp.where(done, 0.0, 1.0 / log_slope)
         ok = jnp.isfinite(dx)
         x_new = jnp.where(ok, x - dx, x)
@@ -151,7 +153,8 @@ def complex_newton(problem, wall, fixed, fluid, m, x0, unknown=Unknown.ALPHA):
 
     _, x, done = jax.lax.while_loop(lambda state: (state[0] < NEWTON_STEPS) & ~state[2], step,
                                     (0, x0, jnp.asarray(False)))
-    f = characteristic.value(problem.family, wall, x, fixed, fluid, problem.order, m, unknown)
+    f = characteristic.value(problem.family, wall, x, fixed, fluid, problem.order, m, unknown,
+                             decoupled=problem.decoupled)
     return x, done & jnp.isfinite(jnp.abs(x)) & (jnp.abs(f) < 1e-8)
 
 
