@@ -260,3 +260,85 @@ def test_the_blocks_of_a_wall_without_voltage_equal_the_full_state(case):
         np.testing.assert_allclose(f, f_ref, rtol=0, atol=1e-13 * scale)
         np.testing.assert_allclose(value, f_ref, rtol=0, atol=1e-13 * scale)
         np.testing.assert_allclose(slope, slope_ref, rtol=1e-12)
+
+
+def _scaled(law, s):
+    """The damping law with its moduli (or loss) times s."""
+    if isinstance(law, jd.KelvinVoigt):
+        return jd.KelvinVoigt(law.viscosity * s)
+    if isinstance(law, jd.Hysteretic):
+        return jd.Hysteretic(law.loss * s)
+    if isinstance(law, jd.Prony):
+        return jd.Prony(tuple(g * s for g in law.moduli), law.times)
+    return jd.FractionalKelvinVoigt(law.modulus * s, law.time, law.order)
+
+
+def _damped(tube, law):
+    """The tube with ``law`` on its wall (a layered wall: on its active layer)."""
+    import dataclasses
+
+    if tube.layers is None:
+        return tube.replace(damping=law)
+    return tube.replace(layers=tuple(dataclasses.replace(layer, damping=law) if layer.active
+                                     else layer for layer in tube.layers))
+
+
+def test_campaign_elastic_roots_continued_in_the_damping_are_found():
+    """A campaign over random stretched, biased, damped tubes (the four laws; m = 0, 1, 2; a
+    liner, a filling or a surrounding fluid at random): each elastic root of ``frequencies`` is
+    continued in the damping scale s = 0.05 … 1 (20 steps of complex Newton on a finer wall of 48
+    sublayers, independent of the search's boxes and grid), and every continued root below the
+    highest root ``complex_frequencies`` returned is among them (1e-6), every returned root
+    CONVERGED, the search's count met wherever it found all roots asked."""
+    from jaxdea.params import canonical
+    from jaxdea.physics import characteristic as ch
+    from jaxdea.physics.characteristic import Unknown
+    from jaxdea.physics.problem import describe
+
+    rng = np.random.default_rng(2026)
+    step = jax.jit(lambda family, order, wall, x, a, f, m: ch.value_and_log_slope(
+        family, wall, x, a, f, order, m, Unknown.OMEGA), static_argnums=(0, 1))
+    for case in range(10):
+        m = int(rng.integers(0, 3))
+        tube = jd.Tube(eta=float(rng.uniform(0.5, 0.9)), lambda_i=float(rng.uniform(0.9, 1.15)),
+                       lambda_z=float(rng.uniform(1.0, 1.25)),
+                       voltage=float(rng.choice([0.0, rng.uniform(0.0, 0.04)])))
+        if rng.random() < 0.4:
+            tube = tube.replace(layers=(
+                jd.Layer(0.25, jd.NeoHookean(), shear_ratio=float(rng.uniform(0.5, 3.0))),
+                jd.Layer(0.75, jd.Gent(97.2), active=True)))
+        fluid = jd.Fluid() if rng.random() < 0.3 else None
+        if rng.random() < 0.25:
+            tube = tube.replace(outer=jd.Fluid(density_ratio=float(rng.uniform(0.5, 1.5)),
+                                               speed_ratio=float(rng.uniform(3.0, 8.0))))
+        law = [jd.KelvinVoigt(float(rng.uniform(0.005, 0.05))),
+               jd.Hysteretic(float(rng.uniform(0.02, 0.2))),
+               jd.Prony((float(rng.uniform(0.2, 1.5)),), (float(rng.uniform(0.2, 3.0)),)),
+               jd.FractionalKelvinVoigt(float(rng.uniform(0.02, 0.2)), float(rng.uniform(0.1, 1.0)),
+                                        float(rng.uniform(0.2, 0.9)))][int(rng.integers(0, 4))]
+        alpha = float(rng.uniform(0.2, 2.5))
+        found = jd.complex_frequencies(_damped(tube, law), alpha, fluid, n_roots=3, m=m)
+        omega = np.asarray(found.omega)
+        finite = np.isfinite(omega)
+        assert finite.any() and np.all(np.asarray(found.status)[finite] == jd.Status.CONVERGED)
+        if finite.all():
+            assert int(found.certificate) == jd.SearchStatus.CERTIFIED, case
+        top = np.max(omega[finite].real)
+        for z in np.asarray(jd.frequencies(tube, alpha, fluid, n_roots=3, m=m)):
+            if not np.isfinite(z):
+                continue
+            z = complex(z)
+            for s in np.linspace(0.05, 1.0, 20):
+                damped = _damped(tube, _scaled(law, s))
+                problem = describe(damped, alpha, fluid, None, m=m, damped=True)
+                t, a, f = canonical(damped, alpha, fluid)
+                wall = transfer.discretized(t, n_layers=transfer.Layers(48, "magnus6", True))
+                for _ in range(40):
+                    dz = -1.0 / complex(step(problem.family, problem.order, wall, z, a, f,
+                                             float(m))[1])
+                    z += dz
+                    if abs(dz) < 1e-13 * abs(z):
+                        break
+                assert abs(dz) < 1e-10 * abs(z), (case, s, z)
+            if z.real <= top * (1 + 1e-9):
+                assert np.min(np.abs(omega[finite] - z)) < 1e-6 * abs(z), (case, z, omega)

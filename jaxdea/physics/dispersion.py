@@ -147,9 +147,7 @@ def decoupled_characteristic_and_scale(wall: Wall, omega, alpha, fluid=None, ord
     values of :func:`_decoupled_value_and_slope` without its slope, f = q_Φ det(B Q_m) and ℓ the
     sum of the blocks' log-scales, equal to the 6×6 values to rounding (tests)."""
     basis = initial_basis(wall, omega, alpha, fluid, order)
-    q_phi, log_electric = electric_column(wall_generators(wall, alpha, at_rest=True,
-                                                          block=tuple(ELECTRIC)))
-    block = wall_generators(wall, alpha, block=tuple(MECHANICAL))
+    block, (q_phi, log_electric) = _decoupled_generators(wall, alpha)
     exponentials = jax.vmap(EXPONENTIALS["adaptive"])(
         jax.vmap(generator_of_w, (0, None))(block, omega * omega))
     q, log_scale = carry_basis(basis[MECHANICAL, :2], exponentials)
@@ -395,13 +393,7 @@ def _decoupled_value_and_slope(basis_of, wall, alpha, omega, with_scale=False, g
     exponentials of 4×4 instead of 6×6 matrices (3.4 times fewer products). ``generators``: those
     of :func:`lane_generators` (formed from the wall if None)."""
     basis, basis_dot = jax.jvp(basis_of, (omega,), (jnp.ones_like(omega),))
-    if generators is None:
-        block = wall_generators(wall, alpha, block=tuple(MECHANICAL))
-        q_phi, log_electric = electric_column(wall_generators(wall, alpha, at_rest=True,
-                                                              block=tuple(ELECTRIC)))
-    else:
-        block = generators["mechanical"]
-        q_phi, log_electric = generators["electric_column"]
+    block, (q_phi, log_electric) = _decoupled_generators(wall, alpha, generators)
     q, z, *log_scale = carry_basis_tangent(basis[MECHANICAL, :2], basis_dot[MECHANICAL, :2],
                                            *_exponentials_and_tangents(block, omega), with_scale)
     if wall.outer is None:
@@ -413,6 +405,15 @@ def _decoupled_value_and_slope(basis_of, wall, alpha, omega, with_scale=False, g
     if with_scale:  # R is block-diagonal too: ℓ is the sum of the blocks' log-scales
         return (q_phi * f, log_scale[0] + log_electric), (q_phi * f_dot, jnp.sum(q * z))
     return q_phi * f, q_phi * f_dot
+
+
+def _decoupled_generators(wall, alpha, generators=None):
+    """(the mechanical block's generator coefficients, (q_Φ, ℓ_e) of :func:`electric_column`) of a
+    decoupled wall at α̂: those of :func:`lane_generators` where given, else formed from the wall."""
+    if generators is not None:
+        return generators["mechanical"], generators["electric_column"]
+    return (wall_generators(wall, alpha, block=tuple(MECHANICAL)),
+            electric_column(wall_generators(wall, alpha, at_rest=True, block=tuple(ELECTRIC))))
 
 
 def at_rest_value_and_slope(wall_of, exponentials_of, voltage, alpha, fluid=None, order=0, m=0,

@@ -299,10 +299,10 @@ def wavenumbers(tube: Tube, omega, fluid: Fluid | None = None, n_roots: int = 4,
 
 SOUND_LINE_GAP = 1.0 + 1e-9
 """The parts either side of a surrounding fluid's sound line α̂ = Ω/ĉ_o stop at it /SOUND_LINE_GAP
-and start at it ·SOUND_LINE_GAP: off its branch point and its cut (:func:`_split_at_the_sound_line`)."""
+and start at it ·SOUND_LINE_GAP: off its branch point and its cut (:func:`_either_side_of_the_sound_line`)."""
 
 
-def _split_at_the_sound_line(parts, tube, omega, grid):
+def _either_side_of_the_sound_line(parts, tube, omega, grid):
     """The parts of a band (((lo, hi), starts) pairs), each right part that the sound line
     α̂_s = Ω/ĉ_o of a surrounding fluid crosses cut in two at it, with the grid of starts over each
     (``grid(lo_im, hi_im, k, lo_re, hi_re)``). γ = sqrt(α̂² − Ω²/ĉ_o²) takes the outgoing sheet
@@ -362,7 +362,7 @@ def _box(problem, tube, omega, fluid, m, n_layers, scheme, low, high, alpha_max)
                  ((complex(eps, -high), complex(alpha_max, -low)), lambda k: grid(-high, -low, k)),
                  ((complex(-eps, low), complex(eps, high)), axis(low, high)),
                  ((complex(-eps, -high), complex(eps, -low)), axis(-high, -low))]
-    parts = _split_at_the_sound_line(parts, tube, omega, grid)
+    parts = _either_side_of_the_sound_line(parts, tube, omega, grid)
     roots, status = [], SearchStatus.CERTIFIED
     for (lo, hi), starts in parts:
         found, part_status = search_box(problem, wall, omega, fluid, m, lo, hi, starts)
