@@ -38,7 +38,14 @@ from ..physics.characteristic import Unknown
 from ..physics.problem import describe
 from ..physics.transfer import discretize, discretized, laminate, viscous_singularity
 from .roots import frequencies
-from .wavenumbers import GRID, SearchStatus, complex_newton, search_box, validate_search
+from .wavenumbers import (
+    GRID,
+    SOUND_LINE_GAP,
+    SearchStatus,
+    complex_newton,
+    search_box,
+    validate_search,
+)
 
 EXTENSIONS = 3
 """Boxes added to the right when fewer than ``n_roots`` roots lie below the default Ω_max."""
@@ -149,9 +156,6 @@ def complex_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: 
 ROOT_OFFSET = 1e-12
 """Relative offset from a root at which its implicit derivative is taken when F rounds to exactly 0
 there (infinite log-derivatives)."""
-SOUND_LINE_GAP = 1.0 + 1e-9
-"""The boxes either side of the sound line stop at ĉ_oα̂/SOUND_LINE_GAP and start at
-ĉ_oα̂·SOUND_LINE_GAP: off its branch point and its cut."""
 
 
 def _below_the_sound_line(tube, alpha):

@@ -180,9 +180,8 @@ def search_box(problem, wall, fixed, fluid, m, lo, hi, starts_of, unknown=Unknow
     fixed Ω, or Ω at the fixed α̂ for ``unknown=Unknown.OMEGA``). ``corner``: the box less its
     corner {Re x < c < Im x} (:func:`region`; starts and seeds outside are dropped). ``seeds``,
     guesses near the roots (e.g. the elastic roots moved by the damping), are tried first, alone:
-    where they meet the
-    count, no grid is searched (the vmapped Newton runs as long as its slowest start, and a grid
-    start that wanders takes every step)."""
+    where they meet the count, no grid is searched (the vmapped Newton runs as long as its slowest
+    start, and a grid start that wanders takes every step)."""
     vertices = region(lo, hi, corner)
     count, status = (int(v) for v in _count(problem, wall, fixed, fluid, m, vertices,
                                             abs(hi - lo), unknown))
@@ -298,8 +297,9 @@ def wavenumbers(tube: Tube, omega, fluid: Fluid | None = None, n_roots: int = 4,
 
 
 SOUND_LINE_GAP = 1.0 + 1e-9
-"""The parts either side of a surrounding fluid's sound line α̂ = Ω/ĉ_o stop at it /SOUND_LINE_GAP
-and start at it ·SOUND_LINE_GAP: off its branch point and its cut (:func:`_either_side_of_the_sound_line`)."""
+"""The searches either side of a surrounding fluid's sound line (α̂ = Ω/ĉ_o here, Ω = ĉ_oα̂ in
+:func:`jaxdea.complex_frequencies`) stop at it /SOUND_LINE_GAP and start at it ·SOUND_LINE_GAP: off
+its branch point and its cut (:func:`_either_side_of_the_sound_line`)."""
 
 
 def _either_side_of_the_sound_line(parts, tube, omega, grid):
@@ -341,8 +341,8 @@ def _box(problem, tube, omega, fluid, m, n_layers, scheme, low, high, alpha_max)
     wall = discretized(tube, n_layers=layers)
     eps, eta = 1e-3 * alpha_max, 1e-3 * high
 
-    def grid(lo_im, hi_im, k, lo_re=eps, hi_re=alpha_max):  # starts over one band (Newton stays
-        # on the real axis from it)
+    def grid(lo_im, hi_im, k, lo_re=eps, hi_re=alpha_max):
+        """Starts over one band (Newton stays on the real axis from it)."""
         re = np.linspace(lo_re, hi_re, GRID[0] * 2**k + 2)[1:-1]
         im = np.linspace(lo_im, hi_im, GRID[1] * 2**k + 1)
         return (re[:, None] + 1j * im[None, :]).ravel()
