@@ -124,6 +124,31 @@ def test_every_root_satisfies_the_exact_relation(law):
         assert np.nanmin(np.abs(exact - z)) <= 1e-9 * abs(z), (z, exact)
 
 
+@pytest.mark.parametrize("law", [
+    jd.KelvinVoigt(0.05),
+    jd.Prony(moduli=(1.7, 1.8, 0.7), times=(0.5, 5.0, 50.0)),
+    jd.FractionalKelvinVoigt(modulus=0.3, time=0.5, order=0.32),
+    jd.Hysteretic(0.05),
+], ids=["KV", "Prony", "fractional KV", "hysteretic"])
+def test_seeds_solve_the_exact_relation(law):
+    """complex_frequencies' first seeds (``_seeds``) from elastic roots Ω_e solve
+    Ω² = Ω_e²(1 + η*(Ω)) to 1e-12 with Re Ω > 0, also where η*(Ω_e)Ω_e is not small (Ω_e up to 36,
+    the benchmark's fourth root); for Kelvin–Voigt they are the closed-form root
+    [iΩ_e²η_v + √(4Ω_e² − Ω_e⁴η_v²)]/2. The elastic roots themselves come second."""
+    from jaxdea.solve.complex_frequencies import _seeds
+    elastic = np.array([0.745, 1.91, 17.84, 35.62])
+    first, second = _seeds(jd.Tube(**REST, damping=law), elastic)
+    first = np.asarray(first)
+    np.testing.assert_array_equal(np.asarray(second), elastic)
+    eta_star = np.asarray(law.viscous_modulus(jnp.asarray(first)))
+    np.testing.assert_allclose(first**2, elastic**2 * (1 + eta_star), rtol=1e-12)
+    assert np.all(first.real > 0) and np.all(first.imag > 0)
+    if isinstance(law, jd.KelvinVoigt):
+        v = law.viscosity
+        closed = (1j * elastic**2 * v + np.sqrt(4 * elastic**2 - elastic**4 * v**2 + 0j)) / 2
+        np.testing.assert_allclose(first, closed, rtol=1e-12)
+
+
 def test_an_elastic_tube_gives_its_real_frequencies():
     """Without damping complex_frequencies returns the real roots of jd.frequencies (a loaded
     tube, acoustic fluid), to 1e-10, with Q = inf."""

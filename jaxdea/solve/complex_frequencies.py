@@ -139,7 +139,8 @@ def complex_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: 
     for high in _split_at_the_sound_line(edges, tube, alpha):
         leaky = line is not None and low > line
         found, certificate = _box(problem, wall, alpha, fluid, m_value, low, high,
-                                  [z for z in seeds if low < z.real <= high], leaky)
+                                  [[z for z in group if low < z.real <= high] for group in seeds],
+                                  leaky)
         roots += found
         if certificate != SearchStatus.CERTIFIED or len(roots) >= n_roots:
             break
@@ -201,20 +202,44 @@ def _elastic(tube: Tube) -> Tube:
     return tube.replace(damping=None, layers=layers)
 
 
-def _seeds(tube: Tube, elastic) -> list:
-    """Guesses of the damped roots from the elastic ones Ω_e: Ω_e √(1 + η*(Ω_e)) for the tube's law
-    (exact for the unstretched, unbiased, empty tube: Ω² = Ω_e²(1 + η*(Ω)) at first order in η*),
-    Ω_e where the layers carry the damping."""
+SEED_STEPS = 30
+"""Newton steps of the scalar relation Ω² = Ω_e²(1 + η*(Ω)) behind each seed (:func:`_seeds`)."""
+
+
+def _seeds(tube: Tube, elastic) -> tuple:
+    """Guesses of the damped roots from the elastic ones Ω_e, in two groups that
+    :func:`jaxdea.solve.wavenumbers.search_box` tries one after the other: first the root of
+
+        Ω² = Ω_e²(1 + η*(Ω))
+
+    for the tube's law, by scalar Newton from Ω_e √(1 + η*(Ω_e)) (the relation is exact for the
+    unstretched, unbiased, empty tube, docs/theory/real_tubes.md §4; η* evaluated at Ω rather than
+    at Ω_e, which is only its first order: for Kelvin–Voigt η_v = 0.05 and Ω_e = 35.6 the damped
+    root is 16.2 + 31.7i, the first order gave 43.9 + 25.7i and complex Newton on the wall took 17
+    steps from it), then Ω_e itself. Where the layers carry the damping: Ω_e alone."""
+    elastic = np.asarray(elastic, dtype=complex)
     if tube.damping is None:
-        return [complex(z) for z in elastic]
-    grown = np.asarray(elastic * np.sqrt(1.0 + np.asarray(tube.damping.viscous_modulus(
-        jnp.asarray(elastic, jnp.complex128)))))
-    return [complex(z) for z in (*grown, *elastic) if np.isfinite(z)]
+        return ([complex(z) for z in elastic],)
+    eta = lambda z: np.asarray(tube.damping.viscous_modulus(z), dtype=complex)  # noqa: E731
+    square = elastic ** 2
+    z = elastic * np.sqrt(1.0 + eta(elastic))
+    with np.errstate(all="ignore"):
+        for _ in range(SEED_STEPS):
+            h = 1e-7 * np.abs(z)
+            slope = 2.0 * z - square * (eta(z + h) - eta(z - h)) / (2.0 * h)
+            step = (z * z - square * (1.0 + eta(z))) / slope
+            new = z - step
+            keep = np.isfinite(new) & (new.real > 0)  # Prony's poles and the fractional cut: Re Ω = 0
+            z = np.where(keep, new, z)
+            if not np.any(keep & (np.abs(step) > 1e-13 * np.abs(z))):
+                break
+    return [complex(v) for v in z if np.isfinite(v)], [complex(v) for v in elastic]
 
 
 def _box(problem, wall, alpha, fluid, m, low, high, seeds=(), leaky=False):
     """The roots with low < Re Ω ≤ high and −δ ≤ Im Ω ≤ high (module docstring), and the box's
-    certificate; ``seeds`` are tried first (:func:`jaxdea.solve.wavenumbers.search_box`).
+    certificate; ``seeds`` (groups of guesses) are tried first, group by group
+    (:func:`jaxdea.solve.wavenumbers.search_box`).
 
     Where the damped wall's shear divisor vanishes at iy_s on the imaginary axis inside the box's
     height (:func:`jaxdea.physics.transfer.viscous_singularity`) and the box reaches left of

@@ -61,7 +61,14 @@ evaluation or buffer budget (``BUDGET_EXHAUSTED``), inputs out of range under ji
 Implementation. One ``lax.while_loop`` over a fixed-size stack of pending segments: each iteration
 evaluates arg F at the midpoints of up to ``LANES`` segments (one vmapped evaluator, one compiled
 program per static configuration), accumulates accepted increments and pushes the halves of the
-rest (depth first, so the stack stays ≈ ``LANES`` × depth). jit- and vmap-compatible. Cost: one
+rest (depth first, so the stack stays ≈ ``LANES`` × depth). Where fewer than ``LANES`` segments are
+pending (P of them, the last iterations, refining next to a root), each is cut into q + 1 equal
+parts (q the largest odd number ≤ LANES/P) and the q points evaluated at once; its (q + 1)/2
+pairs of parts are then accepted or split by the rule above, as the same bisection would have met
+them levels deeper (the rule is only applied to shorter segments, never relaxed). A count then
+takes fewer iterations of the evaluator, whose cost is the same for any number of lanes in use
+(14 → 11 on a damped box of :func:`jaxdea.complex_frequencies`, 568 → 646 evaluations). jit- and
+vmap-compatible. Cost: one
 complex evaluation per δ of contour plus a few per root near the top side; 125–1900 evaluations
 (0.1–4 s after compilation on two CPU cores) for the cases of tests/test_counting.py.
 """
@@ -166,24 +173,48 @@ def winding_count(phasor, starts, ends, divisor, pieces, h_max, h_min, max_evalu
     def body(state):
         ta, tb, sd, ua, ub, n, total, evals, status, first = state
         start = jnp.maximum(n - LANES, 0)
+        popped = n - start  # P segments, the top of the stack
         take = lambda v: jax.lax.dynamic_slice_in_dim(v, start, LANES)  # noqa: E731
         pa, pb, ps, pua, pub = (take(v) for v in (ta, tb, sd, ua, ub))
-        valid = jnp.where(first, True, start + lane < n)
-        tm = 0.5 * (pa + pb)
-        side = jnp.where(first, side0, ps)
-        tau = jnp.where(first, tau0, jnp.where(valid, tm, 0.0))
+        # q interior points per popped segment (q odd, P q <= LANES): the lanes that P < LANES
+        # segments leave idle evaluate points of the next levels of their bisection
+        q = jnp.maximum(LANES // jnp.maximum(popped, 1), 1)
+        q = jnp.where(first, 1, q - 1 + q % 2)
+        owner, j = lane // q, lane % q + 1
+        valid = jnp.where(first, True, owner < popped)
+        owner = jnp.minimum(owner, LANES - 1)
+
+        def at(segment, k):  # τ of point k = 0 … q + 1 of a popped segment (k = (q + 1)/2: midpoint)
+            a, b = pa[segment], pb[segment]
+            return jnp.where(2 * k == q + 1, 0.5 * (a + b), a + (b - a) * (k / (q + 1)))
+
+        side = jnp.where(first, side0, ps[owner])
+        tau = jnp.where(first, tau0, jnp.where(valid, at(owner, j), 0.0))
         um, finite = phasor(point(side, tau))
         bad = valid & ~finite
         zero = valid & finite & (um == 0)
         um = jnp.where(finite & (um != 0), um, 1.0)
 
-        # refinement of the popped segments [a, b] at their midpoints m
-        d1 = jnp.angle(um * jnp.conj(pua))
-        d2 = jnp.angle(pub * jnp.conj(um))
-        length = (pb - pa) * lengths[ps]
-        accept = (valid & ~first & (length <= h_max) & (jnp.abs(d1) <= MAX_PHASE)
+        # refinement: each popped segment is (q + 1)/2 pairs of sub-segments [a, b] with their
+        # midpoints m evaluated (q = 1: the segment itself), each accepted or split in halves
+        pairs = (q + 1) // 2
+        segment, k = jnp.minimum(lane // pairs, LANES - 1), lane % pairs
+        valid_pair = ~first & (lane // pairs < popped)
+
+        def phase_at(k_point):  # the phasor at point k_point of ``segment``
+            inner = um[jnp.clip(segment * q + k_point - 1, 0, LANES - 1)]
+            return jnp.where(k_point == 0, pua[segment],
+                             jnp.where(k_point == q + 1, pub[segment], inner))
+
+        qa, qm, qb = (at(segment, 2 * k + d) for d in (0, 1, 2))
+        va, vm, vb = (phase_at(2 * k + d) for d in (0, 1, 2))
+        qs = ps[segment]
+        d1 = jnp.angle(vm * jnp.conj(va))
+        d2 = jnp.angle(vb * jnp.conj(vm))
+        length = (qb - qa) * lengths[qs]
+        accept = (valid_pair & (length <= h_max) & (jnp.abs(d1) <= MAX_PHASE)
                   & (jnp.abs(d2) <= MAX_PHASE) & (jnp.abs(d1 - d2) <= MAX_CURVATURE))
-        split = valid & ~first & ~accept
+        split = valid_pair & ~accept
         too_short = split & (0.5 * length < h_min)
         total = total + jnp.sum(jnp.where(accept, d1 + d2, 0.0))
 
@@ -191,8 +222,8 @@ def winding_count(phasor, starts, ends, divisor, pieces, h_max, h_min, max_evalu
         init_ok = jnp.concatenate([side0[1:] == side0[:-1], jnp.zeros(LANES + 1, bool)])
         rotate = lambda v: jnp.concatenate([v[1:], v[:1]])  # noqa: E731
         first_segments = (tau0, rotate(tau0), side0, um, rotate(um))
-        halves = (jnp.concatenate([pa, tm]), jnp.concatenate([tm, pb]), jnp.concatenate([ps, ps]),
-                  jnp.concatenate([pua, um]), jnp.concatenate([um, pub]))
+        halves = (jnp.concatenate([qa, qm]), jnp.concatenate([qm, qb]), jnp.concatenate([qs, qs]),
+                  jnp.concatenate([va, vm]), jnp.concatenate([vm, vb]))
         pad = lambda v: jnp.concatenate([v, v])  # noqa: E731
         new = [jnp.where(first, pad(f), h) for f, h in zip(first_segments, halves, strict=True)]
         push = jnp.where(first, init_ok, jnp.concatenate([split, split]))

@@ -179,9 +179,10 @@ def search_box(problem, wall, fixed, fluid, m, lo, hi, starts_of, unknown=Unknow
     that ``starts_of(k)`` gives at refinement k, until they match the box's count (x = α̂ at the
     fixed Ω, or Ω at the fixed α̂ for ``unknown=Unknown.OMEGA``). ``corner``: the box less its
     corner {Re x < c < Im x} (:func:`region`; starts and seeds outside are dropped). ``seeds``,
-    guesses near the roots (e.g. the elastic roots moved by the damping), are tried first, alone:
-    where they meet the count, no grid is searched (the vmapped Newton runs as long as its slowest
-    start, and a grid start that wanders takes every step)."""
+    groups of guesses near the roots (e.g. the elastic roots moved by the damping, then the elastic
+    roots themselves), are tried first, group by group, alone: where a group meets the count, no
+    other group or grid is searched (the vmapped Newton runs as long as its slowest start, and a
+    start that wanders takes every step)."""
     vertices = region(lo, hi, corner)
     count, status = (int(v) for v in _count(problem, wall, fixed, fluid, m, vertices,
                                             abs(hi - lo), unknown))
@@ -190,13 +191,13 @@ def search_box(problem, wall, fixed, fluid, m, lo, hi, starts_of, unknown=Unknow
     if count == 0:  # most parts of a search hold no root: no Newton from their starts
         return [], SearchStatus.CERTIFIED
     found_inside = []
-    seeds = np.asarray(seeds, complex)
-    seeds = seeds[inside(seeds, lo, hi, corner)]
-    attempts = ([seeds] if seeds.size else []) + [
-        np.asarray(starts_of(k), complex) for k in range(REFINEMENTS + 1)]
+    groups = [np.asarray(group, complex) for group in seeds]
+    groups = [group[inside(group, lo, hi, corner)] for group in groups]
+    groups = [group for group in groups if group.size]
+    attempts = groups + [np.asarray(starts_of(k), complex) for k in range(REFINEMENTS + 1)]
     for k, starts in enumerate(attempts):
         starts = starts[inside(starts, lo, hi, corner)]
-        pad = SEED_PAD if k == 0 and seeds.size else PAD
+        pad = SEED_PAD if k < len(groups) else PAD
         padded = np.resize(starts, -(-starts.size // pad) * pad)  # few programs: sizes in pads
         roots, ok = _newton(problem, wall, fixed, fluid, m, jnp.asarray(padded), unknown)
         found = [complex(z) for z, good in zip(np.asarray(roots), np.asarray(ok), strict=True)
