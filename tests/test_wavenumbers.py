@@ -87,3 +87,20 @@ def test_bad_input_names_the_parameter(kwargs, name):
 def test_traced_input_is_refused_in_words():
     with pytest.raises(ValueError, match="omega"):
         jax.jit(lambda om: jd.wavenumbers(UNSTRETCHED, om).alpha)(1.0)
+
+
+def test_roots_near_the_contour_are_recounted_on_the_solve_wall():
+    """search_box's coarse count is trusted only where every root found lies farther than
+    NEAR_CONTOUR × the box size from the region's contour (``_near_contour``): the distances to the
+    sides of the hexagon with its viscous corner, inside and outside."""
+    from jaxdea.solve.wavenumbers import NEAR_CONTOUR, _near_contour, region
+    lo, hi = complex(0.02, -0.02), complex(10.0, 10.0)
+    vertices = region(lo, hi, corner=4.0)
+    size = abs(hi - lo)
+    gap = NEAR_CONTOUR * size
+    assert not _near_contour([], vertices, size)
+    assert not _near_contour([5.0 + 0.01j, 2.0 + 3.0j], vertices, size)
+    assert _near_contour([5.0 - 0.02j + 0.5j * gap], vertices, size)  # beside the bottom side
+    assert not _near_contour([5.0 - 0.02j + 2j * gap], vertices, size)
+    assert _near_contour([4.0 - 0.5 * gap + 6j], vertices, size)  # beside the corner's upright
+    assert not _near_contour([4.0 - 2 * gap + 6j], vertices, size)  # in the corner, clear of it

@@ -16,10 +16,13 @@ nor those of the corner Re Ω < y_s/2 < Im Ω where the wall's damped shear modu
 the point where the roots of ever higher modes gather, nor, in a surrounding fluid's leaky sheet,
 those of the corner Re Ω < Ω_b/2 < Im Ω of a box reaching Ω_b, where the radiation condition leaves
 the range of the outer Bessel functions: :func:`_box`),
-each counted by the argument principle and searched by complex Newton on the analytic
-log-derivative (:func:`jaxdea.solve.wavenumbers.search_box`). Without ``omega_max`` the first box
-reaches 1.25 × the highest of the ``n_roots`` elastic frequencies (``damping=None``) and the next
-boxes extend it, each as wide again as the last, until ``n_roots`` roots are certified.
+each counted by the argument principle (on the checked default's starting discretisation, and
+again on the solve's own where the roots found do not meet that count or one lies next to the
+contour) and searched by complex Newton on the analytic log-derivative
+(:func:`jaxdea.solve.wavenumbers.search_box`), from the elastic roots moved by the damping
+first. Without ``omega_max`` the first box reaches 1.25 × the highest of the ``n_roots`` elastic
+frequencies (``damping=None``) and the next boxes extend it, each as wide again as the last, until
+``n_roots`` roots are certified.
 """
 
 import dataclasses
@@ -126,6 +129,8 @@ def complex_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: 
     m_value = as_float(float(m))
     layers = laminate(n_layers, scheme, tube, alpha, n_roots, int(m))
     wall = discretized(tube, n_layers=layers)
+    coarse = laminate(n_layers, scheme, tube, alpha, n_roots, int(m), checked=True)
+    count_wall = None if coarse == layers else discretized(tube, n_layers=coarse)
     elastic = np.asarray(frequencies(_elastic(tube), alpha, fluid, n_roots, omega_max,
                                      n_layers=n_layers, scheme=scheme, m=m, torsional=torsional))
     if omega_max is None:
@@ -138,7 +143,7 @@ def complex_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: 
     line = _below_the_sound_line(tube, alpha)
     for high in _split_at_the_sound_line(edges, tube, alpha):
         leaky = line is not None and low > line
-        found, certificate = _box(problem, wall, alpha, fluid, m_value, low, high,
+        found, certificate = _box(problem, wall, count_wall, alpha, fluid, m_value, low, high,
                                   [[z for z in group if low < z.real <= high] for group in seeds],
                                   leaky)
         roots += found
@@ -236,10 +241,12 @@ def _seeds(tube: Tube, elastic) -> tuple:
     return [complex(v) for v in z if np.isfinite(v)], [complex(v) for v in elastic]
 
 
-def _box(problem, wall, alpha, fluid, m, low, high, seeds=(), leaky=False):
+def _box(problem, wall, count_wall, alpha, fluid, m, low, high, seeds=(), leaky=False):
     """The roots with low < Re Ω ≤ high and −δ ≤ Im Ω ≤ high (module docstring), and the box's
-    certificate; ``seeds`` (groups of guesses) are tried first, group by group
-    (:func:`jaxdea.solve.wavenumbers.search_box`).
+    certificate; ``seeds`` (groups of guesses) are tried first, group by group, the roots solved
+    on ``wall`` and counted on ``count_wall`` (the checked default's starting discretisation, or
+    None: ``wall``; :func:`jaxdea.solve.wavenumbers.search_box` says when ``wall``'s own count is
+    taken instead).
 
     Where the damped wall's shear divisor vanishes at iy_s on the imaginary axis inside the box's
     height (:func:`jaxdea.physics.transfer.viscous_singularity`) and the box reaches left of
@@ -260,7 +267,7 @@ def _box(problem, wall, alpha, fluid, m, low, high, seeds=(), leaky=False):
     if leaky:
         corner = min(corner, LEAKY_SHARE * high)
     found, status = search_box(problem, wall, alpha, fluid, m, lo, hi, starts, Unknown.OMEGA,
-                               seeds=seeds, corner=corner)
+                               seeds=seeds, corner=corner, count_wall=count_wall)
     return [z for z in found if z.real > low], SearchStatus(status)
 
 

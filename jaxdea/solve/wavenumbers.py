@@ -17,8 +17,11 @@ through the real axis, each next one twice as high:
   from starts iκ on the axis.
 
 Each part's roots are counted by the argument principle on its contour
-(:func:`jaxdea.solve.counting.winding_count`); the grid of starts is refined until the distinct
-converged roots match the count (certified), or the result says it is not. B starts at max(1, Ω)
+(:func:`jaxdea.solve.counting.winding_count`), on the checked default's starting discretisation
+where the default is taken (its zeros are the solve's to its discretisation error; the count is
+taken again on the solve's wall where a root found lies next to the contour or the roots do not
+meet it: :func:`search_box`); the grid of starts is refined until the distinct converged roots
+match the count (certified), or the result says it is not. B starts at max(1, Ω)
 and doubles until ``n_roots`` roots are certified, so the roots reported are the ``n_roots``
 nearest the real axis with Re α̂ ≤ α_max. The default α_max = 2Ω/min(c_min, ĉ_f) + 4 max(1, Ω)
 (c_min the slowest shear speed of the wall) holds the short waves, which travel near the
@@ -164,6 +167,14 @@ def _newton(problem, wall, fixed, fluid, m, starts, unknown=Unknown.ALPHA):
     return jax.vmap(lambda x0: complex_newton(problem, wall, fixed, fluid, m, x0, unknown))(starts)
 
 
+def _converged(problem, wall, fixed, fluid, m, starts, pad, unknown):
+    """The roots to which :func:`complex_newton` converged from ``starts`` (padded to a multiple of
+    ``pad``: few compiled programs)."""
+    padded = np.resize(starts, -(-starts.size // pad) * pad)
+    roots, ok = _newton(problem, wall, fixed, fluid, m, jnp.asarray(padded), unknown)
+    return [complex(z) for z, good in zip(np.asarray(roots), np.asarray(ok), strict=True) if good]
+
+
 def _distinct(roots, scale):
     """The distinct roots (within 1e-7 of the box size) in first-found order."""
     kept = []
@@ -173,8 +184,23 @@ def _distinct(roots, scale):
     return kept
 
 
+NEAR_CONTOUR = 1e-4
+"""A root found within this share of the box size of a searched region's contour has its count
+taken again on the solve's own wall (:func:`search_box`, ``count_wall``)."""
+
+
+def _near_contour(roots, vertices, size) -> bool:
+    """Whether any of ``roots`` lies within NEAR_CONTOUR·size of the polygon of ``vertices``."""
+    if not roots:
+        return False
+    z = np.asarray(roots, complex)[:, None]
+    a, b = vertices[None, :], np.roll(vertices, -1)[None, :]
+    t = np.clip(((z - a) * np.conj(b - a)).real / np.abs(b - a) ** 2, 0.0, 1.0)
+    return bool(np.min(np.abs(z - (a + t * (b - a)))) < NEAR_CONTOUR * size)
+
+
 def search_box(problem, wall, fixed, fluid, m, lo, hi, starts_of, unknown=Unknown.ALPHA,
-               seeds=(), corner=None):
+               seeds=(), corner=None, count_wall=None):
     """(the distinct roots x inside the box lo–hi, :class:`SearchStatus`) by Newton from the starts
     that ``starts_of(k)`` gives at refinement k, until they match the box's count (x = α̂ at the
     fixed Ω, or Ω at the fixed α̂ for ``unknown=Unknown.OMEGA``). ``corner``: the box less its
@@ -182,28 +208,49 @@ def search_box(problem, wall, fixed, fluid, m, lo, hi, starts_of, unknown=Unknow
     groups of guesses near the roots (e.g. the elastic roots moved by the damping, then the elastic
     roots themselves), are tried first, group by group, alone: where a group meets the count, no
     other group or grid is searched (the vmapped Newton runs as long as its slowest start, and a
-    start that wanders takes every step)."""
+    start that wanders takes every step).
+
+    ``count_wall``: a coarser discretisation of the same wall on which the zeros are counted (the
+    count is the search's main cost, and its evaluations are proportional to the sublayers), the
+    roots being solved on ``wall``. The two walls' zeros differ by their discretisation errors, so
+    the counts agree unless a zero lies within those errors of the contour. Where the roots found
+    do not meet the coarse count, or one lies within NEAR_CONTOUR of the contour, the count is
+    taken again on ``wall`` and the search goes on against it: a certificate is always that of
+    ``wall``'s count or of a coarse count met by roots that are all clear of the contour. A grid's
+    starts go to Newton on ``count_wall`` too (cheaper steps, and most grid starts wander for every
+    step allowed), and the distinct roots found there are polished on ``wall``."""
     vertices = region(lo, hi, corner)
-    count, status = (int(v) for v in _count(problem, wall, fixed, fluid, m, vertices,
-                                            abs(hi - lo), unknown))
-    if status != CountStatus.CERTIFIED:
-        return [], SearchStatus.COUNT_FAILED
-    if count == 0:  # most parts of a search hold no root: no Newton from their starts
-        return [], SearchStatus.CERTIFIED
-    found_inside = []
+    size = abs(hi - lo)
     groups = [np.asarray(group, complex) for group in seeds]
     groups = [group[inside(group, lo, hi, corner)] for group in groups]
     groups = [group for group in groups if group.size]
-    attempts = groups + [np.asarray(starts_of(k), complex) for k in range(REFINEMENTS + 1)]
-    for k, starts in enumerate(attempts):
-        starts = starts[inside(starts, lo, hi, corner)]
-        pad = SEED_PAD if k < len(groups) else PAD
-        padded = np.resize(starts, -(-starts.size // pad) * pad)  # few programs: sizes in pads
-        roots, ok = _newton(problem, wall, fixed, fluid, m, jnp.asarray(padded), unknown)
-        found = [complex(z) for z, good in zip(np.asarray(roots), np.asarray(ok), strict=True)
-                 if good and inside(complex(z), lo, hi, corner)]
-        found_inside = _distinct(found_inside + found, abs(hi - lo))
-        if len(found_inside) >= count:
+    attempts = iter(enumerate(groups + [np.asarray(starts_of(k), complex)
+                                        for k in range(REFINEMENTS + 1)]))
+    found_inside, count = [], 0
+    for on in ([wall] if count_wall is None else [count_wall, wall]):
+        count, status = (int(v) for v in _count(problem, on, fixed, fluid, m, vertices, size,
+                                                unknown))
+        if status != CountStatus.CERTIFIED:
+            if on is wall:
+                return [], SearchStatus.COUNT_FAILED
+            continue  # the coarse count failed: count on the solve's wall
+        for k, starts in attempts:  # most parts of a search hold no root: no Newton there
+            if len(found_inside) >= count:
+                break
+            starts = starts[inside(starts, lo, hi, corner)]
+            if k >= len(groups) and count_wall is not None:  # a grid: first on the coarse wall
+                starts = np.asarray(_converged(problem, count_wall, fixed, fluid, m, starts, PAD,
+                                               unknown), complex)
+                starts = np.asarray(_distinct(list(starts), size), complex)
+                if not starts.size:
+                    continue
+            found = [z for z in _converged(problem, wall, fixed, fluid, m, starts,
+                                           SEED_PAD if k < len(groups) or count_wall is not None
+                                           else PAD, unknown)
+                     if inside(z, lo, hi, corner)]
+            found_inside = _distinct(found_inside + found, size)
+        if len(found_inside) == count and not (on is count_wall
+                                                and _near_contour(found_inside, vertices, size)):
             break
     return found_inside, (SearchStatus.CERTIFIED if len(found_inside) == count
                           else SearchStatus.NOT_CERTIFIED)
@@ -338,8 +385,11 @@ def default_alpha_max(problem, tube, omega, fluid) -> float:
 def _box(problem, tube, omega, fluid, m, n_layers, scheme, low, high, alpha_max):
     """The roots with Re α̂ ≥ 0 and low ≤ |Im α̂| ≤ high (the band of the box [0, α_max] between
     those heights, both signs; low = 0: the band through the real axis) and its certificate."""
-    layers = laminate(n_layers, scheme, tube, abs(complex(alpha_max, high)), m=int(m))
+    reach = abs(complex(alpha_max, high))
+    layers = laminate(n_layers, scheme, tube, reach, m=int(m))
     wall = discretized(tube, n_layers=layers)
+    coarse = laminate(n_layers, scheme, tube, reach, m=int(m), checked=True)
+    count_wall = None if coarse == layers else discretized(tube, n_layers=coarse)
     eps, eta = 1e-3 * alpha_max, 1e-3 * high
 
     def grid(lo_im, hi_im, k, lo_re=eps, hi_re=alpha_max):
@@ -366,7 +416,8 @@ def _box(problem, tube, omega, fluid, m, n_layers, scheme, low, high, alpha_max)
     parts = _either_side_of_the_sound_line(parts, tube, omega, grid)
     roots, status = [], SearchStatus.CERTIFIED
     for (lo, hi), starts in parts:
-        found, part_status = search_box(problem, wall, omega, fluid, m, lo, hi, starts)
+        found, part_status = search_box(problem, wall, omega, fluid, m, lo, hi, starts,
+                                        count_wall=count_wall)
         roots += [z for z in found if z.real >= -1e-9 * abs(z)]
         status = max(status, part_status)
     return roots, SearchStatus(status)
