@@ -250,3 +250,25 @@ def test_ring_mode_design_holds_the_length_in_si():
     assert res.voltage == pytest.approx(0.4 * float(first.voltage), rel=2e-6)
     slope = float(jd.tunability(res.tube, res.alpha, res.omega, m=2))
     assert res.tunability == pytest.approx(slope, rel=1e-9)
+
+
+def test_a_target_beyond_the_walls_stable_at_rest_stops_at_them():
+    """The paper's tube at λ_i = 0.9 asked for Ω = 0.8 (n = 1): thinner walls raise Ω towards it, but
+    walls thinner than about η = 0.9 buckle at V̂ = 0 (ring modes). The run reports
+    UNSTABLE_AT_REST with the last iterate that the full (m, n) grid finds stable at rest: the
+    first instability of its tube at V̂ = 0 is its critical_voltage (> 0, to 1e-9), its voltage is
+    within the margin, its Ω short of the target and the lowest root there. (Before, the run stopped
+    as NOT_FINITE at a wall that buckles at rest, η = 0.94, reporting the stale bound 0.0033 of the
+    modes it tracked.)"""
+    paper = jd.Tube(lambda_z=1.2, eta=0.85, lambda_i=0.9)
+    res = design.design_for_frequency(paper, 0.8, n=1)
+    assert res.status == design.DesignStatus.UNSTABLE_AT_REST
+    assert not res.converged
+    first = jd.first_instability(res.tube.replace(voltage=0.0), n_max=3, m_max=8)
+    assert float(first.voltage) > 0.0
+    np.testing.assert_allclose(float(first.voltage), res.critical_voltage, rtol=1e-9)
+    assert (int(first.m), int(first.n)) == res.unstable_mode
+    assert 0.0 < res.voltage <= 0.8 * res.critical_voltage * (1 + 1e-12)
+    assert res.omega < 0.8
+    np.testing.assert_allclose(res.omega, float(jd.frequencies(res.tube, res.alpha, n_roots=1)[0]),
+                               rtol=1e-12)

@@ -33,7 +33,11 @@ How the problems are posed, and why (what converged robustly in our runs):
   run is never missed; between refreshes each step solves only the candidates.
 * Each step solves for values only: each candidate V̂_cr by :func:`jaxdea.solve_critical_voltage` and Ω by
   :func:`jaxdea.solve_frequency` (the safeguarded Newton of :func:`jaxdea.frequency`) started at the
-  previous iterate's root; a failed solve stops the run (status NOT_FINITE). :func:`jaxdea.frequencies`
+  previous iterate's root; a failed solve stops the run (status NOT_FINITE). Between refreshes the
+  candidates cannot see another mode's V̂_cr fall to 0: where a refresh finds the iterate buckling
+  at V̂ = 0 (no admissible voltage: a target beyond the walls stable at rest), the run goes back,
+  by bisection over its iterates, to the last one the full grid finds stable, and returns it with
+  status UNSTABLE_AT_REST. :func:`jaxdea.frequencies`
   seeds the first guess and verifies the optimum (the tracked root must be the lowest).
 * The loss and its gradient come from one small compiled program that attaches implicit-function
   derivatives to those roots, dx/dθ = −(∂g/∂θ)/(∂g/∂x) for g(Ω) = f(Ω; θ) and g(V̂) = f(0; V̂, θ)
@@ -111,6 +115,9 @@ class DesignStatus(enum.IntEnum):
     MAX_STEPS = 1  # the step limit was reached first
     NOT_FINITE = 2  # a root solve failed or the loss became NaN: the last good iterate is returned
     WRONG_BRANCH = 3  # converged, but the tracked root is not the lowest one (verification failed)
+    UNSTABLE_AT_REST = 4  # the run reached walls that buckle at V̂ = 0 (no admissible voltage): the
+    # target lies beyond the walls stable at rest; the last iterate the full (m, n) grid confirms
+    # stable is returned, with its bound
 
 
 @serializable
@@ -428,10 +435,17 @@ def _run(x0, guess, bound, setting, kind, n_layers, scheme, learning_rate, max_s
     x = jnp.asarray(x0, jnp.float64)
     state = optimiser.init(x)
     history, last, status = [], None, DesignStatus.MAX_STEPS
+    iterates, confirmed = [], 0  # (x, root) of each step; the index of the last one refreshed
     for step in range(max_steps):
-        if step and step % REFRESH == 0 and not bound.refresh(x):
-            status = DesignStatus.NOT_FINITE
-            break
+        if step and step % REFRESH == 0:
+            if not bound.refresh(x):
+                status = DesignStatus.NOT_FINITE
+                if bound.first == 0.0:  # x buckles at V̂ = 0: back to the last stable iterate
+                    status = DesignStatus.UNSTABLE_AT_REST
+                    last = _last_stable(iterates + [(x, guess)], confirmed, bound, setting, kind,
+                                        n_layers, scheme, mode) or last
+                break
+            confirmed = len(iterates)
         out = _evaluate(x, guess, setting, kind, n_layers, scheme, bound.candidates, mode)
         if out is None:
             status = DesignStatus.NOT_FINITE
@@ -440,6 +454,7 @@ def _run(x0, guess, bound, setting, kind, n_layers, scheme, learning_rate, max_s
         history.append(float(aux["loss"]))
         last = aux
         guess = aux["omega"]
+        iterates.append((x, guess))
         if done(aux, grad) and bound.confirmed(x, aux):
             status = DesignStatus.CONVERGED
             break
@@ -449,6 +464,24 @@ def _run(x0, guess, bound, setting, kind, n_layers, scheme, learning_rate, max_s
         raise ValueError("the first design step failed (no root at the starting point): check the "
                          "tube and the starting values")
     return last, history, status, x
+
+
+def _last_stable(iterates, stable, bound, setting, kind, n_layers, scheme, mode):
+    """The aux of the last of ``iterates`` ((x, root) pairs) that the full (m, n) grid finds stable
+    at V̂ = 0, by bisection between ``iterates[stable]`` (stable) and the last (not), with ``bound``
+    refreshed there; None where its solve fails."""
+    lo, hi = stable, len(iterates) - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if bound.refresh(iterates[mid][0]):
+            lo = mid
+        else:
+            hi = mid
+    x, root = iterates[lo]
+    if not bound.refresh(x):
+        return None
+    out = _evaluate(x, root, setting, kind, n_layers, scheme, bound.candidates, mode)
+    return None if out is None else out[0]
 
 
 def _newton(x_h, guess, bound, setting, n_layers, scheme, history, rtol, max_steps, mode):
