@@ -184,9 +184,10 @@ def winding_count(phasor, starts, ends, divisor, pieces, h_max, h_min, max_evalu
         valid = jnp.where(first, True, owner < popped)
         owner = jnp.minimum(owner, LANES - 1)
 
-        def at(segment, k):  # τ of point k = 0 … q + 1 of a popped segment (k = (q + 1)/2: midpoint)
+        def at(segment, k):  # τ of point k = 0 … q + 1 of a popped segment (its ends exact)
             a, b = pa[segment], pb[segment]
-            return jnp.where(2 * k == q + 1, 0.5 * (a + b), a + (b - a) * (k / (q + 1)))
+            inner = jnp.where(2 * k == q + 1, 0.5 * (a + b), a + (b - a) * (k / (q + 1)))
+            return jnp.where(k == 0, a, jnp.where(k == q + 1, b, inner))
 
         side = jnp.where(first, side0, ps[owner])
         tau = jnp.where(first, tau0, jnp.where(valid, at(owner, j), 0.0))
