@@ -424,12 +424,30 @@ def evict(root: Path, limit: int) -> int:
     return deleted
 
 
-def _environment_digest() -> str:
-    """Digest of everything a program depends on besides its function and arguments."""
+def _sources_digest() -> str:
+    """Digest of jaxdea's source files as they are on disk now (every module, subpackages too)."""
     digest = hashlib.sha256()
     package = Path(__file__).parent
-    for path in sorted(package.rglob("*.py")):  # every module, in subpackages too
+    for path in sorted(package.rglob("*.py")):
         digest.update(path.relative_to(package).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()
+
+
+IMPORTED_SOURCES = _sources_digest()
+"""The digest of jaxdea's sources when it was imported (reading them only). The files can change
+under a running process (an upgrade in place, a checkout): its programs are those of the sources
+it imported, so it must not store them under, or load those of, the sources on disk."""
+
+
+def _environment_digest() -> str | None:
+    """Digest of everything a program depends on besides its function and arguments, or None where
+    the sources on disk are no longer those this process imported (measured: a process that
+    imported one version and made its first cached call after the files changed had keyed its
+    programs on the new files); then no program is read from or written to the disk cache."""
+    sources = _sources_digest()
+    if sources != IMPORTED_SOURCES:
+        return None
+    digest = hashlib.sha256(sources.encode() + b"\0")
     devices = [(d.platform, d.device_kind, d.id) for d in jax.devices()]
     for part in (jax.__version__, jaxlib.__version__, repr(devices)):
         digest.update(part.encode() + b"\0")
@@ -601,9 +619,13 @@ class CachedJit:
                _options(KEYED_OPTIONS))
         return key, statics, leaves, tree
 
-    def _entry(self, key) -> str:
-        """The entry's file name: a digest of the environment, the function and the key."""
-        return hashlib.sha256(f"{_environment()}\0{self._name}\0{key!r}".encode()).hexdigest()
+    def _entry(self, key) -> str | None:
+        """The entry's file name: a digest of the environment, the function and the key (None where
+        the sources changed since import: :func:`_environment_digest`)."""
+        environment = _environment()
+        if environment is None:
+            return None
+        return hashlib.sha256(f"{environment}\0{self._name}\0{key!r}".encode()).hexdigest()
 
     def _export(self, statics, leaves, tree):
         """Trace and lower the program for these arguments as a flat function of the leaves."""
@@ -616,7 +638,7 @@ class CachedJit:
         """The exported program: read from the cache, else traced here and written."""
         folder = private_folder("programs")
         name = self._entry(key)
-        path = None if folder is None else folder / f"{name}.jaxexport"
+        path = None if folder is None or name is None else folder / f"{name}.jaxexport"
         payload = None if path is None else read_entry(path, name)
         exported = None
         if payload is not None:

@@ -271,6 +271,40 @@ def test_another_environment_does_not_load(cache, monkeypatch):
     assert fresh.counts["loaded"] == 0 and len(_entries(cache)) == 2
 
 
+def test_sources_changed_since_import_neither_load_nor_store(cache, monkeypatch):
+    """A process whose jaxdea files changed on disk after it imported them (an upgrade in place, a
+    checkout) runs the programs of the sources it imported: it neither stores them under the new
+    sources' key nor loads the entries written for them (the key had been read from the disk at the
+    first cached call)."""
+    x = jnp.arange(3.0)
+    cached_jit(_scaled, static_argnames="n")(x, 2)  # an entry for the sources on disk
+    assert len(_entries(cache)) == 1
+    monkeypatch.setattr(compiled, "IMPORTED_SOURCES", "the sources of an earlier import")
+    monkeypatch.setattr(compiled, "_environment", compiled.functools.cache(
+        compiled._environment_digest))
+    fresh = cached_jit(_scaled, static_argnames="n")
+    np.testing.assert_array_equal(fresh(x, 3), 3 * x)
+    np.testing.assert_array_equal(fresh(x, 2), 2 * x)
+    assert fresh.counts == {"loaded": 0, "exported": 2, "stored": 0}
+    assert len(_entries(cache)) == 1
+
+
+def test_an_edit_after_import_is_seen(tmp_path):
+    """The environment digest compares the files on disk with those imported: a copy of jaxdea
+    imported, one of its modules then edited, gives no digest (None); unedited, the digest."""
+    package = tmp_path / "copy"
+    import shutil
+    shutil.copytree(Path(compiled.__file__).parent, package / "jaxdea",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    script = ("import sys; sys.path.insert(0, sys.argv[1]); import jaxdea.compiled as c; "
+              "assert c.__file__.startswith(sys.argv[1]); before = c._environment_digest(); "
+              "open(sys.argv[1] + '/jaxdea/units.py', 'a').write('\\n# edited\\n'); "
+              "print(before is not None, c._environment_digest() is None)")
+    out = subprocess.run([sys.executable, "-c", script, str(package)], capture_output=True,
+                         text=True, timeout=300, env={**os.environ, "JAX_PLATFORMS": "cpu"})
+    assert out.stdout.split() == ["True", "True"], out.stderr
+
+
 def test_clear_cache(cache):
     cached_jit(_scaled, static_argnames="n")(jnp.arange(3.0), 2)
     assert compiled.clear_cache() == cache and not cache.exists()
