@@ -8,6 +8,7 @@ import ast
 import json
 import os
 import pickle
+import shutil
 import stat
 import subprocess
 import sys
@@ -293,7 +294,6 @@ def test_an_edit_after_import_is_seen(tmp_path):
     """The environment digest compares the files on disk with those imported: a copy of jaxdea
     imported, one of its modules then edited, gives no digest (None); unedited, the digest."""
     package = tmp_path / "copy"
-    import shutil
     shutil.copytree(Path(compiled.__file__).parent, package / "jaxdea",
                     ignore=shutil.ignore_patterns("__pycache__"))
     script = ("import sys; sys.path.insert(0, sys.argv[1]); import jaxdea.compiled as c; "

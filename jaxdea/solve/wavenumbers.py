@@ -216,9 +216,7 @@ def search_box(problem, wall, fixed, fluid, m, lo, hi, starts_of, unknown=Unknow
     the counts agree unless a zero lies within those errors of the contour. Where the roots found
     do not meet the coarse count, or one lies within NEAR_CONTOUR of the contour, the count is
     taken again on ``wall`` and the search goes on against it: a certificate is always that of
-    ``wall``'s count or of a coarse count met by roots that are all clear of the contour. (Newton
-    from a grid on ``count_wall``, the roots polished on ``wall``, saved another 0.2 s of a
-    :func:`wavenumbers` call but compiled two more Newton programs: 2–2.5 s of its first call.)"""
+    ``wall``'s count or of a coarse count met by roots that are all clear of the contour."""
     vertices = region(lo, hi, corner)
     size = abs(hi - lo)
     groups = [np.asarray(group, complex) for group in seeds]
@@ -319,9 +317,10 @@ def wavenumbers(tube: Tube, omega, fluid: Fluid | None = None, n_roots: int = 4,
     roots, certificate, low = [], SearchStatus.CERTIFIED, 0.0
     # every band's zeros counted on one wall: the checked default's start at the first band's
     # reach (one counting program; search_box recounts on a band's own wall where needed)
-    coarse = laminate(n_layers, scheme, tube, abs(complex(alpha_max, height)), m=int(m),
-                      checked=True)
-    count_wall = discretized(tube, n_layers=coarse)
+    reach = abs(complex(alpha_max, height))
+    coarse = laminate(n_layers, scheme, tube, reach, m=int(m), checked=True)
+    count_wall = (None if coarse == laminate(n_layers, scheme, tube, reach, m=int(m))
+                  else discretized(tube, n_layers=coarse))  # a given discretisation: its own
     for _ in range(DOUBLINGS + 1):  # bands of the box, each twice as high as the last
         band, certificate = _box(problem, tube, omega, fluid, m_value, n_layers, scheme, low,
                                  height, float(alpha_max), count_wall, coarse)
