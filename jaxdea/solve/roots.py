@@ -949,7 +949,14 @@ def newton_steps(tube, alpha, fluid, omegas, n_layers, order, m=0.0, family=LONG
     longitudinal): the 4×4 mechanical path of a wall without voltage (:func:`decoupled_choice`;
     the same steps to rounding, 2–3 times cheaper)."""
     ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
-    wall = discretize(tube, n_layers)
+    return steps_on_wall(discretize(tube, n_layers), ok, alpha, fluid, omegas, order, m, family,
+                         decoupled)
+
+
+def steps_on_wall(wall, ok, alpha, fluid, omegas, order, m=0.0, family=LONGITUDINAL,
+                  decoupled: bool = False):
+    """:func:`newton_steps` on a discretised ``wall``, for inputs already guarded (``ok``, α̂ and
+    ``fluid`` of :func:`guard_order`): NaN where not ``ok``."""
     family = Family(family)
     m = family.safe_m(m, ok) if family.carries_m else 0
     fun = Scaled(lambda om: characteristic.value_and_scale(family, wall, om, alpha, fluid, order, m,
