@@ -1186,8 +1186,9 @@ def generators_at(wall: Wall, omega_squared, alpha, m=0, family=LONGITUDINAL):
     rounding, for fewer products: the sixth-order scheme takes 6 matrix products per sublayer at
     the point, against 24 for its coefficients in w, which a damped wall would form again at every
     Ω. The products are batched ``einsum``s: on complex 6×6 matrices XLA:CPU ran them faster than
-    :func:`matmul_small` (a value and log-slope at N = 16, 230 against 620 µs, measured), and
-    faster still as one real product of the stacked parts (:func:`complex_product`)."""
+    :func:`matmul_small` (a value and log-slope at N = 16, 230 against 620 µs, measured); the 4×4
+    and 2×2 blocks of a decoupled wall as one real product of their stacked parts
+    (:func:`complex_product`)."""
     return scheme_generators(wall, node_matrices_at(wall, omega_squared, alpha, m, family))
 
 
@@ -1212,16 +1213,13 @@ def scheme_generators(wall: Wall, matrices):
 STACKED_MAX = 4
 """The largest complex matrices whose products :func:`_batched_commutator` takes stacked
 (:func:`complex_product`): the 4×4 and 2×2 blocks of a decoupled wall. The 6×6 and 8×8 ones stay
-complex ``einsum``s: stacked, a damped wall with voltage (6×6) took 97–98 ms for
-``complex_frequencies`` instead of 75–79 ms, although six such products alone ran faster stacked."""
+complex ``einsum``s, which ran faster in the solvers (docs/performance.md)."""
 
 
 def complex_product(a, b):
-    """a @ b for small complex matrices as one real batched product of their parts stacked,
-    [Re a; Im a] @ [Re b, Im b], recombined. XLA:CPU runs a complex ``einsum`` of 4×4 and 6×6
-    matrices slowly: 6 such products over 64 × 6 matrices took 0.37 and 0.59 ms as complex
-    ``einsum``s, 0.18 and 0.36 ms stacked (4 real :func:`matmul_small` products from the parts:
-    0.11 and 0.30 ms, but the complex curves' first calls 18 → 25 s; stacked 18 → 19 s)."""
+    """a @ b for small complex matrices as one real batched product of their stacked parts,
+    [Re a; Im a] @ [Re b, Im b], recombined: on 4×4 matrices XLA:CPU runs it about twice as fast
+    as a complex ``einsum`` (docs/performance.md)."""
     n = a.shape[-1]
     parts = jnp.einsum("...ab,...bc->...ac", jnp.concatenate([jnp.real(a), jnp.imag(a)], axis=-2),
                        jnp.concatenate([jnp.real(b), jnp.imag(b)], axis=-1))
