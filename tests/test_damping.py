@@ -277,14 +277,25 @@ def test_the_blocks_of_a_wall_without_voltage_equal_the_full_state(case):
         f, slope = jax.jit(jax.vmap(lambda x: both(x, True)))(xs)
         value = jax.jit(jax.vmap(lambda x, unknown=unknown, fixed=fixed: ch.value(
             Family.LONGITUDINAL, wall, x, fixed, fluid, 0, 0.0, unknown, decoupled=True)))(xs)
+        winding = jax.jit(jax.vmap(lambda x, unknown=unknown, fixed=fixed: ch.winding_value(
+            Family.LONGITUDINAL, wall, x, fixed, fluid, 0, 0.0, unknown, True)))(xs)
         if case == "voltage":
             assert np.all(np.isnan(np.asarray(f))) and np.all(np.isnan(np.asarray(value)))
+            assert np.all(np.isnan(np.asarray(winding)))
             continue
         scale = float(jnp.max(jnp.abs(f_ref)))
         assert scale > 1e-3
         np.testing.assert_allclose(f, f_ref, rtol=0, atol=1e-13 * scale)
         np.testing.assert_allclose(value, f_ref, rtol=0, atol=1e-13 * scale)
         np.testing.assert_allclose(slope, slope_ref, rtol=1e-12)
+        # the argument principle's function (the roots' count): at x = Ω the mechanical block
+        # alone, F over an electric factor that is one nonzero constant in Ω; at x = α̂, f itself
+        factor = np.asarray(f_ref) / np.asarray(winding)
+        if unknown is Unknown.OMEGA:
+            np.testing.assert_allclose(factor, factor[0], rtol=1e-12)
+            assert 1e-3 < abs(factor[0]) <= 1.0 + 1e-12
+        else:
+            np.testing.assert_allclose(factor, 1.0, rtol=1e-12)
 
 
 def _scaled(law, s):

@@ -8,9 +8,9 @@ import pytest
 import jaxdea as jd
 from jaxdea.numerics import bessel
 from jaxdea.physics.families import Family
-from jaxdea.physics.problem import describe
+from jaxdea.physics.problem import NO_ALPHA, describe
 from jaxdea.physics.transfer import discretize, laminate
-from jaxdea.solve import roots
+from jaxdea.solve import curves, roots
 
 TUBE = jd.Tube(lambda_z=1.2, eta=0.85, gent=97.2, length_ratio=10.0, lambda_i=0.9, voltage=0.1)
 
@@ -213,6 +213,8 @@ BUDGETS = {  # public program: (call of one traced leaf x, x, equations allowed 
                           0.85, 11469),
     # a concrete call's program: the roots and the default's check on the wall of N/2 (6614 today)
     "frequencies_checked": (lambda v: _checked(TUBE.replace(voltage=v), ALPHA), 0.1, 7275),
+    # a concrete default curve's program: the curve and its check at 9 points (12 726 today)
+    "dispersion_curve_checked": (lambda v: _checked_curve(TUBE.replace(voltage=v)), 0.1, 13999),
 }
 
 
@@ -221,7 +223,16 @@ def _checked(tube, alpha):
     order = describe(TUBE, ALPHA, None, None, None).order
     _, alpha, fluid, omega_max = roots.canonical(TUBE, alpha, None, None)
     return roots.checked_frequencies_unchecked(tube, alpha, fluid, omega_max, 3, layers, order)
-SLOW = {"frequencies_acoustic", "dispersion_curve", "first_instability"}  # 9-15 s to trace each
+
+
+def _checked_curve(tube):
+    layers = laminate(None, None, TUBE, CURVE, 4, checked=True)
+    order = describe(TUBE, NO_ALPHA, None, None, None).order
+    return curves.checked_curve_unchecked(tube, CURVE, None, 4, layers, order)
+
+
+# 9-15 s to trace each
+SLOW = {"frequencies_acoustic", "dispersion_curve", "dispersion_curve_checked", "first_instability"}
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW else n

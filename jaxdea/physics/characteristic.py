@@ -228,8 +228,26 @@ def pieces(family: Family, wall: Wall, x, fixed, fluid, order, m, unknown: Unkno
     return basis.astype(dtype), exponentials.astype(dtype), out.astype(dtype)
 
 
+def winding_value(family: Family, wall: Wall, x, fixed, fluid=None, order: int = 0, m=0,
+                  unknown: Unknown = Unknown.OMEGA, decoupled: bool = False):
+    """A function with the zeros of F in x and the same winding around any contour that avoids
+    them, for the argument principle (:func:`jaxdea.solve.counting.winding_count`): :func:`value`,
+    but for x = Ω on a decoupled wall (``decoupled``, :func:`block_pieces`) the mechanical block's
+    det(Out_m A_m S_m) alone. The electric factor det(Out_e A_e S_e) does not depend on Ω (the
+    electric block's state matrix, its initial column D̄ and its row Φ hold α̂ and the permittivity,
+    not Ω, and damping changes the mechanical moduli only), and it is not zero at a real α̂ (the
+    potential's problem alone, Φ = 0 on both electrodes, has no solution but 0), so it turns the
+    phase of F by a constant and counts nothing; leaving it out spares its exponentials."""
+    unknown = Unknown(unknown)
+    if not (decoupled and unknown is Unknown.OMEGA):
+        return value(family, wall, x, fixed, fluid, order, m, unknown, decoupled=decoupled)
+    (basis, exponentials, out), = block_pieces(family, wall, x, fixed, fluid, order, m, unknown,
+                                               electric=False)
+    return determinant(out @ carry_basis(basis, exponentials)[0])
+
+
 def block_pieces(family: Family, wall: Wall, x, fixed, fluid, order, m, unknown: Unknown,
-                 method: str = "taylor"):
+                 method: str = "taylor", electric: bool = True):
     """The pieces of :func:`pieces` as two blocks, ((S_m, T_m, Out_m), (S_e, T_e, Out_e)), for a
     longitudinal wall whose state matrices are block-diagonal in (U, W, T, S) and (Φ, D) (no
     voltage; a damped wall too: η* changes the mechanical moduli only): the mechanical 4×4
@@ -239,7 +257,8 @@ def block_pieces(family: Family, wall: Wall, x, fixed, fluid, order, m, unknown:
     the same sign), from 4×4 and 2×2 exponentials instead of 6×6 (the real solvers' decoupled path,
     :func:`jaxdea.physics.dispersion.value_and_slope_on_wall`, in any dtype). NaN where the wall
     does not decouple (an entry of the node matrices' off-diagonal blocks not exactly 0, as
-    :func:`jaxdea.physics.dispersion.electric_decoupled` tests them)."""
+    :func:`jaxdea.physics.dispersion.electric_decoupled` tests them). ``electric=False`` (static):
+    the mechanical block alone, a tuple of one (:func:`winding_value`)."""
     w, alpha = unknown.point(x, fixed)
     wall = damped_wall(wall, unknown.frequency(x, fixed))
     matrices = node_matrices_at(wall, w, alpha, m, family)
@@ -249,7 +268,7 @@ def block_pieces(family: Family, wall: Wall, x, fixed, fluid, order, m, unknown:
     out = outer_conditions(wall, alpha, m, family, omega_squared=w)
     blocks = []
     for index, columns, rows in ((MECHANICAL, slice(0, 2), slice(1, 3)),
-                                 (ELECTRIC, slice(2, 3), slice(0, 1))):
+                                 (ELECTRIC, slice(2, 3), slice(0, 1)))[:2 if electric else 1]:
         exponentials = jax.vmap(EXPONENTIALS[method])(
             scheme_generators(wall, matrices[..., index[:, None], index]))
         block = (basis[index][:, columns], exponentials, out[rows][:, index])

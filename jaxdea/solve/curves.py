@@ -618,13 +618,16 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
     # one propagation compiled, not both: V̂ = 0 decouples the electric block (a program each)
     decoupled = decoupled_choice(tube, family)
 
-    def solve(layers):
-        return _solve_curve(*values, n_roots, layers, order, **problem.arguments(detached(m)),
-                            decoupled=decoupled)
-
-    curve = solve(layers)
+    arguments = problem.arguments(detached(m))
     if short is None and checked and is_graded(layers):
-        curve, short = _checked_curve(solve, curve, layers, values, order, m, family, decoupled)
+        def solve(layers):  # the curve and its check's Newton steps, in one program
+            return _solve_checked_curve(*values, n_roots, layers, order, **arguments,
+                                        decoupled=decoupled)
+
+        curve, short = _checked_curve(solve, solve(layers), layers, values, order, m, family,
+                                      decoupled)
+    else:
+        curve = _solve_curve(*values, n_roots, layers, order, **arguments, decoupled=decoupled)
     curve = curve._replace(status=inaccurate_where(short, Roots(curve.omega, curve.status)).status)
     if not traced((tube, alpha, fluid, m)):
         # concrete inputs carry no tangents: the implicit derivatives would leave the values as
@@ -659,31 +662,51 @@ def sampled_newton_steps(tube, alphas, fluid, omegas, n_layers, order, m=0.0, fa
     return jax.vmap(one)(alphas, omegas)
 
 
-_sampled_steps = cached_jit(sampled_newton_steps,
-                            static_argnames=("n_layers", "order", "family", "decoupled"))
+def checked_points(count: int) -> np.ndarray:
+    """The indices of the CHECKED_POINTS points of a grid of ``count`` (evenly spread, both ends)."""
+    return np.unique(np.round(np.linspace(0, count - 1, CHECKED_POINTS)).astype(int))
 
 
-def _checked_curve(solve, curve, layers, values, order, m, family, decoupled=None):
+def checked_curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order, m=0.0,
+                            family=LONGITUDINAL, decoupled=None):
+    """(curve, steps): :func:`curve_unchecked` on ``n_layers`` (graded sixth-order Magnus) and the
+    Newton steps of its roots at :func:`checked_points` on the :func:`jaxdea.solve.roots.companion`
+    wall (:func:`sampled_newton_steps`), in one program: the check of :func:`_checked_curve` without
+    a second dispatch and a wait for the curve in between (as
+    :func:`jaxdea.solve.roots.checked_frequencies_unchecked` does for ``frequencies``)."""
+    curve = curve_unchecked(tube, alpha, fluid, n_roots, n_layers, order, m, family, decoupled)
+    pick = checked_points(jnp.shape(alpha)[0])
+    # the check's inputs behind a barrier: XLA then shares none of the curve's work with it
+    tube, alpha, fluid, m, omega = jax.lax.optimization_barrier((tube, alpha, fluid, m, curve.omega))
+    alpha, omega = as_float(alpha)[pick], omega[pick]
+    steps = sampled_newton_steps(tube, alpha, fluid, omega, companion(n_layers), order, m, family,
+                                 bool(decoupled))
+    return curve, steps
+
+
+_solve_checked_curve = cached_jit(checked_curve_unchecked,
+                                  static_argnames=("n_roots", "n_layers", "order", "family",
+                                                   "decoupled"))
+
+
+def _checked_curve(solve, result, layers, values, order, m, family, decoupled=None):
     """(curve, short): a concrete default curve checked like the points of
     :func:`jaxdea.solve_frequencies` (:func:`jaxdea.solve.roots._verified`), at CHECKED_POINTS of its
     points (the error varies smoothly along α̂): one Newton step per root on the
     :func:`jaxdea.solve.roots.companion` wall estimates its error; where some exceed 1e-8 the curve
-    is solved again (``solve(layers)``) on the finer N they ask for; a root index still short at a
-    checked point is INACCURATE along the curve. The curve starts at the checked count of
-    :func:`jaxdea.physics.transfer.auto_layer_count` (0.45 of the rule, 6 at least). ``decoupled``
-    (:func:`jaxdea.solve.roots.decoupled_choice`): True takes the 4×4 path for the steps too."""
-    tube, alpha, fluid = values
-    order_args = family.arguments(m)
-    pick = np.unique(np.round(np.linspace(0, np.shape(alpha)[0] - 1, CHECKED_POINTS)).astype(int))
+    is solved again on the finer N they ask for; a root index still short at a checked point is
+    INACCURATE along the curve. ``solve(layers)`` gives (curve, steps) on ``layers``
+    (:func:`checked_curve_unchecked`), ``result`` that of the starting ``layers``: the checked count
+    of :func:`jaxdea.physics.transfer.auto_layer_count` (0.45 of the rule, 6 at least)."""
+    pick = checked_points(np.shape(values[1])[0])
 
-    def ratio_of(curve, layers):
+    def ratio_of(result, layers):
+        curve, steps = result
         # picked in NumPy: JAX's eager gathers cost ≈ 0.7 ms each, a tenth of the curve (measured)
         sampled = Roots(np.asarray(curve.omega)[pick], np.asarray(curve.status)[pick])
-        steps = _sampled_steps(tube, np.asarray(alpha)[pick], fluid, sampled.omega,
-                               companion(layers), order, **order_args, decoupled=bool(decoupled))
-        return _shortfall(sampled, steps, layers)
+        return _shortfall(sampled, np.asarray(steps), layers)
 
-    _, curve, ratio = refined(solve, ratio_of, layers, curve)
+    _, (curve, _), ratio = refined(solve, ratio_of, layers, result)
     short = np.broadcast_to(np.any(ratio > 1.0, axis=0), np.shape(curve.omega))
     return curve, (short if short.any() else None)
 

@@ -95,9 +95,9 @@ class Wavenumbers(NamedTuple):
 
 def _phasor(problem, wall, fixed, fluid, m, unknown):
     def phasor(z):
-        f = jax.vmap(lambda x: characteristic.value(problem.family, wall, x, fixed, fluid,
-                                                    problem.order, m, unknown,
-                                                    decoupled=problem.decoupled))(z)
+        f = jax.vmap(lambda x: characteristic.winding_value(problem.family, wall, x, fixed, fluid,
+                                                            problem.order, m, unknown,
+                                                            problem.decoupled))(z)
         size = jnp.abs(f)
         finite = jnp.isfinite(size)
         return jnp.where(size > 0, f / jnp.where(size > 0, size, 1.0), 0.0), finite
