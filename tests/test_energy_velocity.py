@@ -87,11 +87,11 @@ def _damped_root(tube, omega, alpha0, m=0):
     roots of jaxdea.wavenumbers, without its search of the plane)."""
     layers = laminate(None, None, tube, alpha0, m=m)
     problem = describe(tube, NO_ALPHA, None, layers, None, m, damped=True)
-    roots, ok = wavenumbers_module._newton(problem, discretize(tube, layers), float(omega), None,
-                                           jnp.asarray(float(m)),
-                                           jnp.asarray([complex(alpha0)]))
-    assert bool(ok[0])
-    return complex(roots[0])
+    root, ok = jax.jit(wavenumbers_module.complex_newton, static_argnums=(0,))(
+        problem, discretize(tube, layers), float(omega), None, jnp.asarray(float(m)),
+        jnp.asarray(complex(alpha0)))
+    assert bool(ok)
+    return complex(root)
 
 
 def _balance(tube, alpha, omega, m=0):

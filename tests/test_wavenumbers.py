@@ -104,3 +104,43 @@ def test_roots_near_the_contour_are_recounted_on_the_solve_wall():
     assert not _near_contour([5.0 - 0.02j + 2j * gap], vertices, size)
     assert _near_contour([4.0 - 0.5 * gap + 6j], vertices, size)  # beside the corner's upright
     assert not _near_contour([4.0 - 2 * gap + 6j], vertices, size)  # in the corner, clear of it
+
+
+def test_a_newton_batch_stops_once_its_roots_are_found():
+    """search_box's Newton batch (wavenumbers._newton) stops once the roots the count still needs
+    have converged inside the region, not when its slowest start does: from a grid over the band
+    [0.05, 5] × [−1, 1] of the hysteretic tube at Ω = 0.5 (one root there, 0.2923 − 0.0075i), the
+    stopped batch holds that root to 1e-12 of the batch run to the end but fewer converged starts;
+    a root already known does not count; needing more roots than the box holds runs to the end."""
+    import jax.numpy as jnp
+
+    from jaxdea.params import canonical
+    from jaxdea.physics.characteristic import Unknown
+    from jaxdea.physics.problem import NO_ALPHA, describe
+    from jaxdea.physics.transfer import Layers, discretized
+    from jaxdea.solve import wavenumbers as W
+
+    tube = UNSTRETCHED.replace(damping=jd.Hysteretic(0.05))
+    problem = describe(tube, NO_ALPHA, None, None, None, 0, False, damped=True)
+    tube, omega, fluid = canonical(tube, 0.5, None)
+    wall = discretized(tube, n_layers=Layers(12, "magnus6", True))
+    lo, hi = complex(0.05, -1.0), complex(5.0, 1.0)
+    re, im = np.meshgrid(np.linspace(0.3, 4.7, 8), np.linspace(-0.8, 0.8, 4))
+    starts = (re + 1j * im).ravel()
+    m = jnp.asarray(0.0)
+
+    def run(known, need):
+        return W._converged(problem, wall, omega, fluid, m, starts, W.PAD, Unknown.ALPHA,
+                            (lo, hi, None), known, need)
+
+    def inside(roots):
+        return W._distinct([z for z in roots if W.inside(z, lo, hi)], abs(hi - lo))
+
+    everything = run([], 10 ** 6)  # more than the box holds: every start to its end
+    stopped = run([], 1)
+    assert len(inside(everything)) == 1 and len(inside(stopped)) == 1
+    np.testing.assert_allclose(inside(stopped)[0], inside(everything)[0], rtol=1e-12)
+    assert abs(inside(stopped)[0] - (0.29233013 - 0.00752020j)) < 1e-7
+    assert len(stopped) < len(everything)
+    again = run(inside(everything), 1)  # the box's one root is known: nothing stops the batch
+    assert len(again) == len(everything)
