@@ -257,8 +257,8 @@ def search_box(problem, wall, fixed, fluid, m, lo, hi, starts_of, unknown=Unknow
     corner {Re x < c < Im x} (:func:`region`; starts and seeds outside are dropped). ``seeds``,
     groups of guesses near the roots (e.g. the elastic roots moved by the damping, then the elastic
     roots themselves), are tried first, group by group, alone: where a group meets the count, no
-    other group or grid is searched (the vmapped Newton runs as long as its slowest start, and a
-    start that wanders takes every step).
+    other group or grid is searched. Each batch of starts stops once the roots the count still
+    needs have converged inside the region (:func:`_newton`).
 
     ``count_wall``: a coarser discretisation of the same wall on which the zeros are counted (the
     count is the search's main cost, and its evaluations are proportional to the sublayers), the
