@@ -122,8 +122,8 @@ def region(lo: complex, hi: complex, corner: float | None = None) -> np.ndarray:
 
 def inside(z, lo: complex, hi: complex, corner: float | None = None):
     """Whether z (a number or an array) lies in the searched region of :func:`region`, its boundary
-    included (a corner outside the rectangle leaves it whole)."""
-    z = np.asarray(z)
+    included (a corner outside the rectangle leaves it whole); traceable for a JAX array z."""
+    z = z if isinstance(z, jax.Array) else np.asarray(z)
     ok = (lo.real <= z.real) & (z.real <= hi.real) & (lo.imag <= z.imag) & (z.imag <= hi.imag)
     return ok if corner is None else ok & ~((z.real < corner) & (z.imag > corner))
 
@@ -146,19 +146,33 @@ def complex_newton(problem, wall, fixed, fluid, m, x0, unknown=Unknown.ALPHA):
     step is below ROOT_RTOL of x (at most NEWTON_STEPS); converged also needs |f| < 1e-8 there."""
     def step(state):
         k, x, done = state
-        _, log_slope = characteristic.value_and_log_slope(problem.family, wall, x, fixed, fluid,
-                                                          problem.order, m, unknown,
-                                                          decoupled=problem.decoupled)
-        dx = jnp.where(done, 0.0, 1.0 / log_slope)
-        ok = jnp.isfinite(dx)
-        x_new = jnp.where(ok, x - dx, x)
-        return k + 1, x_new, done | ~ok | (jnp.abs(dx) <= ROOT_RTOL * jnp.abs(x_new))
+        x, done, _ = _newton_step(problem, wall, fixed, fluid, m, unknown, x, done)
+        return k + 1, x, done
 
     _, x, done = jax.lax.while_loop(lambda state: (state[0] < NEWTON_STEPS) & ~state[2], step,
                                     (0, x0, jnp.asarray(False)))
+    return x, _converged_at(problem, wall, fixed, fluid, m, unknown, x, done)
+
+
+def _newton_step(problem, wall, fixed, fluid, m, unknown, x, done):
+    """(x', done', settled): one step of :func:`complex_newton` where not ``done``. A start is done
+    after a step that is not finite or below ROOT_RTOL of x', settled where that small step was
+    taken at |f| < 1e-8."""
+    f, log_slope = characteristic.value_and_log_slope(problem.family, wall, x, fixed, fluid,
+                                                      problem.order, m, unknown,
+                                                      decoupled=problem.decoupled)
+    dx = jnp.where(done, 0.0, 1.0 / log_slope)
+    ok = jnp.isfinite(dx)
+    x_new = jnp.where(ok, x - dx, x)
+    small = ~done & ok & (jnp.abs(dx) <= ROOT_RTOL * jnp.abs(x_new))
+    return x_new, done | ~ok | small, small & (jnp.abs(f) < 1e-8)
+
+
+def _converged_at(problem, wall, fixed, fluid, m, unknown, x, done):
+    """Whether Newton stopped at a root: done, finite and |f| < 1e-8 at x."""
     f = characteristic.value(problem.family, wall, x, fixed, fluid, problem.order, m, unknown,
                              decoupled=problem.decoupled)
-    return x, done & jnp.isfinite(jnp.abs(x)) & (jnp.abs(f) < 1e-8)
+    return done & jnp.isfinite(jnp.abs(x)) & (jnp.abs(f) < 1e-8)
 
 
 KNOWN = 16
@@ -168,12 +182,12 @@ DISTINCT = 1e-7
 
 
 def _new_roots(x, good, region, known):
-    """How many of the converged lanes (``good``) hold distinct roots inside ``region`` = (lo, hi,
-    corner) (:func:`inside`, corner inf for none) that are not among ``known``."""
+    """How many of the converged lanes (``good``) hold distinct roots (:func:`_distinct`'s rule,
+    lane order) inside ``region`` = (lo, hi, corner) (:func:`inside`; corner inf for none) that are
+    not among ``known``."""
     lo, hi, corner = region
     tol = DISTINCT * jnp.abs(hi - lo)
-    good = (good & (lo.real <= x.real) & (x.real <= hi.real) & (lo.imag <= x.imag)
-            & (x.imag <= hi.imag) & ~((x.real < corner) & (x.imag > corner)))
+    good = good & inside(x, lo, hi, corner)
     earlier = jnp.tril((jnp.abs(x[:, None] - x[None, :]) <= tol) & good[None, :], k=-1)
     seen = jnp.any(jnp.abs(x[:, None] - known[None, :]) <= tol, axis=1)
     return jnp.sum(good & ~jnp.any(earlier, axis=1) & ~seen)
@@ -183,19 +197,14 @@ def _new_roots(x, good, region, known):
 def _newton(problem, wall, fixed, fluid, m, starts, region, known, need, unknown=Unknown.ALPHA):
     """:func:`complex_newton` from every start, one batch: (roots, converged). The batch stops
     once ``need`` distinct roots inside ``region`` (lo, hi, corner), other than ``known``, have
-    converged (a step below ROOT_RTOL where |f| < 1e-8), instead of when its slowest start does:
-    the other starts' roots are not needed (the grids of ``wavenumbers`` at Ω = 0.5 of a
-    hysteretic tube: their slowest starts took 11–19 steps, most of the others 6–10)."""
+    settled (:func:`_newton_step`), instead of when its slowest start does: the other starts'
+    roots are not needed (the grids of ``wavenumbers`` at Ω = 0.5 of a hysteretic tube: their
+    slowest starts took 11–19 steps, most of the others 6–10)."""
     def step(state):
         k, x, done, good = state
-        f, log_slope = jax.vmap(lambda x: characteristic.value_and_log_slope(
-            problem.family, wall, x, fixed, fluid, problem.order, m, unknown,
-            decoupled=problem.decoupled))(x)
-        dx = jnp.where(done, 0.0, 1.0 / log_slope)
-        ok = jnp.isfinite(dx)
-        x_new = jnp.where(ok, x - dx, x)
-        small = ~done & ok & (jnp.abs(dx) <= ROOT_RTOL * jnp.abs(x_new))
-        return k + 1, x_new, done | ~ok | small, good | (small & (jnp.abs(f) < 1e-8))
+        x, done, settled = jax.vmap(lambda x, done: _newton_step(
+            problem, wall, fixed, fluid, m, unknown, x, done))(x, done)
+        return k + 1, x, done, good | settled
 
     def cond(state):
         k, x, done, good = state
@@ -203,10 +212,8 @@ def _newton(problem, wall, fixed, fluid, m, starts, region, known, need, unknown
 
     _, x, done, _ = jax.lax.while_loop(cond, step, (0, starts, jnp.zeros(starts.shape, bool),
                                                     jnp.zeros(starts.shape, bool)))
-    f = jax.vmap(lambda x: characteristic.value(problem.family, wall, x, fixed, fluid,
-                                                problem.order, m, unknown,
-                                                decoupled=problem.decoupled))(x)
-    return x, done & jnp.isfinite(jnp.abs(x)) & (jnp.abs(f) < 1e-8)
+    return x, jax.vmap(lambda x, done: _converged_at(problem, wall, fixed, fluid, m, unknown, x,
+                                                      done))(x, done)
 
 
 def _converged(problem, wall, fixed, fluid, m, starts, pad, unknown, region, known, need):
