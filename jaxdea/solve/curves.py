@@ -624,8 +624,7 @@ def dispersion_curve(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: int
             return _solve_checked_curve(*values, n_roots, layers, order, **arguments,
                                         decoupled=decoupled)
 
-        curve, short = _checked_curve(solve, solve(layers), layers, values, order, m, family,
-                                      decoupled)
+        curve, short = _checked_curve(solve, solve(layers), layers, values[1])
     else:
         curve = _solve_curve(*values, n_roots, layers, order, **arguments, decoupled=decoupled)
     curve = curve._replace(status=inaccurate_where(short, Roots(curve.omega, curve.status)).status)
@@ -689,7 +688,7 @@ _solve_checked_curve = cached_jit(checked_curve_unchecked,
                                                    "decoupled"))
 
 
-def _checked_curve(solve, result, layers, values, order, m, family, decoupled=None):
+def _checked_curve(solve, result, layers, alpha):
     """(curve, short): a concrete default curve checked like the points of
     :func:`jaxdea.solve_frequencies` (:func:`jaxdea.solve.roots._verified`), at CHECKED_POINTS of its
     points (the error varies smoothly along α̂): one Newton step per root on the
@@ -697,8 +696,9 @@ def _checked_curve(solve, result, layers, values, order, m, family, decoupled=No
     is solved again on the finer N they ask for; a root index still short at a checked point is
     INACCURATE along the curve. ``solve(layers)`` gives (curve, steps) on ``layers``
     (:func:`checked_curve_unchecked`), ``result`` that of the starting ``layers``: the checked count
-    of :func:`jaxdea.physics.transfer.auto_layer_count` (0.45 of the rule, 6 at least)."""
-    pick = checked_points(np.shape(values[1])[0])
+    of :func:`jaxdea.physics.transfer.auto_layer_count` (0.45 of the rule, 6 at least), on the grid
+    ``alpha``."""
+    pick = checked_points(np.shape(alpha)[0])
 
     def ratio_of(result, layers):
         curve, steps = result
