@@ -399,7 +399,7 @@ def test_value_and_slope_on_wall_equals_forward_mode(case):
         family = TORSIONAL
     wall = discretize(tube, layers)
     if family == LONGITUDINAL:
-        assert bool(electric_decoupled(wall, alpha)) == (case != "coupled")
+        assert bool(electric_decoupled(wall)) == (case != "coupled")
 
     def on_wall(x, method):
         return characteristic_on_wall(wall, x, alpha, fluid, order, method, m, family)
@@ -414,6 +414,33 @@ def test_value_and_slope_on_wall_equals_forward_mode(case):
     np.testing.assert_allclose(f, f_expm, rtol=0, atol=1e-12 * scale)
     # f' = D det(BQ)[BZ] − f tr(QᵀZ): rounding relative to |f'| and to |f| (the two terms)
     np.testing.assert_allclose(df, df_ref, rtol=1e-11, atol=1e-13 * scale)
+
+
+@pytest.mark.parametrize("voltage", [0.0, 0.05])
+@pytest.mark.parametrize("wall_kind", ["gent", "mooney_rivlin", "layered", "damped"])
+def test_electric_decoupled_reads_the_node_matrices_from_the_coefficients(wall_kind, voltage):
+    """electric_decoupled (D̂_r = 0 at every node) agrees with the test of the node matrices
+    themselves: every entry of their (U, W, T, S)–(Φ, D) blocks exactly 0, at several α̂ (0 too),
+    for the closed-form 6×6 matrix and the general 8×8 one (a Mooney–Rivlin wall, a layered wall
+    with passive layers, a damped wall), with and without voltage."""
+    from jaxdea.physics.dispersion import ELECTRIC, MECHANICAL, electric_decoupled
+    from jaxdea.physics.transfer import node_matrices
+
+    tube = jd.Tube(voltage=voltage, **PAPER)
+    if wall_kind == "mooney_rivlin":
+        tube = tube.replace(material=jd.MooneyRivlin(0.3))
+    elif wall_kind == "layered":
+        tube = tube.replace(layers=(jd.Layer(0.2, jd.NeoHookean(), shear_ratio=3.0),
+                                    jd.Layer(0.6, jd.Gent(97.2), active=True),
+                                    jd.Layer(0.2, jd.MooneyRivlin(0.2), shear_ratio=0.5)))
+    elif wall_kind == "damped":
+        tube = tube.replace(damping=jd.KelvinVoigt(viscosity=0.05))
+    wall = discretize(tube, transfer.Layers(8, "magnus6", graded=True))
+    for alpha in (0.0, 0.89, 5.0):
+        nodes = node_matrices(wall, alpha)
+        blocks = (jnp.all(nodes[..., MECHANICAL[:, None], ELECTRIC] == 0)
+                  & jnp.all(nodes[..., ELECTRIC[:, None], MECHANICAL] == 0))
+        assert bool(electric_decoupled(wall)) == bool(blocks) == (voltage == 0.0)
 
 
 def _scanned_case(case):
