@@ -111,6 +111,41 @@ def test_vmap_equals_loop_and_no_recompilation():
     assert roots_module._solve_frequencies._cache_size() == before
 
 
+@pytest.mark.parametrize("case", ["empty", "acoustic", "paper", "layered"])
+def test_frequencies_without_voltage_take_the_decoupled_propagation(case):
+    """frequencies and frequency at a concrete V̂ = 0 solve on the 4×4 mechanical propagation
+    (roots.decoupled_choice): the roots of the program that propagates the whole 6×6 state, to
+    rounding, with the paper's and the acoustic coupling and on a layered wall; the 4×4 program on
+    a wall with voltage gives NaN, not a wrong number."""
+    from jaxdea.params import canonical
+    from jaxdea.physics.problem import describe
+    from jaxdea.physics.transfer import Layers
+
+    tube, fluid = TUBE.replace(voltage=0.0), None
+    if case == "acoustic":
+        fluid = FLUID
+    elif case == "paper":
+        fluid = jd.Fluid(coupling="paper", bessel_order=1)
+    elif case == "layered":
+        tube = tube.replace(layers=(jd.Layer(0.2, jd.NeoHookean(), shear_ratio=3.0),
+                                    jd.Layer(0.6, jd.Gent(97.2), active=True),
+                                    jd.Layer(0.2, jd.NeoHookean(), shear_ratio=3.0)))
+    got = np.asarray(jd.frequencies(tube, ALPHA, fluid, n_roots=3, omega_max=20.0))
+    order = describe(tube, ALPHA, fluid, None, None).order
+    t, a, f, om = roots_module.canonical(tube, ALPHA, fluid, 20.0)
+    layers = Layers(16, "magnus6", True)
+    full, four = (roots_module._solve_frequencies(t, a, f, om, 3, layers, order, decoupled=d)
+                  for d in (False, True))
+    assert np.all(np.asarray(full.status) == Status.CONVERGED)
+    np.testing.assert_allclose(np.asarray(four.omega), np.asarray(full.omega), rtol=1e-13)
+    np.testing.assert_allclose(got, np.asarray(full.omega), rtol=1e-8)
+    one = float(jd.frequency(tube, ALPHA, got[1] * 1.01, fluid))
+    np.testing.assert_allclose(one, got[1], rtol=1e-12)
+    t, a, f, om = canonical(tube.replace(voltage=0.1), ALPHA, fluid, 20.0)
+    wrong = roots_module._solve_frequencies(t, a, f, om, 3, layers, order, decoupled=True)
+    assert np.all(np.isnan(np.asarray(wrong.omega)))
+
+
 def test_batched_failures_do_not_stop_the_batch():
     """A traced batch with a locked and a non-finite point: NaN + status there, the rest fine."""
     tubes = TUBE.replace(voltage=jnp.array([0.1, 0.1, jnp.nan]),  # λ_i = 12: I_1 − 3 ≈ 143 > G

@@ -725,13 +725,14 @@ def attach_derivatives(roots: Roots, params, n_layers, order, unknown="omega",
     return Roots(omega, roots.status)
 
 
-def _problem(tube, alpha, fluid, n_layers, order, m=0.0, family=LONGITUDINAL):
+def _problem(tube, alpha, fluid, n_layers, order, m=0.0, family=LONGITUDINAL, decoupled=False):
     """(wall, Ω ↦ (f, s)) for the Newton lanes of one case (``with_slope``): f the characteristic
     function of :func:`jaxdea.physics.characteristic.problem_function` (the adaptive exponential), s
     its forward-mode slope f', or f' + f ℓ' where the log-scale ℓ of F = f e^ℓ varies fast over the
     Newton step on f (:func:`jaxdea.numerics.scalar.newton_slope`: the step on F, continuous
     through the roots where f turns sign in a near-jump). f and f' are those of ``problem_function``
-    bit for bit (:func:`jaxdea.physics.characteristic.value_and_scale` is its arithmetic plus ℓ)."""
+    bit for bit (:func:`jaxdea.physics.characteristic.value_and_scale` is its arithmetic plus ℓ);
+    ``decoupled`` (static): on the 4×4 path of a wall without voltage (equal to rounding)."""
     wall = discretize(tube, n_layers)
     family = Family(family)
     ok = family.admissible(m, fluid)
@@ -739,7 +740,8 @@ def _problem(tube, alpha, fluid, n_layers, order, m=0.0, family=LONGITUDINAL):
 
     def value_and_newton_slope(om):
         (f, log_scale), (df, dlog_scale) = value_and_slope(
-            lambda x: characteristic.value_and_scale(family, wall, x, alpha, fluid, order, m_safe),
+            lambda x: characteristic.value_and_scale(family, wall, x, alpha, fluid, order, m_safe,
+                                                     decoupled=decoupled),
             om)
         del log_scale
         if family.carries_m:
@@ -794,17 +796,21 @@ def guard_order(tube, alpha, fluid, m, family):
 
 
 def frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, order, m=0.0,
-                          family=LONGITUDINAL) -> Roots:
-    """The ``n_roots`` lowest roots for one case (traceable; ``order`` static, ``m`` traced)."""
+                          family=LONGITUDINAL, decoupled: bool = False) -> Roots:
+    """The ``n_roots`` lowest roots for one case (traceable; ``order`` static, ``m`` traced).
+    ``decoupled`` (static, longitudinal): the scan and its Newton steps on the 4×4 mechanical
+    propagation of a wall without voltage (:func:`decoupled_choice`; NaN where the wall does not
+    decouple), the same roots to rounding."""
     ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
     wall = discretize(tube, n_layers)
-    fun = scanned_function(wall, alpha, fluid, order, m, family)
+    fun = scanned_function(wall, alpha, fluid, order, m, family, decoupled=decoupled)
     return invalid_where(ok, scan_roots(wall, fun, alpha, fluid, omega_max, n_roots, m, family,
                                         order))
 
 
 _solve_frequencies = cached_jit(frequencies_unchecked,
-                                static_argnames=("n_roots", "n_layers", "order", "family"))
+                                static_argnames=("n_roots", "n_layers", "order", "family",
+                                                 "decoupled"))
 
 
 def growth_rates_unchecked(tube, alpha, fluid, s_max, n_roots, n_layers, order, m=0.0,
@@ -910,11 +916,12 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
     if not problem.face.has_poles:
         along = along_alpha("frequencies", n_roots=n_roots, n_layers=layers, order=order,
                             family=family, decoupled=decoupled_choice(tube, family))
+    decoupled = decoupled_choice(tube, family) is True
     if short is None and n_layers is None and is_graded(layers) and _concrete(values, m):
-        layers, roots, short = _verified(layers, *values, n_roots, order, m, family)
+        layers, roots, short = _verified(layers, *values, n_roots, order, m, family, decoupled)
     else:
         roots = solve_each(_solve_frequencies, problem, values, m, along, n_roots=n_roots,
-                           n_layers=layers, order=order)
+                           n_layers=layers, order=order, decoupled=decoupled)
     return inaccurate_where(short, attach_derivatives(roots, (tube, alpha, fluid, m), layers, order,
                                                      "omega", family))
 
@@ -980,14 +987,16 @@ def secant_steps(fun: Scaled, omegas):
 
 
 def checked_frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, order, m=0.0,
-                                  family=LONGITUDINAL):
+                                  family=LONGITUDINAL, decoupled: bool = False):
     """(roots, steps): :func:`frequencies_unchecked` on ``n_layers`` (graded sixth-order Magnus)
     and :func:`newton_steps` from its roots on the :func:`companion` wall, in one program (the check
     of :func:`_verified`). The walls are discretised apart: formed together (one evaluation of the
     moduli) the program was 10 % smaller but changed the last bits of the ring and torsional roots
     (XLA fuses the shared moduli otherwise)."""
-    roots = frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, order, m, family)
-    return roots, newton_steps(tube, alpha, fluid, roots.omega, companion(n_layers), order, m, family)
+    roots = frequencies_unchecked(tube, alpha, fluid, omega_max, n_roots, n_layers, order, m, family,
+                                  decoupled)
+    return roots, newton_steps(tube, alpha, fluid, roots.omega, companion(n_layers), order, m, family,
+                               decoupled)
 
 
 def companion(layers: Layers) -> Layers:
@@ -999,7 +1008,8 @@ def companion(layers: Layers) -> Layers:
 
 
 _solve_checked_frequencies = cached_jit(checked_frequencies_unchecked,
-                                        static_argnames=("n_roots", "n_layers", "order", "family"))
+                                        static_argnames=("n_roots", "n_layers", "order", "family",
+                                                         "decoupled"))
 
 
 def _shortfall(roots: Roots, steps, layers: Layers):
@@ -1036,7 +1046,7 @@ def refined_layers(layers: Layers, ratio):
     return Layers(counted(max(need, layers.count + 1), CHECKED_COUNTS), AUTO_SCHEME, True)
 
 
-def _verified(layers, tube, alpha, fluid, omega_max, n_roots, order, m, family):
+def _verified(layers, tube, alpha, fluid, omega_max, n_roots, order, m, family, decoupled=False):
     """(layers, roots, short): the roots of the default discretisation, checked as they are solved.
 
     The rule of :func:`jaxdea.physics.transfer.required_layers` sees the wall's lengths, α̂, K and m but
@@ -1045,12 +1055,13 @@ def _verified(layers, tube, alpha, fluid, omega_max, n_roots, order, m, family):
     estimates the error of its roots (:func:`_shortfall`) and, where it exceeds DEFAULT_RTOL,
     solves again on N' ≥ N (VERIFY_MARGIN·ratio)^(1/6) (from :data:`LAYER_COUNTS`), at most
     VERIFY_ROUNDS times; roots still short are INACCURATE (``short``). Where the rule sufficed, the
-    roots are those of N."""
+    roots are those of N. ``decoupled``: the 4×4 propagation of a wall without voltage
+    (:func:`frequencies_unchecked`)."""
     order_args = family.arguments(m)
 
     def solve(layers):
         return _solve_checked_frequencies(tube, alpha, fluid, omega_max, n_roots, layers, order,
-                                          **order_args)
+                                          **order_args, decoupled=decoupled)
 
     layers, (roots, _), ratio = refined(solve, lambda found, layers: _shortfall(*found, layers),
                                         layers)
@@ -1165,12 +1176,13 @@ def _newton_from_guess(fun, guess, max_step):
     return roots[0], status[0]
 
 
-@cached_jit(static_argnames=("n_layers", "order", "family"))
-def _solve_frequency(tube, alpha, guess, fluid, n_layers, order, m=0.0, family=LONGITUDINAL):
+@cached_jit(static_argnames=("n_layers", "order", "family", "decoupled"))
+def _solve_frequency(tube, alpha, guess, fluid, n_layers, order, m=0.0, family=LONGITUDINAL,
+                     decoupled=False):
     ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
     guess = as_float(guess)
     ok &= jnp.isfinite(guess) & (guess > 0)
-    wall, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
+    wall, fun = _problem(tube, alpha, fluid, n_layers, order, m, family, decoupled)
     guess = jnp.where(ok, guess, 1.0)
     return invalid_where(ok, Roots(*_newton_from_guess(fun, guess,
                                                        4.0 * scan_step(wall, fluid, family))))
@@ -1193,7 +1205,7 @@ def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
         along = along_alpha("frequency", (1, 2), n_layers=layers, order=order, family=family,
                             decoupled=decoupled_choice(tube, family))
     roots = solve_each(_solve_frequency, problem, values, m, along, True, n_layers=layers,
-                       order=order)
+                       order=order, decoupled=decoupled_choice(tube, family) is True)
     return inaccurate_where(short, attach_derivatives(roots, (tube, alpha, fluid, m), layers, order,
                                                      "omega", family))
 
