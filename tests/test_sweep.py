@@ -49,6 +49,19 @@ def test_chunks_share_one_compilation(grid):
                                rtol=1e-13)
 
 
+def test_sweep_without_voltage_takes_the_decoupled_propagation():
+    """A longitudinal grid whose every point is without voltage (no voltage axis, V̂ = 0) solves on
+    the 4×4 mechanical propagation (its own compiled program): the roots of the same grid through a
+    voltage axis [0] (the 6×6 program) to rounding, and of jaxdea.frequencies."""
+    tube = TUBE.replace(voltage=0.0)
+    four = sweep(tube, alpha=[0.3, 1.1], eta=[0.6, 0.85], progress=False)
+    six = sweep(tube, voltage=[0.0], alpha=[0.3, 1.1], eta=[0.6, 0.85], progress=False)
+    assert np.all(four.status == jd.Status.CONVERGED)
+    np.testing.assert_allclose(four.omega, six.omega[0], rtol=1e-13)
+    np.testing.assert_allclose(four.omega[1, 0], jd.frequencies(tube.replace(eta=0.6), 1.1),
+                               rtol=1e-12)
+
+
 def test_save_and_load(grid, tmp_path):
     grid.to_npz(tmp_path / "grid.npz")
     back = SweepResult.from_npz(tmp_path / "grid.npz")

@@ -67,7 +67,7 @@ from ..physics.problem import family_of
 from ..physics.state_matrix import LONGITUDINAL
 from ..physics.transfer import AUTO_SCHEME, discretize, is_graded, laminate, split_layers, validate_scheme
 from ..physics.units import Scales, fluid_from_si, fluid_to_si
-from ..solve.roots import frequencies_unchecked, growth_rates_unchecked
+from ..solve.roots import decoupled_choice, frequencies_unchecked, growth_rates_unchecked
 
 SENSITIVITY = ("voltage", "lambda_i", "lambda_z", "density_ratio", "speed_ratio", "thickness_ratio",
                "gent")
@@ -422,14 +422,16 @@ class SweepResult:
 
 
 def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_names, m=0.0,
-           family=LONGITUDINAL, n_growth=0):
+           family=LONGITUDINAL, n_growth=0, decoupled=False):
     """Roots (and derivatives, and growth rates) at one grid point; ``values`` maps axis names to
     scalars (the circumferential order from the axis ``m`` if there is one, else ``m``; ``family``
-    static). Outputs: Ω, status, α̂, [growth rates,] [dΩ/dα̂, jacobian]."""
+    static; ``decoupled``: the roots on the 4×4 propagation of a grid without voltage,
+    :func:`jaxdea.solve.roots.frequencies_unchecked`). Outputs: Ω, status, α̂, [growth rates,]
+    [dΩ/dα̂, jacobian]."""
     point = apply_parameters(tube, alpha, fluid, values)
     nu = values["n"] if order == "n" else order
     m = values.get("m", m)
-    roots = frequencies_unchecked(*point, omega_max, n_roots, n_layers, nu, m, family)
+    roots = frequencies_unchecked(*point, omega_max, n_roots, n_layers, nu, m, family, decoupled)
     alpha_point = as_float(point[1])
     growth = ()
     if n_growth:  # the scan in Ω² = −s² (the 8×8 path at m = 0: docs/theory/order_m.md §6)
@@ -459,19 +461,21 @@ def _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_
 
 
 @cached_jit(static_argnames=("names", "n_roots", "n_layers", "order", "jac_names",
-                                             "batch_size", "family", "n_growth"))
+                                             "batch_size", "family", "n_growth", "decoupled"))
 def _sweep_chunk(columns, tube, alpha, fluid, omega_max, names, n_roots, n_layers, order, jac_names,
-                 batch_size, m=0.0, family=LONGITUDINAL, n_growth=0):
+                 batch_size, m=0.0, family=LONGITUDINAL, n_growth=0, decoupled=False):
     """One chunk of grid points (columns: one array per axis): ``lax.map`` over the points,
     ``batch_size`` of them vectorised at a time. ``family`` (static) and ``m`` (traced, the fixed
     order when there is no axis ``m``): the mode family; the longitudinal program is unchanged.
-    ``n_growth`` (static): growth rates per point (0: none)."""
+    ``n_growth`` (static): growth rates per point (0: none). ``decoupled`` (static): the roots on
+    the 4×4 propagation (a longitudinal grid whose every point is without voltage)."""
     def one(vals):
         values = dict(zip(names, vals, strict=True))
         if not (family.carries_m or n_growth):  # the longitudinal program as before order m existed
-            return _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_names)
+            return _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_names,
+                          decoupled=decoupled)
         return _point(values, tube, alpha, fluid, omega_max, n_roots, n_layers, order, jac_names,
-                      m, family, n_growth)
+                      m, family, n_growth, decoupled)
 
     return jax.lax.map(one, columns, batch_size=batch_size if batch_size > 1 else None)
 
@@ -782,6 +786,8 @@ def sweep(tube: Tube, fluid: Fluid | None = None, *, n_roots: int = 3, omega_max
                   jac_names=jac_names, batch_size=min(int(batch_size), size))
     if family.carries_m or n_growth:  # the longitudinal program is called as before order m
         static.update(m=float(0 if m_axis is not None else m), family=family, n_growth=int(n_growth))
+    if "voltage" not in names and decoupled_choice(tube, family) is True:
+        static.update(decoupled=True)  # no point has voltage: the 4×4 propagation (2× faster)
     starts = range(0, total, size)
 
     def chunk(start):  # every chunk has ``size`` points, the last one padded with its last point
