@@ -50,7 +50,7 @@ from ..numerics.scalar import Status
 from ..params import Fluid, Tube, canonical, validate_layers, validate_roots, with_outer
 from ..physics.problem import describe
 from ..physics.transfer import Layers, is_graded, laminate, scheme_order, split_layers
-from .roots import follow_roots, solve_frequencies
+from .roots import decoupled_choice, follow_roots, solve_frequencies
 
 
 @serializable
@@ -128,13 +128,14 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
     first = solve_frequencies(tube, alpha, fluid, n_roots, omega_max, base, None, m, torsional)
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
     order_args = problem.arguments(m)
+    decoupled = decoupled_choice(tube, problem.family) is True  # V̂ = 0: the 4×4 propagation
     levels = [np.asarray(first.omega)]
     status = np.asarray(first.status).copy()
     layers = [count]
     while True:
         n = 2 * layers[-1]
         omega, stat = (np.asarray(x) for x in follow_roots(tube, alpha, fluid, levels[-1], level(n),
-                                                      order, **order_args))
+                                                      order, **order_args, decoupled=decoupled))
         status = np.where(status == Status.CONVERGED, stat, status)
         levels.append(omega)
         layers.append(n)

@@ -1097,13 +1097,15 @@ def decoupled_choice(tube, family):
     return False if isinstance(voltage, jax.core.Tracer) else bool(np.all(np.asarray(voltage) == 0))
 
 
-@cached_jit(static_argnames=("n_layers", "order", "family"))
-def follow_roots(tube, alpha, fluid, guesses, n_layers, order, m=0.0, family=LONGITUDINAL):
+@cached_jit(static_argnames=("n_layers", "order", "family", "decoupled"))
+def follow_roots(tube, alpha, fluid, guesses, n_layers, order, m=0.0, family=LONGITUDINAL,
+                 decoupled=False):
     """Safeguarded Newton from each guess on the laminate of ``n_layers`` sublayers (one lane
     per root, steps capped at a quarter of the scan step, as in :func:`jaxdea.solve_frequency`).
-    ``family`` (static) and ``m`` (traced): the mode family, as in :func:`jaxdea.frequencies`."""
+    ``family`` (static) and ``m`` (traced): the mode family, as in :func:`jaxdea.frequencies`;
+    ``decoupled`` (static): on the 4×4 propagation of a wall without voltage (:func:`_problem`)."""
     ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
-    wall, fun = _problem(tube, alpha, fluid, n_layers, order, m, family)
+    wall, fun = _problem(tube, alpha, fluid, n_layers, order, m, family, decoupled)
     finite = jnp.isfinite(guesses) & ok
     start = jnp.where(finite, guesses, 1.0)
     nan = jnp.full_like(start, jnp.nan)
