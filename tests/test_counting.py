@@ -161,6 +161,32 @@ def test_empty_interval_and_interval_ends():
         assert tuple(map(int, count_roots(tube, 0.445, lo, hi))) == (-1, CountStatus.ZERO_ON_CONTOUR)
 
 
+@pytest.mark.parametrize("case", ["empty", "acoustic", "layered"])
+def test_count_without_voltage_is_that_of_the_mechanical_block(case):
+    """count_roots at a concrete V̂ = 0 counts the zeros of the mechanical block alone
+    (characteristic.winding_value): the count, status and number of evaluations of the full 6×6
+    determinant (decoupled=False), and the number of roots frequencies finds in the interval."""
+    tube, fluid = jd.Tube(voltage=0.0, lambda_i=0.9, lambda_z=1.2, eta=0.85), None
+    if case == "acoustic":
+        fluid = jd.Fluid()
+    elif case == "layered":
+        tube = tube.replace(layers=(jd.Layer(0.2, jd.NeoHookean(), shear_ratio=3.0),
+                                    jd.Layer(0.6, jd.Gent(97.2), active=True),
+                                    jd.Layer(0.2, jd.NeoHookean(), shear_ratio=3.0)))
+    got = count_roots(tube, 0.445, 0.1, 3.0, fluid, n_layers=16, scheme="magnus6")
+    from jaxdea.physics.transfer import Layers
+
+    args = (*canonical(tube, 0.445, 0.1, 3.0, fluid, 1.0), jnp.asarray(65536))
+    full, four = (_count_roots(*args, n_layers=Layers(16, "magnus6"), order=0, symmetric=True,
+                               default=True, decoupled=d) for d in (False, True))
+    assert int(got.status) == CountStatus.CERTIFIED
+    assert tuple(map(int, four)) == tuple(map(int, full))
+    assert (int(got.count), int(got.status)) == tuple(map(int, full[:2]))
+    roots = np.asarray(jd.frequencies(tube, 0.445, fluid, n_roots=12, omega_max=3.0,
+                                      n_layers=16, scheme="magnus6"))
+    assert int(got.count) == int(np.sum((roots > 0.1) & (roots < 3.0))) > 0
+
+
 def test_failures_are_reported():
     """Non-finite values (the Bessel integrals beyond their range, x = Ω r̂_i/ĉ_f > 470), a spent
     budget, and inputs out of range met under jit give count −1 and their status."""

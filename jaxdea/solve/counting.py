@@ -86,7 +86,7 @@ from ..physics import characteristic
 from ..physics.problem import describe
 from ..physics.state_matrix import LONGITUDINAL
 from ..physics.transfer import discretize, laminate
-from .roots import guard_order, scan_step
+from .roots import decoupled_choice, guard_order, scan_step
 
 LANES = 64  # midpoints evaluated per iteration (one vmapped call)
 STACK = 4096  # pending segments held at most
@@ -267,13 +267,16 @@ def default_height(wall, fluid, lo, hi, family=LONGITUDINAL):
 
 def count_roots_unchecked(tube, alpha, omega_lo, omega_hi, fluid, n_layers: int, order: int,
                           height=None, max_evaluations=65536, symmetric: bool = True, m=0.0,
-                          family=LONGITUDINAL):
+                          family=LONGITUDINAL, decoupled: bool = False):
     """(count, status, evaluations) for one case (traceable; see :func:`count_roots`).
 
     ``family`` (static) and ``m`` (traced, ``"order_m"``): the mode family (docs/theory/order_m.md); off the
     axisymmetric family F(Ω) = f(w = Ω²) of the 8×8 system, entire and even in Ω as well.
     Inputs outside their range (an inadmissible m included) give count −1 with status INVALID (no
-    exception).
+    exception). ``decoupled`` (static): a longitudinal wall without voltage, whose zeros are those
+    of its mechanical block (:func:`jaxdea.physics.characteristic.winding_value`: the electric factor
+    turns the phase by a constant), counted on the 4×4 propagation alone (NaN, so no count, where
+    the wall does not decouple).
     """
     lo, hi = as_float(omega_lo), as_float(omega_hi)
     ok, tube, alpha, fluid = guard_order(tube, alpha, fluid, m, family)
@@ -286,8 +289,8 @@ def count_roots_unchecked(tube, alpha, omega_lo, omega_hi, fluid, n_layers: int,
     delta = jnp.where(ok, delta, 1.0)
 
     def phasor(z):
-        f = jax.vmap(lambda om: characteristic.value(family, wall, om, alpha, fluid, order,
-                                                     m_safe))(z)
+        f = jax.vmap(lambda om: characteristic.winding_value(family, wall, om, alpha, fluid, order,
+                                                             m_safe, decoupled=decoupled))(z)
         size = jnp.abs(f)
         finite = jnp.isfinite(size)
         return jnp.where(size > 0, f / jnp.where(size > 0, size, 1.0), 0.0), finite
@@ -297,11 +300,12 @@ def count_roots_unchecked(tube, alpha, omega_lo, omega_hi, fluid, n_layers: int,
             jnp.where(ok, status, CountStatus.INVALID).astype(jnp.int32), evals)
 
 
-@cached_jit(static_argnames=("n_layers", "order", "symmetric", "default", "family"))
+@cached_jit(static_argnames=("n_layers", "order", "symmetric", "default", "family", "decoupled"))
 def _count_roots(tube, alpha, omega_lo, omega_hi, fluid, height, max_evaluations, n_layers, order,
-                 symmetric, default, m=0.0, family=LONGITUDINAL):
+                 symmetric, default, m=0.0, family=LONGITUDINAL, decoupled=False):
     return count_roots_unchecked(tube, alpha, omega_lo, omega_hi, fluid, n_layers, order,
-                                 None if default else height, max_evaluations, symmetric, m, family)
+                                 None if default else height, max_evaluations, symmetric, m, family,
+                                 decoupled)
 
 
 def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = None,
@@ -366,5 +370,6 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
     height = as_float(1.0 if default else height)
     args = (tube, alpha, omega_lo, omega_hi, fluid, height, jnp.asarray(max_evaluations),
             laminate(n_layers, scheme, tube, alpha, m=m), problem.order, bool(symmetric), default)
-    count, status, _ = _count_roots(*args, **problem.arguments(m))
+    count, status, _ = _count_roots(*args, **problem.arguments(m),
+                                    decoupled=decoupled_choice(tube, problem.family) is True)
     return RootCount(count, status)
