@@ -50,7 +50,7 @@ from ..numerics.scalar import Status
 from ..params import Fluid, Tube, canonical, validate_layers, validate_roots, with_outer
 from ..physics.problem import describe
 from ..physics.transfer import Layers, is_graded, laminate, scheme_order, split_layers
-from .roots import decoupled_choice, follow_roots, solve_frequencies
+from .roots import follow_roots, solve_frequencies, without_voltage
 
 
 @serializable
@@ -128,7 +128,7 @@ def frequencies_with_error(tube: Tube, alpha, fluid: Fluid | None = None, n_root
     first = solve_frequencies(tube, alpha, fluid, n_roots, omega_max, base, None, m, torsional)
     tube, alpha, fluid, m = canonical(tube, alpha, fluid, m)
     order_args = problem.arguments(m)
-    decoupled = decoupled_choice(tube, problem.family) is True  # V̂ = 0: the 4×4 propagation
+    decoupled = without_voltage(tube, problem.family)  # V̂ = 0: the 4×4 propagation
     levels = [np.asarray(first.omega)]
     status = np.asarray(first.status).copy()
     layers = [count]

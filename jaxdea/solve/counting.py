@@ -86,7 +86,7 @@ from ..physics import characteristic
 from ..physics.problem import describe
 from ..physics.state_matrix import LONGITUDINAL
 from ..physics.transfer import discretize, laminate
-from .roots import decoupled_choice, guard_order, scan_step
+from .roots import guard_order, scan_step, without_voltage
 
 LANES = 64  # midpoints evaluated per iteration (one vmapped call)
 STACK = 4096  # pending segments held at most
@@ -371,5 +371,5 @@ def count_roots(tube: Tube, alpha, omega_lo, omega_hi, fluid: Fluid | None = Non
     args = (tube, alpha, omega_lo, omega_hi, fluid, height, jnp.asarray(max_evaluations),
             laminate(n_layers, scheme, tube, alpha, m=m), problem.order, bool(symmetric), default)
     count, status, _ = _count_roots(*args, **problem.arguments(m),
-                                    decoupled=decoupled_choice(tube, problem.family) is True)
+                                    decoupled=without_voltage(tube, problem.family))
     return RootCount(count, status)

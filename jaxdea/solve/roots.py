@@ -916,7 +916,7 @@ def solve_frequencies(tube: Tube, alpha, fluid: Fluid | None = None, n_roots: in
     if not problem.face.has_poles:
         along = along_alpha("frequencies", n_roots=n_roots, n_layers=layers, order=order,
                             family=family, decoupled=decoupled_choice(tube, family))
-    decoupled = decoupled_choice(tube, family) is True
+    decoupled = without_voltage(tube, family)
     if short is None and n_layers is None and is_graded(layers) and _concrete(values, m):
         layers, roots, short = _verified(layers, *values, n_roots, order, m, family, decoupled)
     else:
@@ -1097,6 +1097,13 @@ def decoupled_choice(tube, family):
     return False if isinstance(voltage, jax.core.Tracer) else bool(np.all(np.asarray(voltage) == 0))
 
 
+def without_voltage(tube, family) -> bool:
+    """The static ``decoupled`` flag of the single-point solvers (:func:`frequencies_unchecked`,
+    :func:`follow_roots`, the sweeps' and the counter's programs): True for a concrete V̂ = 0 of the
+    axisymmetric family (:func:`decoupled_choice`), whose roots they solve on the 4×4 propagation."""
+    return decoupled_choice(tube, family) is True
+
+
 @cached_jit(static_argnames=("n_layers", "order", "family", "decoupled"))
 def follow_roots(tube, alpha, fluid, guesses, n_layers, order, m=0.0, family=LONGITUDINAL,
                  decoupled=False):
@@ -1207,7 +1214,7 @@ def solve_frequency(tube: Tube, alpha, guess, fluid: Fluid | None = None,
         along = along_alpha("frequency", (1, 2), n_layers=layers, order=order, family=family,
                             decoupled=decoupled_choice(tube, family))
     roots = solve_each(_solve_frequency, problem, values, m, along, True, n_layers=layers,
-                       order=order, decoupled=decoupled_choice(tube, family) is True)
+                       order=order, decoupled=without_voltage(tube, family))
     return inaccurate_where(short, attach_derivatives(roots, (tube, alpha, fluid, m), layers, order,
                                                      "omega", family))
 
