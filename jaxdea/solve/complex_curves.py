@@ -135,7 +135,7 @@ def _log_slopes(pieces_of, x, p):
     return slopes[0], slopes[1]
 
 
-def _corrector(pieces_of, x0, p, contraction=jnp.inf):
+def _corrector(pieces_of, x0, p, contraction=jnp.inf, off_root=False):
     """(x, dx/dp, converged, contraction): Newton on F(x; p) from x0, x ← x − 1/(∂ ln F/∂x), and
     the tangent dx/dp = −(∂ ln F/∂p)/(∂ ln F/∂x) from the same evaluation as the last step (taken
     within that step of the root: the next predictor's, at no further evaluation).
@@ -143,37 +143,40 @@ def _corrector(pieces_of, x0, p, contraction=jnp.inf):
     Converged where a step δ is ≤ STEP_RTOL|x|, or where the error it leaves, K δ² by Newton's
     quadratic convergence, is ≤ EARLY_SHARE · STEP_RTOL|x| for the branch's ``contraction`` K
     (|δ_k|/|δ_{k−1}|² of its last two successive steps, measured anew whenever a corrector takes
-    two; ∞ until then): one evaluation instead of two when the predictor was close."""
+    two; ∞ until then): one evaluation instead of two when the predictor was close.
+
+    ``off_root`` (traced bool): where the converged step's tangent is not finite (F rounds to 0
+    exactly at the root, so both log-derivatives are infinite), one more evaluation, OFFSET off the
+    root, gives it (module docstring), x unchanged: the first point's polish, whose tangent has no
+    secant to stand in for it."""
     def step(state):
-        k, x, _, _, _, last, contraction = state
-        slope_x, slope_p = _log_slopes(pieces_of, x, p)
+        k, x, _, _, small, last, contraction, _ = state
+        offset = small  # converged already: this evaluation is the tangent's, off the root
+        at = jnp.where(offset, x + OFFSET * jnp.maximum(1.0, jnp.abs(x)), x)
+        slope_x, slope_p = _log_slopes(pieces_of, at, p)
         dx = 1.0 / slope_x
         finite = jnp.isfinite(jnp.abs(dx))
-        x_new = jnp.where(finite, x - dx, x)
+        x_new = jnp.where(finite & ~offset, x - dx, x)
         size = jnp.abs(dx)
-        measured = (k > 0) & (last > NOISE * jnp.abs(x_new))
+        measured = (k > 0) & (last > NOISE * jnp.abs(x_new)) & ~offset
         contraction = jnp.where(measured & finite, size / jnp.where(measured, last, 1.0) ** 2,
                                 contraction)
-        small = (size <= STEP_RTOL * jnp.abs(x_new)) | (
+        small = offset | (size <= STEP_RTOL * jnp.abs(x_new)) | (
             contraction * size * size <= EARLY_SHARE * STEP_RTOL * jnp.abs(x_new))
-        return (k + 1, x_new, -slope_p / slope_x, finite, finite & small, size, contraction)
+        return (k + 1, x_new, -slope_p / slope_x, finite | offset, small,
+                jnp.where(offset, last, size), contraction, offset)
 
     def going(state):
-        k, _, _, finite, small, _, _ = state
-        return (k < CORRECTOR_STEPS) & finite & ~small
+        k, _, tangent, finite, small, _, _, tried = state
+        retangent = small & off_root & ~jnp.isfinite(jnp.abs(tangent)) & ~tried
+        return ((k < CORRECTOR_STEPS) & finite & ~small) | retangent
 
     nan = jnp.full_like(x0, jnp.nan)
     zero = jnp.zeros(jnp.shape(x0), jnp.float64)
-    _, x, tangent, _, small, _, contraction = jax.lax.while_loop(
+    _, x, tangent, _, small, _, contraction, _ = jax.lax.while_loop(
         going, step, (0, x0, nan, jnp.asarray(True), jnp.asarray(False), zero,
-                      jnp.asarray(contraction, jnp.float64)))
+                      jnp.asarray(contraction, jnp.float64), jnp.asarray(False)))
     return x, tangent, small & jnp.isfinite(jnp.abs(x)), contraction
-
-
-def _tangent_off_the_root(pieces_of, x, p):
-    """dx/dp at a root x of F(·; p), the log-derivatives taken OFFSET off it (module docstring)."""
-    slope_x, slope_p = _log_slopes(pieces_of, x + OFFSET * jnp.maximum(1.0, jnp.abs(x)), p)
-    return -slope_p / slope_x
 
 
 def _continue(pieces_of, grid, start):
@@ -186,10 +189,14 @@ def _continue(pieces_of, grid, start):
     (two evaluations gave dα̂/dΩ = −0.57 + 0.19i against 0.60 − 0.02i). They come from the
     corrector's last Newton step (:func:`_corrector`); where that ratio is not finite (F exactly 0
     there) the secant through the last two accepted points stands in, and at the first point the
-    ratio taken OFFSET off the root (one evaluation per branch, formed whether needed or not:
-    the branches run as one batch)."""
+    ratio taken OFFSET off the root.
+
+    The first point's polish is the scan's first sub-step (from grid[0] to itself: no move), so
+    the program holds one copy of the corrector's evaluation: a second and a third (the polish
+    and the tangent off the root, each its own loop) took 1.8 s of the curve's first call
+    (benchmarks/first_calls.py)."""
     def advance(carry, p_next):
-        x, tangent, p, back, contraction, alive = carry
+        x, tangent, p, back, contraction, alive, first = carry
 
         def cond(state):
             t = state[0]
@@ -210,18 +217,23 @@ def _continue(pieces_of, grid, start):
             move = slope * step + 0.5 * curvature * step * step
             predicted = x + move
             corrected, new_tangent, converged, measured = _corrector(pieces_of, predicted, there,
-                                                                     contraction)
-            allowance = 1e-9 * jnp.maximum(1.0, jnp.abs(x))
+                                                                     contraction, first)
+            # the first point: the search's root, polished on this wall, moves by ≤ FIRST_RTOL
+            allowance = jnp.where(first, FIRST_RTOL, 1e-9) * jnp.maximum(1.0, jnp.abs(x))
             good = (converged & jnp.isfinite(jnp.abs(move))
                     & (jnp.abs(corrected - predicted) <= JUMP * jnp.abs(move) + allowance))
-            back = jax.tree_util.tree_map(lambda new, old: jnp.where(good, new, old),
-                                          (x, jnp.asarray(here, back[1].dtype), tangent), back)
+            # after the first point no secant is needed before a corrector ran, nor a curvature
+            newest = jax.tree_util.tree_map(
+                lambda later, at_first: jnp.where(first, at_first, later),
+                (x, jnp.asarray(here, back[1].dtype), tangent), (corrected, back[1], back[2]))
+            back = jax.tree_util.tree_map(lambda new, old: jnp.where(good, new, old), newest, back)
             t = jnp.where(good, jnp.where(h >= 1.0 - t, 1.0, t + h), t)
             x = jnp.where(good, corrected, x)
             tangent = jnp.where(good, new_tangent, tangent)
             contraction = jnp.where(converged, measured, contraction)
             h = jnp.where(good, 2.0 * h, 0.5 * h)
-            halvings = jnp.where(good, 0, halvings + 1)
+            # a first point refused is refused again: the branch ends at once
+            halvings = jnp.where(good, 0, jnp.where(first, MAX_HALVINGS + 1, halvings + 1))
             return t, h, x, tangent, back, contraction, halvings
 
         start = (jnp.where(alive, 0.0, 1.0), jnp.asarray(1.0), x, tangent, back, contraction,
@@ -229,21 +241,14 @@ def _continue(pieces_of, grid, start):
         t, _, x_end, tangent, back, contraction, _ = jax.lax.while_loop(cond, body, start)
         alive = alive & (t >= 1.0)
         x_end = jnp.where(alive, x_end, jnp.nan)
-        return (x_end, tangent, p_next, back, contraction, alive), (x_end, alive)
+        return (x_end, tangent, p_next, back, contraction, alive, jnp.asarray(False)), (x_end, alive)
 
-    # the first point's root comes from a search on its own wall: polished on this one
-    x0, tangent, converged, contraction = _corrector(pieces_of, start, grid[0])
-    alive = converged & (jnp.abs(x0 - start) <= FIRST_RTOL * jnp.maximum(1.0, jnp.abs(start)))
-    x0 = jnp.where(alive, x0, jnp.nan)
-    tangent = jnp.where(jnp.isfinite(jnp.abs(tangent)), tangent,
-                        _tangent_off_the_root(pieces_of, x0, grid[0]))
-    # a secant is never needed before a corrector ran; no curvature at the first step
-    back = (x0, grid[0] - (grid[1] - grid[0]), jnp.full_like(x0, jnp.nan))
-    _, (xs, ok) = jax.lax.scan(advance, (x0, tangent, grid[0], back, contraction, alive),
-                               grid[1:])
-    xs = jnp.concatenate([x0[None], xs])
-    ok = jnp.concatenate([alive[None], ok])
-    status = jnp.where(ok, Status.CONVERGED, jnp.where(alive, Status.MAX_ITER, Status.NO_ROOT))
+    nan = jnp.full_like(start, jnp.nan)
+    back = (start, grid[0] - (grid[1] - grid[0]), nan)  # the first sub-step: no move
+    carry = (start, nan, grid[0], back, jnp.asarray(jnp.inf, jnp.float64), jnp.asarray(True),
+             jnp.asarray(True))
+    _, (xs, ok) = jax.lax.scan(advance, carry, grid)
+    status = jnp.where(ok, Status.CONVERGED, jnp.where(ok[0], Status.MAX_ITER, Status.NO_ROOT))
     return xs, status.astype(jnp.int32)
 
 
