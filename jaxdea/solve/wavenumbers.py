@@ -143,21 +143,26 @@ def _count(problem, wall, fixed, fluid, m, vertices, size, unknown=Unknown.ALPHA
 def complex_newton(problem, wall, fixed, fluid, m, x0, unknown=Unknown.ALPHA):
     """(x, converged): Newton on F from x0 in the complex plane, x ← x − 1/(d ln F/dx) with the
     analytic log-derivative of :func:`jaxdea.physics.characteristic.value_and_log_slope`, until the
-    step is below ROOT_RTOL of x (at most NEWTON_STEPS); converged also needs |f| < 1e-8 there."""
+    step is below ROOT_RTOL of x (at most NEWTON_STEPS); converged also needs |f| < 1e-8 there,
+    from the loop's last pass (:func:`_newton_step`: one compiled evaluation for both)."""
     def step(state):
-        k, x, done = state
-        x, done, _ = _newton_step(problem, wall, fixed, fluid, m, unknown, x, done)
-        return k + 1, x, done
+        k, x, done, _, _ = state
+        going = (k < NEWTON_STEPS) & ~done
+        x_new, done_new, _, at_root = _newton_step(problem, wall, fixed, fluid, m, unknown, x, done)
+        return (k + going, jnp.where(going, x_new, x), jnp.where(going, done_new, done), at_root,
+                ~going)
 
-    _, x, done = jax.lax.while_loop(lambda state: (state[0] < NEWTON_STEPS) & ~state[2], step,
-                                    (0, x0, jnp.asarray(False)))
-    return x, _converged_at(problem, wall, fixed, fluid, m, unknown, x, done)
+    _, x, _, converged, _ = jax.lax.while_loop(
+        lambda state: ~state[-1], step,
+        (0, x0, jnp.asarray(False), jnp.asarray(False), jnp.asarray(False)))
+    return x, converged
 
 
 def _newton_step(problem, wall, fixed, fluid, m, unknown, x, done):
-    """(x', done', settled): one step of :func:`complex_newton` where not ``done``. A start is done
-    after a step that is not finite or below ROOT_RTOL of x', settled where that small step was
-    taken at |f| < 1e-8."""
+    """(x', done', settled, at_root): one step of :func:`complex_newton` where not ``done``. A
+    start is done after a step that is not finite or below ROOT_RTOL of x', settled where that
+    small step was taken at |f| < 1e-8; ``at_root``: done, finite and |f| < 1e-8 at x itself (a
+    Newton loop's last pass, which takes no step: whether it stopped at a root)."""
     f, log_slope = characteristic.value_and_log_slope(problem.family, wall, x, fixed, fluid,
                                                       problem.order, m, unknown,
                                                       decoupled=problem.decoupled)
@@ -165,14 +170,8 @@ def _newton_step(problem, wall, fixed, fluid, m, unknown, x, done):
     ok = jnp.isfinite(dx)
     x_new = jnp.where(ok, x - dx, x)
     small = ~done & ok & (jnp.abs(dx) <= ROOT_RTOL * jnp.abs(x_new))
-    return x_new, done | ~ok | small, small & (jnp.abs(f) < 1e-8)
-
-
-def _converged_at(problem, wall, fixed, fluid, m, unknown, x, done):
-    """Whether Newton stopped at a root: done, finite and |f| < 1e-8 at x."""
-    f = characteristic.value(problem.family, wall, x, fixed, fluid, problem.order, m, unknown,
-                             decoupled=problem.decoupled)
-    return done & jnp.isfinite(jnp.abs(x)) & (jnp.abs(f) < 1e-8)
+    below = jnp.abs(f) < 1e-8
+    return x_new, done | ~ok | small, small & below, done & jnp.isfinite(jnp.abs(x)) & below
 
 
 KNOWN = 16
@@ -199,21 +198,23 @@ def _newton(problem, wall, fixed, fluid, m, starts, region, known, need, unknown
     once ``need`` distinct roots inside ``region`` (lo, hi, corner), other than ``known``, have
     settled (:func:`_newton_step`), instead of when its slowest start does: the other starts'
     roots are not needed (the grids of ``wavenumbers`` at Ω = 0.5 of a hysteretic tube: their
-    slowest starts took 11–19 steps, most of the others 6–10)."""
+    slowest starts took 11–19 steps, most of the others 6–10).
+
+    The loop's last pass evaluates f at the final x without a step: converged where done, finite
+    and |f| < 1e-8 there (:func:`_newton_step`), from the same compiled evaluation as the steps
+    (a second one, of f alone after the loop, took 0.6–0.8 s of the program's first compile)."""
     def step(state):
-        k, x, done, good = state
-        x, done, settled = jax.vmap(lambda x, done: _newton_step(
+        k, x, done, good, _, _ = state
+        going = (k < NEWTON_STEPS) & jnp.any(~done) & (_new_roots(x, good, region, known) < need)
+        x_new, done_new, settled, at_root = jax.vmap(lambda x, done: _newton_step(
             problem, wall, fixed, fluid, m, unknown, x, done))(x, done)
-        return k + 1, x, done, good | settled
+        return (k + going, jnp.where(going, x_new, x), jnp.where(going, done_new, done),
+                good | (going & settled), at_root, ~going)
 
-    def cond(state):
-        k, x, done, good = state
-        return (k < NEWTON_STEPS) & jnp.any(~done) & (_new_roots(x, good, region, known) < need)
-
-    _, x, done, _ = jax.lax.while_loop(cond, step, (0, starts, jnp.zeros(starts.shape, bool),
-                                                    jnp.zeros(starts.shape, bool)))
-    return x, jax.vmap(lambda x, done: _converged_at(problem, wall, fixed, fluid, m, unknown, x,
-                                                      done))(x, done)
+    none = jnp.zeros(starts.shape, bool)
+    _, x, _, _, converged, _ = jax.lax.while_loop(
+        lambda state: ~state[-1], step, (0, starts, none, none, none, jnp.asarray(False)))
+    return x, converged
 
 
 def _converged(problem, wall, fixed, fluid, m, starts, pad, unknown, region, known, need):
