@@ -191,10 +191,11 @@ def _continue(pieces_of, grid, start):
     there) the secant through the last two accepted points stands in, and at the first point the
     ratio taken OFFSET off the root.
 
-    The first point's polish is the scan's first sub-step (from grid[0] to itself: no move), so
-    the program holds one copy of the corrector's evaluation: a second and a third (the polish
-    and the tangent off the root, each its own loop) took 1.8 s of the curve's first call
-    (benchmarks/first_calls.py)."""
+    The first point's polish is the scan's first sub-step (from grid[0] to itself: no move), and
+    its tangent off the root one more pass of the same corrector loop, so the program holds one
+    copy of the evaluation: with a corrector loop and a log-slope evaluation of their own for
+    these two, the curves' first calls took 3.6 and 2.4 s longer (caches off,
+    benchmarks/first_calls.py)."""
     def advance(carry, p_next):
         x, tangent, p, back, contraction, alive, first = carry
 

@@ -202,7 +202,7 @@ def _newton(problem, wall, fixed, fluid, m, starts, region, known, need, unknown
 
     The loop's last pass evaluates f at the final x without a step: converged where done, finite
     and |f| < 1e-8 there (:func:`_newton_step`), from the same compiled evaluation as the steps
-    (a second one, of f alone after the loop, took 0.6–0.8 s of the program's first compile)."""
+    (a second one, of f alone after the loop, took 0.4–0.7 s of the program's first compile)."""
     def step(state):
         k, x, done, good, _, _ = state
         going = (k < NEWTON_STEPS) & jnp.any(~done) & (_new_roots(x, good, region, known) < need)
