@@ -245,3 +245,40 @@ def test_public_program_within_its_size_budget(name):
     size = _equations(jax.make_jaxpr(call)(x).jaxpr)
     assert size <= budget, f"{name}: {size} equations, budget {budget}"
     assert size > budget / 1.1 * 0.5, f"{name}: {size} equations: lower the budget ({budget})"
+
+
+COMPLEX_BUDGETS = {  # the complex searches' and curves' programs: equations allowed = 1.1 × today's
+    "continuation": 3571,  # 3246 today; 9348 with the first point's polish and tangent apart
+    "newton": 2844,  # 2585 today; 3922 with the convergence test's evaluation after the loop
+}
+
+
+@pytest.mark.parametrize("name", list(COMPLEX_BUDGETS))
+def test_complex_program_within_its_size_budget(name):
+    """The complex programs behind `complex_dispersion_curve`/`wavenumber_curve` (the continuation,
+    `complex_curves._curves`) and `complex_frequencies`/`wavenumbers` (the Newton batch,
+    `wavenumbers._newton`), traced on a concrete wall with the starts as the traced leaf: each holds
+    one copy of the complex evaluation, and a second one (a polish, a tangent or a test outside the
+    loop) fails the budget."""
+    from jaxdea.physics.characteristic import Unknown
+    from jaxdea.physics.transfer import Layers, discretized
+    from jaxdea.solve import complex_curves, wavenumbers
+
+    tube = jd.Tube(voltage=0.0, lambda_i=1.0, lambda_z=1.0, eta=0.85, damping=jd.KelvinVoigt(0.05))
+    problem = describe(tube, 0.15, None, None, None, 0, False, damped=True)
+    wall = discretized(tube, n_layers=Layers(6, "magnus6", True))
+    starts = jnp.asarray([1.0 + 0.05j, 2.0 + 0.1j, 3.0 + 0.2j, 4.0 + 0.3j])
+    m = jnp.asarray(0.0)
+    if name == "continuation":
+        grid = jnp.linspace(0.15, 3.0, 200)
+        call = lambda s: complex_curves._curves(problem, wall, None, m, grid, s,  # noqa: E731
+                                                Unknown.OMEGA)
+    else:
+        region = (jnp.asarray(0j), jnp.asarray(10.0 + 10.0j), jnp.asarray(np.inf))
+        known = jnp.full(wavenumbers.KNOWN, np.nan + 0j)
+        call = lambda s: wavenumbers._newton(problem, wall, jnp.asarray(ALPHA), None, m, s,  # noqa: E731
+                                             region, known, jnp.asarray(4, jnp.int32), Unknown.OMEGA)
+    budget = COMPLEX_BUDGETS[name]
+    size = _equations(jax.make_jaxpr(call)(starts).jaxpr)
+    assert size <= budget, f"{name}: {size} equations, budget {budget}"
+    assert size > budget / 1.1 * 0.5, f"{name}: {size} equations: lower the budget ({budget})"
