@@ -163,3 +163,44 @@ def test_continued_curves_are_the_searched_roots_on_random_damped_tubes():
             assert int(found.certificate) == jd.SearchStatus.CERTIFIED
             for z in np.asarray(curve.omega[k]):
                 assert np.min(np.abs(np.asarray(found.omega) - z)) < 1e-8 * abs(z), (m, law, k, z)
+
+
+
+START = 0.75 + 1e-12  # a start 1e-12 from the root x = p = 0.75 of F(x; p) = x − p
+
+
+@jax.custom_jvp
+def _poisoned_p(x, p):
+    """p, whose derivative along p is NaN at x = START alone (as where F rounds to 0 there)."""
+    return p
+
+
+@_poisoned_p.defjvp
+def _poisoned_p_jvp(primals, tangents):
+    x, p = primals
+    return p, jnp.where((x == START) & (tangents[1] != 0), jnp.nan, tangents[1])
+
+
+def _pieces_of_a_line(point):
+    """The contract's pieces of F(x; p) = x − p (a 2×1 basis, one identity exponential, the outer
+    row (F, 0)); its p-derivative is NaN at x = START."""
+    x, p = point[0], point[1]
+    basis = jnp.asarray([[1.0], [0.0]], point.dtype)
+    return basis, jnp.eye(2, dtype=point.dtype)[None], jnp.stack([x - _poisoned_p(x, p),
+                                                                   0.0 * x])[None, :]
+
+
+def test_first_point_tangent_is_taken_off_the_root_where_it_is_not_finite():
+    """A corrector that converges in one step from START, whose tangent dx/dp is not finite there,
+    returns a NaN tangent; the first point's polish (``off_root``) takes it by one more evaluation
+    OFFSET off the root, x unchanged: dx/dp = 1 for F = x − p."""
+    from jaxdea.solve import complex_curves
+
+    start = jnp.asarray(START + 0.0j)
+    x, tangent, converged, _ = complex_curves._corrector(_pieces_of_a_line, start, 0.75,
+                                                         off_root=jnp.asarray(True))
+    assert bool(converged) and abs(complex(x) - 0.75) < 1e-15
+    assert abs(complex(tangent) - 1.0) < 1e-9
+    x_plain, tangent, converged, _ = complex_curves._corrector(_pieces_of_a_line, start, 0.75)
+    assert bool(converged) and complex(x_plain) == complex(x)
+    assert not np.isfinite(complex(tangent))
